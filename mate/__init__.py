@@ -1,0 +1,32 @@
+"""mate: a fast, batch-native reimplementation of MATE, the Multi-Agent Tracking Environment.
+
+    import mate
+    env = mate.make('MultiAgentTracking-v0')           # MATE-4v8-9 by default
+    (camera_obs, target_obs), infos = env.reset(seed=0)
+    (camera_obs, target_obs), rewards, terminated, truncated, infos = env.step(env.action_space.sample())
+"""
+
+from . import constants, spaces
+from .config import ConfigError, list_presets, read_config
+from .constants import *  # noqa: F401,F403  (the original re-exports its constants at package level)
+from .core.snapshot import SnapshotError
+from .env import MultiAgentTracking
+from .messages import Message, MessageChannel, Team
+from .registration import WrapperSpec, make, make_environment, registered_ids
+from .spaces import (
+                     camera_coordinate_mask_of,
+                     camera_observation_indices_of,
+                     camera_observation_slices_of,
+                     camera_observation_space_of,
+                     coordinate_mask_of,
+                     observation_indices_of,
+                     observation_slices_of,
+                     observation_space_of,
+                     state_space_of,
+                     target_coordinate_mask_of,
+                     target_observation_indices_of,
+                     target_observation_slices_of,
+                     target_observation_space_of,
+)
+
+__version__ = '0.1.0'

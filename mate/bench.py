@@ -1,0 +1,112 @@
+"""Throughput benchmark: env-steps per second of the single env and of the batched core.
+
+Protocol: random actions, uniform over the action boxes, drawn before timing (a bank of 16
+joint actions cycled through), observations built every step. The single env is the
+Gymnasium-style `MultiAgentTracking` (infos, copies and all); the batched core is
+`mate.core.engine.step` on B rows writing into preallocated observation buffers. Each
+measurement runs for about `seconds` after one warm-up step (compilation is excluded).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .config import read_config
+from .constants import camera_observation_dim, target_observation_dim
+from .core import engine
+from .core.params import params_from_config
+from .core.world import empty_world
+from .env import MultiAgentTracking
+
+ORIGINAL_STEPS_PER_SECOND = {'MATE-4v8-9': 731, 'MATE-8v8-9': 503}
+"""The original MATE's single-env speed with random actions on our machines (reference/groundtruth.md)."""
+
+_BANK = 16
+
+
+def _action_bank(rng, batch_size: int, params, count: int = _BANK):
+    camera_high = np.array([params.camera_rotation_step, params.camera_zooming_step])
+    speed = params.target_step_size
+    return [(rng.uniform(-1.0, 1.0, (batch_size, params.num_cameras, 2)) * camera_high,
+             rng.uniform(-speed, speed, (batch_size, params.num_targets, 2))) for _ in range(count)]
+
+
+def measure_single_env(preset: str, seconds: float = 2.0, seed: int = 0) -> dict:
+    """Steps/s of one `MultiAgentTracking` env with random actions (resets included)."""
+    env = MultiAgentTracking(preset)
+    env.reset(seed=seed)
+    bank = [(c[0], t[0]) for c, t in _action_bank(np.random.default_rng(seed), 1, env.params)]
+    env.step(bank[0])
+    steps, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        for _ in range(100):
+            _, _, terminated, truncated, _ = env.step(bank[steps % _BANK])
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+    return {'kind': 'single env', 'preset': preset, 'batch_size': 1, 'dtype': 'float64',
+            'steps': steps, 'seconds': elapsed, 'env_steps_per_second': steps / elapsed}
+
+
+def measure_batched_core(preset: str, batch_size: int, seconds: float = 2.0, dtype=np.float64,
+                         seed: int = 0) -> dict:
+    """Env-steps/s of the batched core at `batch_size` rows with random actions."""
+    params = params_from_config(read_config(preset))
+    nc, nt, no = params.num_cameras, params.num_targets, params.num_obstacles
+    world = empty_world(params, batch_size)
+    camera_obs = np.zeros((batch_size, nc, camera_observation_dim(nc, nt, no)), dtype=dtype)
+    target_obs = np.zeros((batch_size, nt, target_observation_dim(nc, nt, no)), dtype=dtype)
+    everyone = np.ones(batch_size, dtype=bool)
+    engine.seed_rows(world, everyone, range(seed, seed + batch_size))
+    engine.reset(params, world, everyone, camera_obs, target_obs)
+    bank = _action_bank(np.random.default_rng(seed), batch_size, params)
+    engine.step(params, world, *bank[0], camera_obs, target_obs)
+    calls, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        engine.step(params, world, *bank[calls % _BANK], camera_obs, target_obs)
+        calls += 1
+    return {'kind': 'batched core', 'preset': preset, 'batch_size': batch_size,
+            'dtype': np.dtype(dtype).name, 'steps': calls * batch_size, 'seconds': elapsed,
+            'env_steps_per_second': calls * batch_size / elapsed}
+
+
+def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16384), seconds: float = 2.0,
+        float32: bool = True, progress=None) -> list[dict]:
+    """Every measurement of the protocol; `progress(str)` is called before each one."""
+    plan = []
+    for preset in presets:
+        plan.append(('single', preset, 1, np.float64))
+        plan.extend(('batched', preset, b, np.float64) for b in batch_sizes)
+        if float32:
+            plan.extend(('batched', preset, b, np.float32) for b in batch_sizes if b >= 1024)
+    results = []
+    for kind, preset, batch_size, dtype in plan:
+        if progress:
+            progress(f'{preset} {kind} B={batch_size} {np.dtype(dtype).name}')
+        if kind == 'single':
+            result = measure_single_env(preset, seconds)
+        else:
+            result = measure_batched_core(preset, batch_size, seconds, dtype)
+        original = ORIGINAL_STEPS_PER_SECOND.get(preset)
+        result['speedup_vs_original'] = result['env_steps_per_second'] / original if original else None
+        results.append(result)
+    return results
+
+
+def machine_facts() -> dict:
+    """Where the numbers were measured."""
+    return {'python': platform.python_version(), 'machine': platform.machine(), 'cpus': engine.NUM_THREADS,
+            'processor': platform.processor() or platform.machine(), 'numpy': np.__version__,
+            'numba': __import__('numba').__version__}
+
+
+def write_json(results: list[dict], path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({'machine': machine_facts(), 'results': results}, indent=2))
+    return path

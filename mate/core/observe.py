@@ -1,0 +1,178 @@
+"""Observation and state vectors (layouts of spec `environment.md` §5) and coverage statistics.
+
+Functions act on one world row b and write into caller-provided output rows, so a batch can
+fill one (B, N, D) buffer without allocating.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
+from .jit import inline_kernel, kernel
+from .perception import is_tracked
+
+
+@inline_kernel
+def _preserved(p, out, index):
+    """Write the 13 preserved entries: counts, own slot index, warehouse centres, half-width."""
+    out[0], out[1], out[2], out[3] = p.num_cameras, p.num_targets, p.num_obstacles, index
+    for h in range(NUM_WAREHOUSES):
+        out[4 + 2 * h], out[5 + 2 * h] = WAREHOUSES[h, 0], WAREHOUSES[h, 1]
+    out[12] = WAREHOUSE_RADIUS
+    return 13
+
+
+@inline_kernel
+def _camera_public(p, w, b, c, out, k):
+    """Write camera c's public state [x, y, r, R cos phi, R sin phi, theta] at out[k:k+6]."""
+    rs = w.camera_sight_range[b, c]
+    out[k], out[k + 1], out[k + 2] = w.camera_pos[b, c, 0], w.camera_pos[b, c, 1], p.camera_radius
+    out[k + 3], out[k + 4] = rs * w.camera_direction[b, c, 0], rs * w.camera_direction[b, c, 1]
+    out[k + 5] = w.camera_viewing_angle[b, c]
+    return k + 6
+
+
+@inline_kernel
+def _camera_private(p, w, b, c, out, k):
+    """Camera public state followed by [max_sight_range, rotation_step, zooming_step]."""
+    k = _camera_public(p, w, b, c, out, k)
+    out[k], out[k + 1], out[k + 2] = p.camera_max_sight_range, p.camera_rotation_step, p.camera_zooming_step
+    return k + 3
+
+
+@inline_kernel
+def _target_public(p, w, b, t, out, k):
+    """Target public state [x, y, sight_range, is_loaded] at out[k:k+4]."""
+    out[k], out[k + 1] = w.target_pos[b, t, 0], w.target_pos[b, t, 1]
+    out[k + 2], out[k + 3] = p.target_sight_range, w.target_goal[b, t] >= 0
+    return k + 4
+
+
+@inline_kernel
+def _target_private(p, w, b, t, out, k):
+    """Target public state + [step_size, capacity, goal_bits(4), empty_bits(4)]."""
+    k = _target_public(p, w, b, t, out, k)
+    out[k], out[k + 1] = p.target_step_size / w.target_capacity[b, t], w.target_capacity[b, t]
+    for h in range(NUM_WAREHOUSES):
+        out[k + 2 + h] = w.target_load[b, t] if w.target_goal[b, t] == h else 0
+        out[k + 6 + h] = w.target_empty_bits[b, t, h]
+    return k + 10
+
+
+@inline_kernel
+def _obstacle(w, b, o, out, k):
+    out[k], out[k + 1], out[k + 2] = w.obstacle_pos[b, o, 0], w.obstacle_pos[b, o, 1], w.obstacle_radius[b, o]
+    return k + 3
+
+
+@inline_kernel
+def _zeros(out, k, n):
+    for i in range(n):
+        out[k + i] = 0.0
+    return k + n
+
+
+@inline_kernel
+def camera_observation(p, w, b, c, out):
+    """Camera c's observation (D_c,): preserved, own private state, then flagged blocks of
+    targets (tracked), obstacles (flagged at reset) and cameras (self or perceived)."""
+    k = _preserved(p, out, c)
+    k = _camera_private(p, w, b, c, out, k)
+    for t in range(p.num_targets):
+        if w.camera_target_view_mask[b, c, t]:
+            k = _target_public(p, w, b, t, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 5)
+    for o in range(p.num_obstacles):
+        if w.camera_obstacle_view_mask[b, c, o]:
+            k = _obstacle(w, b, o, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 4)
+    for d in range(p.num_cameras):
+        if d == c or w.camera_camera_view_mask[b, c, d]:
+            k = _camera_public(p, w, b, d, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 7)
+
+
+@inline_kernel
+def target_observation(p, w, b, t, out):
+    """Target t's observation (D_t,): preserved, own private state, then flagged blocks of
+    cameras and obstacles within reach and targets in sight (self included)."""
+    k = _preserved(p, out, t)
+    k = _target_private(p, w, b, t, out, k)
+    for c in range(p.num_cameras):
+        if w.target_camera_view_mask[b, t, c]:
+            k = _camera_public(p, w, b, c, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 7)
+    for o in range(p.num_obstacles):
+        if w.target_obstacle_view_mask[b, t, o]:
+            k = _obstacle(w, b, o, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 4)
+    for s in range(p.num_targets):
+        if s == t or w.target_target_view_mask[b, t, s]:
+            k = _target_public(p, w, b, s, out, k)
+            out[k] = 1.0
+            k += 1
+        else:
+            k = _zeros(out, k, 5)
+
+
+@inline_kernel
+def joint_observation(p, w, b, camera_out, target_out):
+    """Fill camera_out (Nc, D_c) and target_out (Nt, D_t) for row b."""
+    for c in range(p.num_cameras):
+        camera_observation(p, w, b, c, camera_out[c])
+    for t in range(p.num_targets):
+        target_observation(p, w, b, t, target_out[t])
+
+
+@kernel
+def global_state(p, w, b, out):
+    """Global state (29 + 9 Nc + 16 Nt + 3 No,): preserved (index 0), every camera's and target's
+    private state, obstacles, freights, bounties and the remaining-cargo matrix (row = source)."""
+    k = _preserved(p, out, 0)
+    for c in range(p.num_cameras):
+        k = _camera_private(p, w, b, c, out, k)
+    for t in range(p.num_targets):
+        k = _target_private(p, w, b, t, out, k)
+    for o in range(p.num_obstacles):
+        k = _obstacle(w, b, o, out, k)
+    for t in range(p.num_targets):
+        out[k + t] = w.target_freight[b, t]
+        out[k + p.num_targets + t] = w.target_bounty[b, t]
+    k += 2 * p.num_targets
+    for src in range(NUM_WAREHOUSES):
+        for dst in range(NUM_WAREHOUSES):
+            out[k + NUM_WAREHOUSES * src + dst] = w.remaining_cargoes[b, src, dst]
+
+
+@inline_kernel
+def update_coverage(p, w, b):
+    """coverage_rate, real_coverage_rate (tracked among targets with bounty left) and
+    mean_transport_rate (sparse episode reward per delivered unit, over reward_scale)."""
+    tracked = tracked_with_bounty = with_bounty = 0
+    for t in range(p.num_targets):
+        seen = is_tracked(p, w, b, t)
+        tracked += seen
+        if w.target_bounty[b, t] > 0:
+            with_bounty += 1
+            tracked_with_bounty += seen
+    w.coverage_rate[b] = tracked / p.num_targets
+    w.real_coverage_rate[b] = tracked_with_bounty / with_bounty if with_bounty > 0 else 0.0
+    delivered = w.num_delivered_cargoes[b]
+    w.mean_transport_rate[b] = (w.delayed_target_team_episode_reward[b] / (p.reward_scale * delivered)
+                                if delivered > 0 else 0.0)

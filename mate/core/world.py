@@ -1,0 +1,93 @@
+"""The dynamic world state: a NamedTuple of arrays, every one with a leading batch axis B.
+
+Row b of every field is one environment. Kernels update rows in place. Shapes use
+Nc cameras, Nt targets, No obstacles and W = 4 warehouses; angles are degrees.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..constants import NUM_WAREHOUSES
+from .params import Params
+
+
+class World(NamedTuple):
+    """Everything that changes during an episode, batched over B environments."""
+
+    rng: np.ndarray                    # (B, 2) uint64: stream key and draw counter (mate.core.rng)
+    camera_order: np.ndarray           # (B, Nc) int64: configuration index of the camera in each slot
+    target_order: np.ndarray           # (B, Nt) int64
+    obstacle_order: np.ndarray         # (B, No) int64
+    camera_pos: np.ndarray             # (B, Nc, 2)
+    camera_orientation: np.ndarray     # (B, Nc) degrees in [-180, 180)
+    camera_direction: np.ndarray       # (B, Nc, 2) unit vector (cos, sin) of the orientation (kept in sync)
+    camera_viewing_angle: np.ndarray   # (B, Nc) degrees in [min_viewing_angle, 180]
+    camera_sight_range: np.ndarray     # (B, Nc) sqrt(min_viewing_angle * max_sight_range^2 / viewing_angle)
+    obstacle_pos: np.ndarray           # (B, No, 2)
+    obstacle_radius: np.ndarray        # (B, No)
+    target_pos: np.ndarray             # (B, Nt, 2)
+    target_capacity: np.ndarray        # (B, Nt) int64: 1 or 2 cargo units
+    target_goal: np.ndarray            # (B, Nt) int64: destination warehouse of the cargo, -1 if none
+    target_load: np.ndarray            # (B, Nt) int64: units carried (the non-zero goal bit)
+    target_empty_bits: np.ndarray      # (B, Nt, W) bool: remembers "warehouse w has nothing left to send"
+    target_freight: np.ndarray         # (B, Nt) int64
+    target_bounty: np.ndarray          # (B, Nt) int64: remaining bounty, decays 1 per tracked step
+    target_steps: np.ndarray           # (B, Nt) int64: steps since the last warehouse visit
+    target_tracked_steps: np.ndarray   # (B, Nt) int64: tracked steps in that time
+    target_is_colliding: np.ndarray    # (B, Nt) bool: last move altered by a disc or the border
+    target_heading: np.ndarray         # (B, Nt) degrees, for rendering
+    target_done: np.ndarray            # (B, Nt) bool: delivered cargo this step
+    target_warehouse_distances: np.ndarray  # (B, Nt, W) Euclidean distances to warehouse centres
+    remaining_cargoes: np.ndarray      # (B, W, W) int64: units waiting at [src] for [dst]
+    awaiting_cargo_counts: np.ndarray  # (B, W) int64: units still to be delivered to each warehouse
+    num_delivered_cargoes: np.ndarray  # (B,) int64
+    episode_step: np.ndarray           # (B,) int64
+    camera_target_view_mask: np.ndarray    # (B, Nc, Nt) bool
+    camera_obstacle_view_mask: np.ndarray  # (B, Nc, No) bool, fixed at reset
+    camera_camera_view_mask: np.ndarray    # (B, Nc, Nc) bool
+    target_camera_view_mask: np.ndarray    # (B, Nt, Nc) bool
+    target_obstacle_view_mask: np.ndarray  # (B, Nt, No) bool
+    target_target_view_mask: np.ndarray    # (B, Nt, Nt) bool
+    target_team_episode_reward: np.ndarray          # (B,) sum of dense target rewards
+    delayed_target_team_episode_reward: np.ndarray  # (B,) sum of sparse target rewards
+    coverage_rate: np.ndarray          # (B,) share of targets tracked by any camera
+    real_coverage_rate: np.ndarray     # (B,) share of bounty-carrying targets that are tracked
+    mean_transport_rate: np.ndarray    # (B,)
+    target_reward: np.ndarray          # (B,) target team reward of the last step (dense or sparse)
+    terminated: np.ndarray             # (B,) bool: every cargo unit delivered
+    truncated: np.ndarray              # (B,) bool: max_episode_steps reached
+
+
+def empty_world(params: Params, batch_size: int) -> World:
+    """A zero-filled world of `batch_size` rows (call `engine.reset` before use)."""
+    B, nc, nt, no, nw = batch_size, params.num_cameras, params.num_targets, params.num_obstacles, NUM_WAREHOUSES
+    f, i, z = np.float64, np.int64, bool
+    shapes = {
+        'rng': ((B, 2), np.uint64),
+        'camera_order': ((B, nc), i), 'target_order': ((B, nt), i), 'obstacle_order': ((B, no), i),
+        'camera_pos': ((B, nc, 2), f), 'camera_orientation': ((B, nc), f), 'camera_direction': ((B, nc, 2), f),
+        'camera_viewing_angle': ((B, nc), f), 'camera_sight_range': ((B, nc), f),
+        'obstacle_pos': ((B, no, 2), f), 'obstacle_radius': ((B, no), f),
+        'target_pos': ((B, nt, 2), f), 'target_capacity': ((B, nt), i), 'target_goal': ((B, nt), i),
+        'target_load': ((B, nt), i), 'target_empty_bits': ((B, nt, nw), z),
+        'target_freight': ((B, nt), i), 'target_bounty': ((B, nt), i), 'target_steps': ((B, nt), i),
+        'target_tracked_steps': ((B, nt), i), 'target_is_colliding': ((B, nt), z),
+        'target_heading': ((B, nt), f), 'target_done': ((B, nt), z),
+        'target_warehouse_distances': ((B, nt, nw), f),
+        'remaining_cargoes': ((B, nw, nw), i), 'awaiting_cargo_counts': ((B, nw), i),
+        'num_delivered_cargoes': ((B,), i), 'episode_step': ((B,), i),
+        'camera_target_view_mask': ((B, nc, nt), z), 'camera_obstacle_view_mask': ((B, nc, no), z),
+        'camera_camera_view_mask': ((B, nc, nc), z), 'target_camera_view_mask': ((B, nt, nc), z),
+        'target_obstacle_view_mask': ((B, nt, no), z), 'target_target_view_mask': ((B, nt, nt), z),
+        'target_team_episode_reward': ((B,), f), 'delayed_target_team_episode_reward': ((B,), f),
+        'coverage_rate': ((B,), f), 'real_coverage_rate': ((B,), f), 'mean_transport_rate': ((B,), f),
+        'target_reward': ((B,), f), 'terminated': ((B,), z), 'truncated': ((B,), z),
+    }
+    assert tuple(shapes) == World._fields
+    world = World(**{name: np.zeros(shape, dtype) for name, (shape, dtype) in shapes.items()})
+    world.target_goal[:] = -1
+    world.target_capacity[:] = 1
+    return world

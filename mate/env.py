@@ -1,0 +1,354 @@
+"""`MultiAgentTracking`: the Gymnasium-style two-team environment (one world row of the core).
+
+Cameras (fixed, rotating, zooming) try to keep targets in view; targets carry cargo between
+the four corner warehouses. Both teams act every step.
+
+Spaces
+    action_space: Tuple(Tuple(Box(2) x Nc), Tuple(Box(2) x Nt)). A camera acts with
+    (rotation, zoom) in degrees, each within +-rotation_step / +-zooming_step; a target with a
+    displacement (dx, dy) whose norm is clipped to its speed (step_size / capacity).
+    observation_space: Tuple of per-agent Boxes; observations come as 2-D arrays
+    (Nc, D_c) and (Nt, D_t), float64, with the layouts of `mate.spaces`.
+
+Step
+    env.step((camera_actions, target_actions)) ->
+    ((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated,
+     (camera_infos, target_infos))
+    The game is zero-sum: camera_reward == -target_reward. `terminated` once every cargo unit
+    is delivered; `truncated` once `max_episode_steps` steps are done.
+
+Arguments
+    config: a preset name ('MATE-4v8-9'), a YAML/JSON path, or a dict (see `mate.config`);
+    keyword overrides are deep-merged into it. render_mode: None (rendering arrives with the
+    renderer; 'human' and 'rgb_array' are refused with a clear error until then).
+
+Version history
+    v0: behaviour of the original MATE with the differences listed in docs/differences.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from . import spaces as mate_spaces
+from .config import read_config
+from .constants import (
+    WAREHOUSE_RADIUS,
+    WAREHOUSES,
+    camera_observation_dim,
+    state_dim,
+    target_observation_dim,
+)
+from .core import engine
+from .core.params import params_from_config
+from .core.snapshot import get_snapshot, goal_bits, set_snapshot
+from .core.world import empty_world
+from .messages import Message, MessageChannel, Team
+
+__all__ = ['MultiAgentTracking']
+
+_ONE = np.ones(1, dtype=bool)
+
+# Read-only views of world fields (row 0), under the original's attribute names.
+_WORLD_VIEWS = {
+    'tracked_steps': 'target_tracked_steps', 'target_steps': 'target_steps', 'freights': 'target_freight',
+    'bounties': 'target_bounty', 'target_goals': 'target_goal', 'target_capacities': 'target_capacity',
+    'target_dones': 'target_done', 'target_orientations': 'target_heading',
+    'target_warehouse_distances': 'target_warehouse_distances', 'remaining_cargoes': 'remaining_cargoes',
+    'awaiting_cargo_counts': 'awaiting_cargo_counts', 'camera_target_view_mask': 'camera_target_view_mask',
+    'camera_obstacle_view_mask': 'camera_obstacle_view_mask', 'camera_camera_view_mask': 'camera_camera_view_mask',
+    'target_camera_view_mask': 'target_camera_view_mask', 'target_obstacle_view_mask': 'target_obstacle_view_mask',
+    'target_target_view_mask': 'target_target_view_mask',
+}
+_WORLD_SCALARS = {
+    'episode_step': int, 'num_delivered_cargoes': int, 'coverage_rate': float, 'real_coverage_rate': float,
+    'mean_transport_rate': float, 'target_team_episode_reward': float, 'delayed_target_team_episode_reward': float,
+}
+
+
+def _row_view(field: str):
+    def get(self):
+        view = getattr(self._world, field)[0].view()
+        view.flags.writeable = False
+        return view
+    return property(get, doc=f'Current `{field}` of the world (read-only view).')
+
+
+def _row_scalar(field: str, kind):
+    return property(lambda self: kind(getattr(self._world, field)[0]), doc=f'Current `{field}`.')
+
+
+class MultiAgentTracking(gym.Env):
+    __doc__ = __doc__
+
+    metadata = {'render_modes': [], 'render_fps': 60}
+
+    def __init__(self, config: Any = None, render_mode: str | None = None, **overrides: Any) -> None:
+        if render_mode is not None:
+            raise NotImplementedError(
+                f'render_mode={render_mode!r}: rendering is not available yet in this version of mate; '
+                'use render_mode=None')
+        self.render_mode = None
+        self.config = read_config(config, **overrides)
+        self.params = p = params_from_config(self.config)
+        self._world = empty_world(p, 1)
+        nc, nt, no = p.num_cameras, p.num_targets, p.num_obstacles
+        self._camera_obs = np.zeros((1, nc, camera_observation_dim(nc, nt, no)))
+        self._target_obs = np.zeros((1, nt, target_observation_dim(nc, nt, no)))
+        self._channel = MessageChannel(nc, nt)
+        self._needs_reset = True
+        self._make_spaces()
+
+    # ------------------------------------------------------------------ spaces
+    def _make_spaces(self) -> None:
+        p = self.params
+        counts = (p.num_cameras, p.num_targets, p.num_obstacles)
+        rot, zoom = (p.camera_rotation_step, p.camera_zooming_step) if p.num_cameras else (0.0, 0.0)
+        self.camera_action_space = spaces.Box(np.array([-rot, -zoom]), np.array([rot, zoom]), dtype=np.float64)
+        s = p.target_step_size
+        self.target_action_space = spaces.Box(np.array([-s, -s]), np.array([s, s]), dtype=np.float64)
+        self.camera_joint_action_space = spaces.Tuple((self.camera_action_space,) * p.num_cameras)
+        self.target_joint_action_space = spaces.Tuple((self.target_action_space,) * p.num_targets)
+        self.action_space = spaces.Tuple((self.camera_joint_action_space, self.target_joint_action_space))
+        self.camera_observation_space = mate_spaces.camera_observation_space_of(*counts)
+        self.target_observation_space = mate_spaces.target_observation_space_of(*counts)
+        self.camera_joint_observation_space = spaces.Tuple((self.camera_observation_space,) * p.num_cameras)
+        self.target_joint_observation_space = spaces.Tuple((self.target_observation_space,) * p.num_targets)
+        self.observation_space = spaces.Tuple((self.camera_joint_observation_space,
+                                               self.target_joint_observation_space))
+        self.state_space = mate_spaces.state_space_of(*counts)
+        self.camera_state_space_public = mate_spaces.camera_state_space(private=False)
+        self.camera_state_space_private = mate_spaces.camera_state_space(private=True)
+        self.target_state_space_public = mate_spaces.target_state_space(private=False)
+        self.target_state_space_private = mate_spaces.target_state_space(private=True)
+        self.obstacle_state_space = mate_spaces.obstacle_state_space()
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start a new episode; returns ((camera_obs, target_obs), (camera_infos, target_infos)).
+
+        `seed` re-seeds the episode stream; without it the stream continues (a never-seeded
+        env starts from OS entropy).
+        """
+        super().reset(seed=seed)
+        if seed is not None or self._needs_seed():
+            engine.seed_rows(self._world, _ONE, [seed])
+        engine.reset(self.params, self._world, _ONE, self._camera_obs, self._target_obs)
+        self._channel.reset()
+        self._needs_reset = False
+        return self._observations(), self._infos(0.0)
+
+    def _needs_seed(self) -> bool:
+        return self._world.rng[0, 0] == 0 and self._world.rng[0, 1] == 0
+
+    def step(self, action):
+        """Advance one step with (camera_actions (Nc, 2), target_actions (Nt, 2))."""
+        if self._needs_reset:
+            raise RuntimeError('MultiAgentTracking: call reset() before step()')
+        camera_actions, target_actions = self._parse_action(action)
+        engine.step(self.params, self._world, camera_actions, target_actions, self._camera_obs, self._target_obs)
+        w = self._world
+        target_reward = float(w.target_reward[0])
+        infos = self._infos(target_reward)
+        self._channel.end_step()
+        return (self._observations(), (-target_reward, target_reward), bool(w.terminated[0]),
+                bool(w.truncated[0]), infos)
+
+    def _parse_action(self, action) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            camera_action, target_action = action
+        except (TypeError, ValueError):
+            raise ValueError('action must be a pair (camera_joint_action, target_joint_action), '
+                             f'got {type(action).__name__}') from None
+        return (self._team_action(camera_action, self.params.num_cameras, 'camera', self.camera_action_space),
+                self._team_action(target_action, self.params.num_targets, 'target', self.target_action_space))
+
+    @staticmethod
+    def _team_action(value, count: int, team: str, box: spaces.Box) -> np.ndarray:
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'{team} joint action is not numeric: {exc}') from None
+        if array.size != 2 * count:
+            raise ValueError(f'{team} joint action has {array.size} values (shape {array.shape}); '
+                             f'expected shape ({count}, 2)')
+        array = array.reshape(1, count, 2)
+        if not np.isfinite(array).all():
+            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(array[0]))[:, 0]})
+            raise ValueError(f'{team} joint action contains NaN or inf (agents {bad}); every entry must be '
+                             f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+        return array
+
+    def _observations(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._camera_obs[0].copy(), self._target_obs[0].copy()
+
+    def _infos(self, target_reward: float) -> tuple[list[dict], list[dict]]:
+        w, p = self._world, self.params
+        shared = {
+            'coverage_rate': float(w.coverage_rate[0]),
+            'real_coverage_rate': float(w.real_coverage_rate[0]),
+            'mean_transport_rate': float(w.mean_transport_rate[0]),
+            'num_delivered_cargoes': int(w.num_delivered_cargoes[0]),
+        }
+        return (self._team_infos(Team.CAMERA, -target_reward, shared),
+                self._team_infos(Team.TARGET, target_reward, shared))
+
+    def _team_infos(self, team: Team, reward: float, shared: dict) -> list[dict]:
+        count = self._channel.num_agents(team)
+        edges = self._channel.edges(team)
+        out_edges, in_edges = edges.sum(axis=1), edges.sum(axis=0)
+        buffer = self._channel.buffer(team)
+        normalized = reward / self.params.max_target_team_episode_reward
+        return [{'raw_reward': reward, 'normalized_raw_reward': normalized, 'messages': buffer[i],
+                 'out_communication_edges': int(out_edges[i]), 'in_communication_edges': int(in_edges[i]),
+                 **shared} for i in range(count)]
+
+    # ------------------------------------------------------------------ world access
+    def joint_observation(self) -> tuple[np.ndarray, np.ndarray]:
+        """Both teams' joint observations built from the current world (refreshes coverage)."""
+        engine.observe(self.params, self._world, self._camera_obs, self._target_obs)
+        return self._observations()
+
+    def state(self) -> np.ndarray:
+        """The global state vector (29 + 9 Nc + 16 Nt + 3 No,), float64."""
+        p = self.params
+        out = np.empty((1, state_dim(p.num_cameras, p.num_targets, p.num_obstacles)))
+        engine.global_states(p, self._world, out)
+        return out[0]
+
+    def get_world(self) -> dict:
+        """A snapshot of the world as a dict of fresh arrays (see `mate.core.snapshot`)."""
+        return get_snapshot(self.params, self._world, 0)
+
+    def set_world(self, snapshot: dict) -> None:
+        """Load a snapshot; recomputes view masks, camera->obstacle flags and coverage, and clears
+        message queues. Invalid snapshots raise `SnapshotError` and leave the env unchanged."""
+        set_snapshot(self.params, self._world, 0, snapshot)
+        engine.refresh(self.params, self._world, _ONE)
+        engine.observe(self.params, self._world, self._camera_obs, self._target_obs)
+        self._channel.end_step()
+        self._needs_reset = False
+
+    # ------------------------------------------------------------------ communication
+    def send_messages(self, messages: Message | list[Message]) -> None:
+        """Send messages to teammates (a broadcast reaches every teammate, the sender included)."""
+        self._channel.send(messages)
+
+    def receive_messages(self, agent_id=None, agent=None):
+        """Fetch queued messages: all of them (per team, per slot) or one agent's."""
+        return self._channel.receive(agent_id, agent)
+
+    def route_messages(self, messages) -> list[Message]:
+        """The messages as they would be delivered (broadcasts expanded), without sending."""
+        return self._channel.route(messages if not isinstance(messages, Message) else [messages])
+
+    @property
+    def camera_communication_edges(self) -> np.ndarray:
+        return self._channel.edges(Team.CAMERA)
+
+    @property
+    def target_communication_edges(self) -> np.ndarray:
+        return self._channel.edges(Team.TARGET)
+
+    @property
+    def camera_total_communication_edges(self) -> np.ndarray:
+        return self._channel.total_edges(Team.CAMERA)
+
+    @property
+    def target_total_communication_edges(self) -> np.ndarray:
+        return self._channel.total_edges(Team.TARGET)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def name(self) -> str:
+        return self.config['name']
+
+    @property
+    def num_cameras(self) -> int:
+        return self.params.num_cameras
+
+    @property
+    def num_targets(self) -> int:
+        return self.params.num_targets
+
+    @property
+    def num_obstacles(self) -> int:
+        return self.params.num_obstacles
+
+    @property
+    def num_warehouses(self) -> int:
+        return len(WAREHOUSES)
+
+    @property
+    def camera_observation_dim(self) -> int:
+        return self.camera_observation_space.shape[0]
+
+    @property
+    def target_observation_dim(self) -> int:
+        return self.target_observation_space.shape[0]
+
+    @property
+    def max_episode_steps(self) -> int:
+        return self.params.max_episode_steps
+
+    @property
+    def tracked_bits(self) -> np.ndarray:
+        """(Nt,) bool: targets tracked by at least one camera."""
+        return self._world.camera_target_view_mask[0].any(axis=0)
+
+    @property
+    def target_goal_bits(self) -> np.ndarray:
+        """(Nt, 4) int: units carried per destination warehouse."""
+        return goal_bits(self._world, 0)
+
+    @property
+    def obstacle_states(self) -> np.ndarray:
+        """(No, 3) obstacle [x, y, r] per slot."""
+        return np.concatenate([self._world.obstacle_pos[0], self._world.obstacle_radius[0][:, None]], axis=1)
+
+    @property
+    def preserved_data(self) -> np.ndarray:
+        """The 13 preserved observation entries (own index 0)."""
+        p = self.params
+        return np.array([p.num_cameras, p.num_targets, p.num_obstacles, 0, *WAREHOUSES.ravel(), WAREHOUSE_RADIUS])
+
+    def _section(self, section: str, key: str):
+        if section not in self.config:
+            raise KeyError(f'the configuration has no {section!r} section')
+        return self.config[section][key]
+
+    camera_min_viewing_angle = property(lambda self: self._section('camera', 'min_viewing_angle'))
+    camera_max_sight_range = property(lambda self: self._section('camera', 'max_sight_range'))
+    camera_rotation_step = property(lambda self: self._section('camera', 'rotation_step'))
+    camera_zooming_step = property(lambda self: self._section('camera', 'zooming_step'))
+    target_step_size = property(lambda self: self.config['target']['step_size'])
+    target_sight_range = property(lambda self: self.config['target']['sight_range'])
+    num_cargoes_per_target = property(lambda self: self.params.num_cargoes_per_target)
+    targets_start_with_cargoes = property(lambda self: self.params.targets_start_with_cargoes)
+    bounty_factor = property(lambda self: self.config['bounty_factor'])
+    shuffle_entities = property(lambda self: self.params.shuffle_entities)
+    obstacle_transmittance = property(lambda self: self.params.transmittance)
+    high_capacity_target_split = property(lambda self: self.config['high_capacity_target_split'])
+    num_high_capacity_targets = property(lambda self: self.params.num_high_capacity_targets)
+    num_low_capacity_targets = property(lambda self: self.params.num_targets - self.params.num_high_capacity_targets)
+    freight_scale = property(lambda self: self.params.freight_scale)
+    bounty_scale = property(lambda self: self.params.bounty_scale)
+    reward_scale = property(lambda self: self.params.reward_scale)
+    max_target_team_episode_reward = property(lambda self: self.params.max_target_team_episode_reward)
+
+    def __str__(self) -> str:
+        def count(n: int, word: str) -> str:
+            return f'{n} {word}{"s" if n > 1 else ""}'
+        p = self.params
+        return (f'<MultiAgentTracking>({count(p.num_cameras, "camera")}, {count(p.num_targets, "target")}, '
+                f'{count(p.num_obstacles, "obstacle")})')
+
+
+for _name, _field in _WORLD_VIEWS.items():
+    setattr(MultiAgentTracking, _name, _row_view(_field))
+for _name, _kind in _WORLD_SCALARS.items():
+    setattr(MultiAgentTracking, _name, _row_scalar(_name, _kind))

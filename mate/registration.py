@@ -1,0 +1,88 @@
+"""Environment IDs and `mate.make`: build an environment from an ID, a config and wrappers.
+
+IDs: `MultiAgentTracking-v0` and `MATE-v0` (default preset MATE-4v8-9 unless `config=` is
+given) and `MATE-<preset>-v0` for every shipped preset (e.g. `MATE-8v8-9-v0`). The same IDs
+are registered with Gymnasium, so `gymnasium.make('MATE-4v8-9-v0')` works too.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import gymnasium as gym
+
+from .config import list_presets
+from .env import MultiAgentTracking
+
+__all__ = ['make', 'make_environment', 'WrapperSpec', 'registered_ids']
+
+
+class WrapperSpec:
+    """A wrapper with its arguments, applied later: `WrapperSpec(W, *args, **kw)(env) == W(env, *args, **kw)`."""
+
+    def __init__(self, wrapper: Callable, *args: Any, **kwargs: Any) -> None:
+        if not callable(wrapper):
+            raise TypeError(f'WrapperSpec needs a wrapper class or callable, got {wrapper!r}')
+        self.wrapper, self.args, self.kwargs = wrapper, args, kwargs
+
+    def __call__(self, env):
+        return self.wrapper(env, *self.args, **self.kwargs)
+
+    def __repr__(self) -> str:
+        name = getattr(self.wrapper, '__name__', repr(self.wrapper))
+        return f'WrapperSpec({name}, args={self.args}, kwargs={self.kwargs})'
+
+
+def make_environment(config: Any = None, wrappers: Iterable[Callable] = (), **overrides: Any):
+    """Build `MultiAgentTracking(config, **overrides)` and apply `wrappers` in order."""
+    env = MultiAgentTracking(config, **overrides)
+    for wrapper in wrappers:
+        if not callable(wrapper):
+            raise TypeError(f'wrappers must be WrapperSpec objects, wrapper classes or callables; got {wrapper!r}')
+        env = wrapper(env)
+    return env
+
+
+def _preset_ids() -> dict[str, str | None]:
+    ids: dict[str, str | None] = {'MultiAgentTracking-v0': None, 'MATE-v0': None}
+    for preset in list_presets():
+        if preset != 'MATE':
+            ids[f'{preset}-v0'] = preset
+    return ids
+
+
+_IDS = _preset_ids()
+
+
+def registered_ids() -> list[str]:
+    """Every environment ID `mate.make` accepts."""
+    return list(_IDS)
+
+
+def make(env_id: str = 'MultiAgentTracking-v0', config: Any = None, wrappers: Iterable[Callable] = (),
+         **overrides: Any):
+    """Make an environment by ID. `config=` replaces the ID's preset; overrides are deep-merged.
+
+    With no config and no preset behind the ID, overrides alone start from an empty
+    configuration (as in the original MATE): pass `config='MATE-4v8-9'` to tweak a preset.
+    """
+    if env_id not in _IDS:
+        close = difflib.get_close_matches(env_id, _IDS, n=3)
+        hint = f' Did you mean {" or ".join(map(repr, close))}?' if close else ''
+        raise ValueError(f'unknown environment id {env_id!r}.{hint} Known ids: {", ".join(_IDS)}')
+    if config is None:
+        config = _IDS[env_id]
+    return make_environment(config, wrappers=wrappers, **overrides)
+
+
+def _register_with_gymnasium() -> None:
+    for env_id, preset in _IDS.items():
+        if env_id not in gym.registry:
+            gym.register(env_id, entry_point='mate.registration:make_environment',
+                         kwargs={} if preset is None else {'config': preset},
+                         disable_env_checker=True, order_enforce=False)
+
+
+_register_with_gymnasium()
