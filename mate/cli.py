@@ -1,4 +1,4 @@
-"""The `mate` command line: `mate evaluate`, `mate bench`, `mate presets`.
+"""The `mate` command line: `mate evaluate`, `mate bench`, `mate generate-config`, `mate presets`.
 
 Each sub-command lives in a small function that parses nothing itself: `main` builds the
 argument parser, and the sub-command receives the parsed namespace.
@@ -88,6 +88,22 @@ def _random_episode(env, seed: int) -> dict:
             'episode_length': len(coverage)}
 
 
+def _generate_config(args: argparse.Namespace) -> int:
+    from .generator import generate_config, plot_config, write_config
+
+    with console.status('placing cameras (Adam over a 101 x 101 mesh)...'):
+        config = generate_config(args.num_cameras, args.num_targets, args.num_obstacles,
+                                 args.num_cargoes_per_target, args.obstacle_transmittance, args.seed)
+    path = write_config(config, args.path)
+    console.print(f"wrote {path}: {config['name']}")
+    if 'camera' in config:
+        console.print(f"camera max_sight_range {config['camera']['max_sight_range']:.1f}, "
+                      f"radius {config['camera']['radius']:.1f}")
+    if args.plot:
+        console.print(f'plot written to {plot_config(config, args.plot)}')
+    return 0
+
+
 def _presets(args: argparse.Namespace) -> int:
     from .config import list_presets, read_config
 
@@ -123,6 +139,17 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument('--max-episode-steps', type=int, default=1000,
                           help='episode length cap (default 1000; the presets allow 10000)')
     evaluate.set_defaults(run=_evaluate)
+
+    generate = commands.add_parser('generate-config', help='write a config with camera placement covering the terrain')
+    generate.add_argument('--path', default='config.yaml', help='output YAML file (default config.yaml)')
+    generate.add_argument('--num-cameras', type=int, default=4)
+    generate.add_argument('--num-targets', type=int, default=8)
+    generate.add_argument('--num-obstacles', type=int, default=0)
+    generate.add_argument('--num-cargoes-per-target', type=int, default=8, help='at least 4')
+    generate.add_argument('--obstacle-transmittance', type=float, default=0.1, help='clipped to [0, 1]')
+    generate.add_argument('--seed', type=int, default=0)
+    generate.add_argument('--plot', default=None, metavar='PNG', help='also save a picture of the placement')
+    generate.set_defaults(run=_generate_config)
 
     presets = commands.add_parser('presets', help='list the shipped configuration presets')
     presets.set_defaults(run=_presets)
