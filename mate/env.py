@@ -19,8 +19,8 @@ Step
 
 Arguments
     config: a preset name ('MATE-4v8-9'), a YAML/JSON path, or a dict (see `mate.config`);
-    keyword overrides are deep-merged into it. render_mode: None (rendering arrives with the
-    renderer; 'human' and 'rgb_array' are refused with a clear error until then).
+    keyword overrides are deep-merged into it. render_mode: None, 'rgb_array' (`render()`
+    returns an (800, 800, 3) uint8 frame) or 'human' (a pygame window); see `mate.render`.
 
 Version history
     v0: behaviour of the original MATE with the differences listed in docs/differences.md.
@@ -85,14 +85,16 @@ def _row_scalar(field: str, kind):
 class MultiAgentTracking(gym.Env):
     __doc__ = __doc__
 
-    metadata = {'render_modes': [], 'render_fps': 60}
+    metadata = {'render_modes': ['human', 'rgb_array'], 'render_fps': 60}
 
     def __init__(self, config: Any = None, render_mode: str | None = None, **overrides: Any) -> None:
-        if render_mode is not None:
-            raise NotImplementedError(
-                f'render_mode={render_mode!r}: rendering is not available yet in this version of mate; '
-                'use render_mode=None')
-        self.render_mode = None
+        if render_mode is not None and render_mode not in self.metadata['render_modes']:
+            raise ValueError(f'render_mode={render_mode!r} is not supported; use None, '
+                             f"{' or '.join(map(repr, self.metadata['render_modes']))}")
+        self.render_mode = render_mode
+        self.render_fps = self.metadata['render_fps']  # 'human' windows refresh at most this often
+        self.render_callbacks: dict = {}
+        self.viewer = None
         self.config = read_config(config, **overrides)
         self.params = p = params_from_config(self.config)
         self._world = empty_world(p, 1)
@@ -233,6 +235,31 @@ class MultiAgentTracking(gym.Env):
         self._channel.end_step()
         self._needs_reset = False
 
+    # ------------------------------------------------------------------ rendering (drawing lives in mate/render.py)
+    def render(self, onetime_callbacks=()):
+        """Draw the current world: an (800, 800, 3) uint8 array in 'rgb_array' mode, None in
+        'human' mode. Registered callbacks, then `onetime_callbacks`, are called as
+        `callback(env, renderer)` and may draw with the renderer's primitives."""
+        if self.render_mode is None:
+            gym.logger.warn('render() called on an env made with render_mode=None; '
+                            "pass render_mode='rgb_array' or 'human' to the constructor")
+            return None
+        if self.viewer is None:
+            from .render import Renderer
+            self.viewer = Renderer(self.render_mode, fps=self.render_fps)
+        self.viewer.fps = self.render_fps
+        return self.viewer.render(self, onetime_callbacks)
+
+    def add_render_callback(self, name: str, callback) -> None:
+        """Register `callback(env, renderer)`, called at every render (a name replaces its earlier entry)."""
+        self.render_callbacks[name] = callback
+
+    def close(self) -> None:
+        """Close the render window, if any."""
+        if self.viewer is not None:
+            self.viewer.close()
+            self.viewer = None
+
     # ------------------------------------------------------------------ communication
     def send_messages(self, messages: Message | list[Message]) -> None:
         """Send messages to teammates (a broadcast reaches every teammate, the sender included)."""
@@ -346,6 +373,25 @@ class MultiAgentTracking(gym.Env):
         p = self.params
         return (f'<MultiAgentTracking>({count(p.num_cameras, "camera")}, {count(p.num_targets, "target")}, '
                 f'{count(p.num_obstacles, "obstacle")})')
+
+    # ------------------------------------------------------------------ read by mate.wrappers (begin)
+    @property
+    def obstacle_states_flagged(self) -> np.ndarray:
+        """(No, 4) obstacle [x, y, r, 1] per slot: every obstacle as a visible observation record."""
+        return np.concatenate([self.obstacle_states, np.ones((self.params.num_obstacles, 1))], axis=1)
+
+    @property
+    def target_is_colliding(self) -> np.ndarray:
+        """(Nt,) bool: the target's last move was altered by a disc or the border (read-only view)."""
+        view = self._world.target_is_colliding[0].view()
+        view.flags.writeable = False
+        return view
+
+    @property
+    def message_buffers(self) -> tuple[list[list[Message]], list[list[Message]]]:
+        """(camera_lists, target_lists): the messages delivered to each agent since the last step (new lists)."""
+        return self._channel.buffer(Team.CAMERA), self._channel.buffer(Team.TARGET)
+    # ------------------------------------------------------------------ read by mate.wrappers (end)
 
 
 for _name, _field in _WORLD_VIEWS.items():

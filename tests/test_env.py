@@ -300,9 +300,9 @@ def test_flat_and_nested_list_actions_are_accepted(env):
     assert env.episode_step == 1
 
 
-def test_render_mode_human_raises_a_clear_error():
-    with pytest.raises((NotImplementedError, ValueError), match='render'):
-        mate.make('MATE-4v8-9-v0', render_mode='human')
+def test_unknown_render_mode_raises_a_clear_error():
+    with pytest.raises(ValueError, match="render_mode='ansi' is not supported"):
+        mate.make('MATE-4v8-9-v0', render_mode='ansi')
 
 
 # --------------------------------------------------------------------------- snapshots
