@@ -120,6 +120,12 @@ def _presets(args: argparse.Namespace) -> int:
     return 0
 
 
+def _rllib_train(args: argparse.Namespace) -> int:
+    from .integrations import rllib_train
+
+    return rllib_train.run(args, console)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='mate', description='MATE: the Multi-Agent Tracking Environment')
     commands = parser.add_subparsers(dest='command', required=True)
@@ -153,6 +159,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     presets = commands.add_parser('presets', help='list the shipped configuration presets')
     presets.set_defaults(run=_presets)
+
+    from .integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
+    rllib_train = commands.add_parser('rllib-train', help='train PPO cameras against rule-based targets (Ray RLlib)')
+    add_rllib_train_arguments(rllib_train)
+    rllib_train.set_defaults(run=_rllib_train)
     return parser
 
 

@@ -57,7 +57,7 @@ _ONE = np.ones(1, dtype=bool)
 _WORLD_VIEWS = {
     'tracked_steps': 'target_tracked_steps', 'target_steps': 'target_steps', 'freights': 'target_freight',
     'bounties': 'target_bounty', 'target_goals': 'target_goal', 'target_capacities': 'target_capacity',
-    'target_dones': 'target_done', 'target_orientations': 'target_heading',
+    'target_dones': 'target_done', 'target_orientations': 'target_heading', 'target_is_colliding': 'target_is_colliding',
     'target_warehouse_distances': 'target_warehouse_distances', 'remaining_cargoes': 'remaining_cargoes',
     'awaiting_cargo_counts': 'awaiting_cargo_counts', 'camera_target_view_mask': 'camera_target_view_mask',
     'camera_obstacle_view_mask': 'camera_obstacle_view_mask', 'camera_camera_view_mask': 'camera_camera_view_mask',
@@ -379,13 +379,6 @@ class MultiAgentTracking(gym.Env):
     def obstacle_states_flagged(self) -> np.ndarray:
         """(No, 4) obstacle [x, y, r, 1] per slot: every obstacle as a visible observation record."""
         return np.concatenate([self.obstacle_states, np.ones((self.params.num_obstacles, 1))], axis=1)
-
-    @property
-    def target_is_colliding(self) -> np.ndarray:
-        """(Nt,) bool: the target's last move was altered by a disc or the border (read-only view)."""
-        view = self._world.target_is_colliding[0].view()
-        view.flags.writeable = False
-        return view
 
     @property
     def message_buffers(self) -> tuple[list[list[Message]], list[list[Message]]]:

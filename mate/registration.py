@@ -16,7 +16,7 @@ import gymnasium as gym
 from .config import list_presets
 from .env import MultiAgentTracking
 
-__all__ = ['make', 'make_environment', 'WrapperSpec', 'registered_ids']
+__all__ = ['make', 'make_environment', 'WrapperSpec', 'registered_ids', 'resolve_config']
 
 
 class WrapperSpec:
@@ -68,19 +68,24 @@ def make(env_id: str = 'MultiAgentTracking-v0', config: Any = None, wrappers: It
     With no config and no preset behind the ID, overrides alone start from an empty
     configuration (as in the original MATE): pass `config='MATE-4v8-9'` to tweak a preset.
     """
+    return make_environment(resolve_config(env_id, config), wrappers=wrappers, **overrides)
+
+
+def resolve_config(env_id: str, config: Any = None) -> Any:
+    """The configuration an ID stands for: `config` when given, else the ID's preset (None for
+    the default IDs). Unknown IDs raise ValueError with the closest known ones."""
     if env_id not in _IDS:
         close = difflib.get_close_matches(env_id, _IDS, n=3)
         hint = f' Did you mean {" or ".join(map(repr, close))}?' if close else ''
         raise ValueError(f'unknown environment id {env_id!r}.{hint} Known ids: {", ".join(_IDS)}')
-    if config is None:
-        config = _IDS[env_id]
-    return make_environment(config, wrappers=wrappers, **overrides)
+    return _IDS[env_id] if config is None else config
 
 
 def _register_with_gymnasium() -> None:
     for env_id, preset in _IDS.items():
         if env_id not in gym.registry:
             gym.register(env_id, entry_point='mate.registration:make_environment',
+                         vector_entry_point='mate.vector:make_vector_from_gymnasium',
                          kwargs={} if preset is None else {'config': preset},
                          disable_env_checker=True, order_enforce=False)
 

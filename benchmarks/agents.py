@@ -1,0 +1,103 @@
+"""Agent benchmark: env steps per second with both teams' built-in agents deciding, on MATE-4v8-9.
+
+    python benchmarks/agents.py [--seconds 10] [--json benchmarks/results/agents.json]
+
+Protocol (reference/groundtruth.md): for seed s = 0, 1, ...: a fresh env reset with seed s,
+`Cls(seed=s).spawn(N)` for each team, `group_reset`; each step the camera team's `group_step`
+(observe, two communication rounds, act), then the target team's, then `env.step`; the episode
+ends when the env says so or after 2000 steps. The clock runs over the step loops only (env
+construction, reset and `group_reset` excluded) and seeds are played until `--seconds` have
+been spent per pairing. One warm-up episode first (numba kernels are compiled or loaded from
+the cache). Also reports the pairing's mean coverage rate, to show the agents did their job.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import mate
+from mate.bench import machine_facts
+
+PRESET = 'MATE-4v8-9-v0'
+MAX_STEPS = 2000
+ORIGINAL_STEPS_PER_SECOND = {'greedy': 474, 'heuristic': 157}
+"""The original MATE on our machines, agents included (groundtruth.md; greedy ranged 339-474)."""
+PAIRINGS = {
+    'greedy': (mate.GreedyCameraAgent, mate.GreedyTargetAgent),
+    'heuristic': (mate.HeuristicCameraAgent, mate.HeuristicTargetAgent),
+}
+
+
+def play_episode(camera_class, target_class, seed: int, max_steps: int = MAX_STEPS) -> dict:
+    """One episode of the protocol; returns steps, seconds in the step loop and mean coverage."""
+    env = mate.make(PRESET)
+    (camera_obs, target_obs), _ = env.reset(seed=seed)
+    cameras = camera_class(seed=seed).spawn(env.num_cameras)
+    targets = target_class(seed=seed).spawn(env.num_targets)
+    mate.group_reset(cameras, camera_obs)
+    mate.group_reset(targets, target_obs)
+    camera_infos = target_infos = None
+    coverage = 0.0
+    start = time.perf_counter()
+    for step in range(1, max_steps + 1):
+        camera_actions = mate.group_step(env, cameras, camera_obs, camera_infos)
+        target_actions = mate.group_step(env, targets, target_obs, target_infos)
+        (camera_obs, target_obs), _, terminated, truncated, (camera_infos, target_infos) = env.step(
+            (camera_actions, target_actions))
+        coverage += camera_infos[0]['coverage_rate']
+        if terminated or truncated:
+            break
+    seconds = time.perf_counter() - start
+    return {'seed': seed, 'steps': step, 'seconds': seconds, 'coverage_rate': coverage / step}
+
+
+def measure(name: str, seconds: float) -> dict:
+    """Steps/s of one pairing over as many protocol episodes as fit in `seconds`."""
+    camera_class, target_class = PAIRINGS[name]
+    play_episode(camera_class, target_class, seed=10_000, max_steps=50)   # warm-up
+    episodes = []
+    while sum(e['seconds'] for e in episodes) < seconds:
+        episodes.append(play_episode(camera_class, target_class, seed=len(episodes)))
+    steps = sum(e['steps'] for e in episodes)
+    elapsed = sum(e['seconds'] for e in episodes)
+    rate = steps / elapsed
+    return {'pairing': f'{name} vs {name}', 'preset': PRESET, 'episodes': len(episodes), 'steps': steps,
+            'seconds': elapsed, 'env_steps_per_second': rate,
+            'original_steps_per_second': ORIGINAL_STEPS_PER_SECOND[name],
+            'speedup_vs_original': rate / ORIGINAL_STEPS_PER_SECOND[name],
+            'mean_coverage_rate': float(np.mean([e['coverage_rate'] for e in episodes]))}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--seconds', type=float, default=10.0, help='time budget per pairing (default 10)')
+    parser.add_argument('--json', default='benchmarks/results/agents.json', help='where to write the results')
+    parser.add_argument('--pairings', nargs='+', default=list(PAIRINGS), choices=list(PAIRINGS))
+    args = parser.parse_args(argv)
+    results = []
+    for name in args.pairings:
+        print(f'measuring {name} vs {name} on {PRESET} ...', file=sys.stderr, flush=True)
+        results.append(measure(name, args.seconds))
+    header = f'{"pairing":<24} {"episodes":>8} {"steps":>8} {"steps/s":>9} {"original":>9} {"ratio":>7} {"coverage":>9}'
+    print(header)
+    print('-' * len(header))
+    for r in results:
+        print(f'{r["pairing"]:<24} {r["episodes"]:>8d} {r["steps"]:>8d} {r["env_steps_per_second"]:>9.0f} '
+              f'{r["original_steps_per_second"]:>9d} {r["speedup_vs_original"]:>6.1f}x {r["mean_coverage_rate"]:>9.4f}')
+    path = Path(args.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    protocol = ' '.join(__doc__.split('\n\n')[2].split())
+    path.write_text(json.dumps({'machine': machine_facts(), 'protocol': protocol,
+                                'results': results}, indent=2))
+    print(f'wrote {path}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

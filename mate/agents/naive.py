@@ -1,0 +1,123 @@
+"""Naive agents: a camera that keeps turning and widening; a target that tours the warehouses."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..constants import NUM_WAREHOUSES, PRESERVED_DIM, WAREHOUSE_RADIUS, WAREHOUSES
+from .base import CameraAgentBase, TargetAgentBase
+
+__all__ = ['NaiveCameraAgent', 'NaiveTargetAgent']
+
+_WAREHOUSES = WAREHOUSES.tolist()
+_OWN = PRESERVED_DIM
+"""Offset of the own state in an observation."""
+ARRIVAL_DISTANCE = 0.9 * WAREHOUSE_RADIUS
+"""A target this close to a warehouse centre (67.5) counts as arrived."""
+NOISE_REFRESH_MOVING = 0.05
+"""Chance per step of drawing new noise when the last move was longer than 0.2 step sizes."""
+NOISE_REFRESH_STUCK = 0.75
+"""Chance per step of drawing new noise after a (nearly) blocked move."""
+INITIAL_NOISE_SCALE = 0.5
+"""Scale of the noise drawn at reset (fixed, whatever the agent's noise_scale; kept from the original)."""
+
+
+class NaiveCameraAgent(CameraAgentBase):
+    """Turn counter-clockwise and widen the view by u x the step limits, u ~ U(0, 0.4) each step
+    (one u for both components): about one degree of rotation per step with a 5-degree step.
+
+    Args:
+        seed: seed of the agent's generator.
+    """
+
+    def act(self, observation, info: dict | None = None, deterministic: bool | None = None) -> np.ndarray:
+        self._accept(observation)
+        u = 0.4 * self._draw()
+        high = self._action_high
+        return np.array([u * high[0], u * high[1]])
+
+
+class NoisyWalker:
+    """Shared machinery of the built-in targets: head for a point at full speed plus sticky noise.
+
+    The noise is redrawn (`noise_scale` x a uniform action-box sample) with probability 0.05 per
+    step while the target moves freely and 0.75 after a blocked step (moved <= 0.2 step sizes);
+    otherwise last step's noise is reused. The sum is clipped to the action box.
+    """
+
+    noise_scale = INITIAL_NOISE_SCALE
+
+    def _start_walk(self, observation: np.ndarray) -> None:
+        x, y = observation[_OWN:_OWN + 2].tolist()
+        self._prev_location = (x, y)
+        self._prev_source = observation
+        self._prev_noise = self._sample_pair(INITIAL_NOISE_SCALE)
+
+    def _sample_pair(self, scale: float) -> tuple[float, float]:
+        draw, low, high = self._space_draw, self._action_low, self._action_high
+        return (scale * (low[0] + (high[0] - low[0]) * draw()), scale * (low[1] + (high[1] - low[1]) * draw()))
+
+    def _walk(self, observation: np.ndarray, x: float, y: float, step: float, gx: float, gy: float) -> list:
+        """Action towards (gx, gy) given the own location (x, y) and step size; updates the noise."""
+        ax, ay = gx - x, gy - y
+        norm = math.hypot(ax, ay)
+        if norm > step:
+            ax, ay = ax * step / norm, ay * step / norm
+        px, py = self._prev_location
+        moving = math.hypot(x - px, y - py) > 0.2 * step
+        if self._draw() < (NOISE_REFRESH_MOVING if moving else NOISE_REFRESH_STUCK):
+            self._prev_noise = self._sample_pair(self.noise_scale)
+        nx, ny = self._prev_noise
+        low, high = self._action_low, self._action_high
+        ax, ay = min(max(ax + nx, low[0]), high[0]), min(max(ay + ny, low[1]), high[1])
+        self._prev_location = (x, y)
+        self._prev_source = observation
+        return [ax, ay]
+
+    @property
+    def prev_state(self):
+        """Own state view at the previous decision (reset or act)."""
+        source = getattr(self, '_prev_source', None)
+        return None if source is None else self.STATE_CLASS(source[_OWN:_OWN + self.STATE_CLASS.DIM], self.index)
+
+    @property
+    def prev_noise(self) -> np.ndarray:
+        """The noise added to the last action, float64 (2,)."""
+        return np.array(self._prev_noise)
+
+
+class NaiveTargetAgent(NoisyWalker, TargetAgentBase):
+    """Visit the warehouses in turn (direction +1 or -1 drawn at reset), skipping the ones seen empty
+    while unloaded. The cargo's destination is ignored: deliveries happen on the way.
+
+    Args:
+        seed: seed of the agent's generator.
+    """
+
+    def __init__(self, seed: int | None = None) -> None:
+        self.goal = 0
+        self.inc = 1
+        super().__init__(seed=seed)
+
+    def reset(self, observation) -> None:
+        super().reset(observation)
+        self._start_walk(np.asarray(observation, dtype=np.float64))
+        self.goal = min(int(self._draw() * NUM_WAREHOUSES), NUM_WAREHOUSES - 1)
+        self.inc = 1 if self._draw() < 0.5 else -1
+
+    def act(self, observation, info: dict | None = None, deterministic: bool | None = None) -> np.ndarray:
+        observation = self._accept(observation)
+        own = observation[_OWN:_OWN + 14].tolist()
+        x, y, step = own[0], own[1], own[4]
+        goal_bits, empty_bits = own[6:10], own[10:14]
+        gx, gy = _WAREHOUSES[self.goal]
+        if math.hypot(gx - x, gy - y) <= ARRIVAL_DISTANCE:
+            if any(goal_bits) or all(empty_bits):
+                self.goal = (self.goal + self.inc) % NUM_WAREHOUSES
+            else:   # unloaded: stay while this warehouse may still have cargo, else the next non-empty one
+                while empty_bits[self.goal]:
+                    self.goal = (self.goal + self.inc) % NUM_WAREHOUSES
+            gx, gy = _WAREHOUSES[self.goal]
+        return np.array(self._walk(observation, x, y, step, gx, gy))

@@ -1,0 +1,149 @@
+"""MATE as a PettingZoo environment: `parallel_env()` (Parallel API) and `env()` (AEC API).
+
+    from mate.integrations import pettingzoo as mate_pz
+    env = mate_pz.parallel_env(config='MATE-4v8-9', max_cycles=500)
+    observations, infos = env.reset(seed=0)
+    while env.agents:
+        actions = {agent: env.action_space(agent).sample() for agent in env.agents}
+        observations, rewards, terminations, truncations, infos = env.step(actions)
+
+Agents: `camera_0 .. camera_{Nc-1}` then `target_0 .. target_{Nt-1}` (slot order of the single
+env's joint observations and actions). Every agent acts every step (simultaneous moves); in
+the AEC version (`parallel_to_aec`) agents take turns in that order and the world advances
+once all of them have acted.
+
+Spaces: each agent has its own space objects, built once (`observation_space(agent)` returns
+the same object every call; seeding one agent's space leaves the others alone). Observations
+are float64 vectors of the layouts in `mate.spaces`; a camera acts with (rotation, zoom) in
+degrees, a target with a displacement (dx, dy). An agent missing from the actions dict stays
+still (a zero action). `state()` is the global state vector, `state_space` its Box.
+
+Rewards: team rewards, repeated for every agent of the team (camera reward == -target reward).
+infos: the single env's per-agent info dicts (coverage_rate, raw_reward, messages, ...).
+
+Episode end: every agent terminates when all cargo is delivered and is truncated at the
+configuration's `max_episode_steps` or after `max_cycles` steps, whichever comes first; then
+`agents` is empty until the next reset.
+
+Rendering: `render_mode` is passed to the single env and `render()` delegates to it.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from ..env import MultiAgentTracking
+
+__all__ = ['MateParallelEnv', 'parallel_env', 'env', 'raw_env']
+
+
+class MateParallelEnv(ParallelEnv):
+    """The Parallel API over one `MultiAgentTracking` env (`self.env`)."""
+
+    metadata = {
+        'name': 'mate_v0',
+        'render_modes': list(MultiAgentTracking.metadata.get('render_modes', [])),
+        'render_fps': MultiAgentTracking.metadata.get('render_fps', 60),
+        'is_parallelizable': True,
+    }
+
+    def __init__(self, config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
+                 **overrides: Any) -> None:
+        if max_cycles is not None and (not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1):
+            raise ValueError(f'max_cycles must be a positive integer or None, got {max_cycles!r}')
+        self.env = MultiAgentTracking(config, render_mode=render_mode, **overrides)
+        self.render_mode = render_mode
+        self.max_cycles = max_cycles
+        nc, nt = self.env.num_cameras, self.env.num_targets
+        self.camera_agents = [f'camera_{i}' for i in range(nc)]
+        self.target_agents = [f'target_{i}' for i in range(nt)]
+        self.possible_agents = self.camera_agents + self.target_agents
+        self.agents: list[str] = []
+        self._index = {agent: i for i, agent in enumerate(self.camera_agents)}
+        self._index.update({agent: i for i, agent in enumerate(self.target_agents)})
+        team_spaces = [(self.camera_agents, self.env.camera_observation_space, self.env.camera_action_space),
+                       (self.target_agents, self.env.target_observation_space, self.env.target_action_space)]
+        self.observation_spaces = {a: copy.deepcopy(obs) for agents, obs, _ in team_spaces for a in agents}
+        self.action_spaces = {a: copy.deepcopy(act) for agents, _, act in team_spaces for a in agents}
+        self.state_space = copy.deepcopy(self.env.state_space)
+        self._camera_actions = np.zeros((nc, 2))
+        self._target_actions = np.zeros((nt, 2))
+        self.num_cycles = 0
+
+    def observation_space(self, agent: str):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str):
+        return self.action_spaces[agent]
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        (camera_obs, target_obs), (camera_infos, target_infos) = self.env.reset(seed=seed, options=options)
+        self.agents = list(self.possible_agents)
+        self.num_cycles = 0
+        return self._per_agent(camera_obs, target_obs), self._per_agent(camera_infos, target_infos)
+
+    def step(self, actions: dict[str, Any]):
+        if not self.agents:
+            raise RuntimeError('every agent is done: call reset() before step()')
+        self._camera_actions[:] = 0.0
+        self._target_actions[:] = 0.0
+        for agent, action in actions.items():
+            if action is None:  # a done agent's turn in the AEC conversion
+                continue
+            team = self._camera_actions if agent.startswith('camera_') else self._target_actions
+            try:
+                team[self._index[agent]] = action
+            except KeyError:
+                raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}') from None
+            except ValueError as exc:
+                raise ValueError(f'action of {agent} must be 2 numbers, got {action!r}: {exc}') from None
+        (camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, infos = self.env.step(
+            (self._camera_actions, self._target_actions))
+        self.num_cycles += 1
+        truncated = truncated or (self.max_cycles is not None and self.num_cycles >= self.max_cycles)
+        observations = self._per_agent(camera_obs, target_obs)
+        rewards = {**dict.fromkeys(self.camera_agents, float(camera_reward)),
+                   **dict.fromkeys(self.target_agents, float(target_reward))}
+        terminations = dict.fromkeys(self.possible_agents, bool(terminated))
+        truncations = dict.fromkeys(self.possible_agents, bool(truncated) and not terminated)
+        infos = self._per_agent(*infos)
+        if terminated or truncated:
+            self.agents = []
+        return observations, rewards, terminations, truncations, infos
+
+    def _per_agent(self, camera_values, target_values) -> dict[str, Any]:
+        out = dict(zip(self.camera_agents, camera_values, strict=True))
+        out.update(zip(self.target_agents, target_values, strict=True))
+        return out
+
+    def state(self) -> np.ndarray:
+        return self.env.state()
+
+    def render(self):
+        return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
+
+    def __str__(self) -> str:
+        return 'mate_v0'
+
+
+def parallel_env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
+                 **overrides: Any) -> MateParallelEnv:
+    """MATE under PettingZoo's Parallel API (see the module docstring)."""
+    return MateParallelEnv(config, render_mode=render_mode, max_cycles=max_cycles, **overrides)
+
+
+def env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
+        **overrides: Any):
+    """MATE under PettingZoo's AEC API: `parallel_to_aec(parallel_env(...))` (order-enforced)."""
+    return parallel_to_aec(parallel_env(config, render_mode=render_mode, max_cycles=max_cycles, **overrides))
+
+
+raw_env = env

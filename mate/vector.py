@@ -1,0 +1,357 @@
+"""`MultiAgentTrackingVectorEnv`: B MATE games stepped together by the batched core (`make_vec`).
+
+One `World` of B rows is advanced by a single call into `mate.core.engine` per step: there is
+no loop over single environments. Row i behaves exactly like a `MultiAgentTracking` env reset
+with seed `s + i` (see Seeding).
+
+Spaces (Gymnasium vector conventions)
+    single_action_space: Tuple(Box(Nc, 2), Box(Nt, 2)), float64: a camera acts with
+    (rotation, zoom) in degrees within +-rotation_step / +-zooming_step; a target with a
+    displacement (dx, dy) whose norm the core clips to its speed. action_space is the batched
+    Tuple(Box(B, Nc, 2), Box(B, Nt, 2)). Out-of-bounds values are clipped by the core; NaN and
+    inf are refused.
+    single_observation_space: Tuple(Box(Nc, D_c), Box(Nt, D_t)) in `observation_dtype`;
+    observation_space the batched Tuple(Box(B, Nc, D_c), Box(B, Nt, D_t)). Layouts are those
+    of `mate.spaces` (one row per agent, as the single env returns them).
+    single_state_space / state_space: Box(S) / Box(B, S), S = 29 + 9 Nc + 16 Nt + 3 No.
+
+Step
+    envs.step((camera_actions (B, Nc, 2), target_actions (B, Nt, 2))) ->
+    ((camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)),
+     (camera_rewards (B,), target_rewards (B,)), terminations (B,), truncations (B,), infos)
+    The game is zero-sum: camera_rewards == -target_rewards. infos is a dict of (B,) arrays:
+    coverage_rate, real_coverage_rate, mean_transport_rate, num_delivered_cargoes,
+    episode_step, each with Gymnasium's `_<key>` mask (all true). There is no per-agent info
+    and no message channel: use the single env (`mate.make`) for communication.
+
+Autoreset (`autoreset_mode`, also in `metadata['autoreset_mode']`)
+    NEXT_STEP (default, Gymnasium 1.x): the step after env i finished ignores env i's actions,
+    starts its next episode and returns that episode's first observation with reward 0 and
+    terminated = truncated = False. The finished episode's last observation is the one
+    returned by the step that finished it.
+    SAME_STEP: the step that finishes env i also resets it; it returns the new episode's first
+    observation, the final step's reward and flags, and the finished episode's last
+    observation in infos['final_obs'] (an object array (B,): a (camera_obs (Nc, D_c),
+    target_obs (Nt, D_t)) pair of copies for finished envs, None elsewhere; mask
+    infos['_final_obs']) and its infos in infos['final_info'] (dict of (B,) arrays with
+    masks; mask infos['_final_info']).
+    DISABLED: no autoreset; stepping a finished env raises; reset some envs with
+    reset(options={'reset_mask': mask (B,) bool}).
+
+Seeding
+    reset(seed=s) seeds env i with s + i (a list of B ints/None seeds env i with seed[i]), so
+    env i replays `mate.make(same id and config).reset(seed=s + i)` step for step, autoresets
+    included (an autoreset continues env i's random stream, as the single env's
+    `reset()` without a seed does). reset() without a seed continues each env's stream; a
+    never-seeded env draws OS entropy.
+
+Buffers (zero-copy)
+    Observations, rewards, terminations and truncations are preallocated arrays that the next
+    step() or reset() overwrites in place; pass copy=True to get fresh arrays instead. infos
+    arrays are fresh each call. Observations are written by the core directly in
+    `observation_dtype` (float64 default; float32 for learners, no extra cast).
+
+Arguments
+    config: a preset name, a YAML/JSON path or a dict (see `mate.config`); keyword overrides are
+    deep-merged into it. num_envs: B. observation_dtype: np.float64 or np.float32.
+    autoreset_mode: a `gymnasium.vector.AutoresetMode` or its name ('next_step', 'same_step',
+    'disabled'). copy: return copies instead of the reused buffers.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from . import registration
+from .core import engine
+from .core.world import empty_world
+from .env import MultiAgentTracking
+
+try:
+    from gymnasium.vector import AutoresetMode
+except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum for it
+    class AutoresetMode(Enum):
+        NEXT_STEP = 'NextStep'
+        SAME_STEP = 'SameStep'
+        DISABLED = 'Disabled'
+
+__all__ = ['MultiAgentTrackingVectorEnv', 'make_vec', 'AutoresetMode']
+
+INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step')
+"""The (B,) arrays of a vector step's infos (World fields of the same names)."""
+
+
+def _autoreset_mode(mode) -> AutoresetMode:
+    if isinstance(mode, AutoresetMode):
+        return mode
+    if isinstance(mode, Enum):  # another library's enum with the same values (gymnasium's vs ours)
+        mode = mode.value
+    key = str(mode).replace('_', '').replace('-', '').lower()
+    for member in AutoresetMode:
+        if key in (member.name.replace('_', '').lower(), member.value.lower()):
+            return member
+    names = ', '.join(repr(m.name.lower()) for m in AutoresetMode)
+    raise ValueError(f'autoreset_mode={mode!r} is not one of {names}')
+
+
+def _box(low: np.ndarray, high: np.ndarray, dtype) -> spaces.Box:
+    dtype = np.dtype(dtype)
+    return spaces.Box(low.astype(dtype), high.astype(dtype), dtype=dtype)
+
+
+class MultiAgentTrackingVectorEnv(VectorEnv):
+    __doc__ = __doc__
+
+    def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = False,
+                 **overrides: Any) -> None:
+        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
+        dtype = np.dtype(observation_dtype)
+        if dtype not in (np.float64, np.float32):
+            raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
+        # The single env defines the configuration, parameters and per-agent spaces.
+        template = MultiAgentTracking(config, **overrides)
+        self.config, self.params = template.config, template.params
+        self.num_envs = B = int(num_envs)
+        self.observation_dtype = dtype
+        self.autoreset_mode = _autoreset_mode(autoreset_mode)
+        self.copy = bool(copy)
+        self.metadata = {'render_modes': [], 'autoreset_mode': self.autoreset_mode}
+        self.render_mode = None
+        p = self.params
+        nc, nt = p.num_cameras, p.num_targets
+
+        # ---- spaces
+        self.camera_action_space, self.target_action_space = template.camera_action_space, template.target_action_space
+        self.camera_observation_space = _box(template.camera_observation_space.low,
+                                             template.camera_observation_space.high, dtype)
+        self.target_observation_space = _box(template.target_observation_space.low,
+                                             template.target_observation_space.high, dtype)
+        self.single_action_space = spaces.Tuple((
+            _box(np.tile(self.camera_action_space.low, (nc, 1)), np.tile(self.camera_action_space.high, (nc, 1)),
+                 np.float64),
+            _box(np.tile(self.target_action_space.low, (nt, 1)), np.tile(self.target_action_space.high, (nt, 1)),
+                 np.float64)))
+        self.single_observation_space = spaces.Tuple((
+            _box(np.tile(self.camera_observation_space.low, (nc, 1)),
+                 np.tile(self.camera_observation_space.high, (nc, 1)), dtype),
+            _box(np.tile(self.target_observation_space.low, (nt, 1)),
+                 np.tile(self.target_observation_space.high, (nt, 1)), dtype)))
+        self.single_state_space = _box(template.state_space.low, template.state_space.high, dtype)
+        self.action_space = batch_space(self.single_action_space, B)
+        self.observation_space = batch_space(self.single_observation_space, B)
+        self.state_space = batch_space(self.single_state_space, B)
+
+        # ---- world and buffers
+        self._world = empty_world(p, B)
+        self._camera_obs = np.zeros((B, nc, self.camera_observation_space.shape[0]), dtype=dtype)
+        self._target_obs = np.zeros((B, nt, self.target_observation_space.shape[0]), dtype=dtype)
+        self._camera_reward = np.zeros(B)
+        self._target_reward = np.zeros(B)
+        self._terminated = np.zeros(B, dtype=bool)
+        self._truncated = np.zeros(B, dtype=bool)
+        self._autoreset = np.zeros(B, dtype=bool)  # finished at the last step (kept apart from returned arrays)
+        self._everyone = np.ones(B, dtype=bool)  # the reset mask of all rows (writable: one numba type)
+        self._info_mask = np.ones(B, dtype=bool)  # the `_key` masks of infos, shared and read-only
+        self._info_mask.flags.writeable = False
+        self._needs_reset = True
+
+    # ------------------------------------------------------------------ episodes
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Start new episodes in every env (or in options['reset_mask'] (B,) bool only).
+
+        Returns ((camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)), infos). `seed`: None
+        (continue each env's stream; never-seeded envs draw OS entropy), an int s (env i gets
+        s + i) or a list of B ints/None. With a mask, only the masked envs are seeded and reset;
+        the others keep their episode and observation.
+        """
+        B = self.num_envs
+        mask = self._everyone if not options or 'reset_mask' not in options else self._check_mask(options['reset_mask'])
+        if seed is None:
+            seeds = [None] * B
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            super().reset(seed=int(seed))  # also seeds self.np_random (sample_actions' default)
+            seeds = [int(seed) + i for i in range(B)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != B:
+                raise ValueError(f'reset(seed=...) got {len(seeds)} seeds for num_envs={B}: pass an int, None '
+                                 f'or a list of {B} seeds')
+        world = self._world
+        never_seeded = (world.rng[:, 0] == 0) & (world.rng[:, 1] == 0)
+        given = np.array([s is not None for s in seeds], dtype=bool)
+        to_seed = mask & (given | never_seeded)
+        if to_seed.any():
+            engine.seed_rows(world, to_seed, [seeds[i] for i in np.flatnonzero(to_seed)])
+        engine.reset(self.params, world, mask, self._camera_obs, self._target_obs)
+        self._autoreset[mask] = False
+        self._terminated[mask] = False
+        self._truncated[mask] = False
+        self._camera_reward[mask] = 0.0
+        self._target_reward[mask] = 0.0
+        self._needs_reset = False
+        return self._observations(), self._infos()
+
+    def _check_mask(self, mask) -> np.ndarray:
+        mask = np.asarray(mask)
+        if mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), "
+                             f'got {mask.dtype} {mask.shape}')
+        return np.array(mask, dtype=bool, order='C')  # a private, writable, contiguous copy
+
+    def step(self, actions):
+        """Advance every env by one step (see the module docstring for the autoreset semantics)."""
+        if self._needs_reset:
+            raise RuntimeError('MultiAgentTrackingVectorEnv: call reset() before step()')
+        camera_actions, target_actions = self._parse_actions(actions)
+        p, world, mode = self.params, self._world, self.autoreset_mode
+        if mode is AutoresetMode.DISABLED and self._autoreset.any():
+            finished = np.flatnonzero(self._autoreset)
+            raise RuntimeError(f'envs {_listing(finished)} finished their episodes and autoreset_mode is DISABLED: '
+                               "reset them with reset(options={'reset_mask': mask}) before step()")
+        pending = self._autoreset if mode is AutoresetMode.NEXT_STEP and self._autoreset.any() else None
+        if pending is not None:
+            pending = pending.copy()
+            streams = world.rng[pending]  # the finished rows' streams as their episodes ended
+        engine.step(p, world, camera_actions, target_actions, self._camera_obs, self._target_obs)
+        if pending is not None:
+            # The finished rows were stepped with the rest (the core steps whole batches); put their
+            # streams back so that their new episodes draw exactly what a single env's reset() draws.
+            world.rng[pending] = streams
+            engine.reset(p, world, pending, self._camera_obs, self._target_obs)  # zeroes reward and flags
+        np.copyto(self._target_reward, world.target_reward)
+        np.negative(self._target_reward, out=self._camera_reward)
+        np.copyto(self._terminated, world.terminated)
+        np.copyto(self._truncated, world.truncated)
+        np.logical_or(self._terminated, self._truncated, out=self._autoreset)
+        infos = self._infos()
+        if mode is AutoresetMode.SAME_STEP and self._autoreset.any():
+            done = self._autoreset.copy()
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(done):
+                final_obs[i] = (self._camera_obs[i].copy(), self._target_obs[i].copy())
+            final_info = dict(infos)
+            for key in INFO_KEYS:
+                final_info[f'_{key}'] = done
+            engine.reset(p, world, done, self._camera_obs, self._target_obs)
+            self._autoreset[:] = False
+            infos = self._infos()
+            infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
+        rewards = (self._camera_reward, self._target_reward)
+        if self.copy:
+            rewards = (rewards[0].copy(), rewards[1].copy())
+            return self._observations(), rewards, self._terminated.copy(), self._truncated.copy(), infos
+        return self._observations(), rewards, self._terminated, self._truncated, infos
+
+    def _parse_actions(self, actions) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            camera_actions, target_actions = actions
+        except (TypeError, ValueError):
+            raise ValueError('actions must be a pair (camera_actions (B, Nc, 2), target_actions (B, Nt, 2)), '
+                             f'got {type(actions).__name__}') from None
+        return (self._team_actions(camera_actions, self.params.num_cameras, 'camera', self.camera_action_space),
+                self._team_actions(target_actions, self.params.num_targets, 'target', self.target_action_space))
+
+    def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
+        B = self.num_envs
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'{team} actions are not numeric: {exc}') from None
+        expected = (B, count, 2)
+        if array.shape != expected:
+            if array.ndim < 1 or array.shape[0] != B or array.size != B * count * 2:
+                raise ValueError(f'{team} actions have shape {array.shape}; expected shape {expected} '
+                                 f'(num_envs, num_{team}s, 2)')
+            array = array.reshape(expected)
+        if not np.isfinite(array).all():
+            bad = np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))
+            raise ValueError(f'{team} actions contain NaN or inf (envs {_listing(bad)}); every entry must be '
+                             f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+        return np.ascontiguousarray(array)
+
+    def _observations(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.copy:
+            return self._camera_obs.copy(), self._target_obs.copy()
+        return self._camera_obs, self._target_obs
+
+    def _infos(self) -> dict[str, np.ndarray]:
+        world = self._world
+        infos: dict[str, np.ndarray] = {}
+        for key in INFO_KEYS:
+            infos[key] = getattr(world, key).copy()
+            infos[f'_{key}'] = self._info_mask
+        return infos
+
+    # ------------------------------------------------------------------ helpers
+    def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64.
+
+        Much cheaper than `action_space.sample()`. `rng`: a numpy Generator, an int seed, or None
+        for `self.np_random` (seeded by reset(seed=int)).
+        """
+        if rng is None:
+            rng = self.np_random
+        elif not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        B, p = self.num_envs, self.params
+        cam, tgt = self.camera_action_space, self.target_action_space
+        return (rng.uniform(cam.low, cam.high, (B, p.num_cameras, 2)),
+                rng.uniform(tgt.low, tgt.high, (B, p.num_targets, 2)))
+
+    def state(self) -> np.ndarray:
+        """Every env's global state vector: a fresh (B, S) array in `observation_dtype`."""
+        out = np.empty(self.state_space.shape, dtype=self.observation_dtype)
+        engine.global_states(self.params, self._world, out)
+        return out
+
+    @property
+    def num_cameras(self) -> int:
+        return self.params.num_cameras
+
+    @property
+    def num_targets(self) -> int:
+        return self.params.num_targets
+
+    @property
+    def num_obstacles(self) -> int:
+        return self.params.num_obstacles
+
+    @property
+    def max_episode_steps(self) -> int:
+        return self.params.max_episode_steps
+
+    @property
+    def name(self) -> str:
+        return self.config['name']
+
+    def __repr__(self) -> str:
+        return (f'MultiAgentTrackingVectorEnv({self.name}, num_envs={self.num_envs}, '
+                f'observation_dtype={self.observation_dtype.name}, autoreset_mode={self.autoreset_mode.name})')
+
+
+def _listing(indices: np.ndarray, limit: int = 10) -> str:
+    shown = ', '.join(str(int(i)) for i in indices[:limit])
+    return f'[{shown}{", ..." if len(indices) > limit else ""}]'
+
+
+def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None, *,
+             observation_dtype=np.float64, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+             copy: bool = False, **overrides: Any) -> MultiAgentTrackingVectorEnv:
+    """A vector env of `num_envs` games for an ID of `mate.make`; `config=` replaces the ID's
+    preset and keyword overrides are deep-merged, exactly as in `mate.make`."""
+    return MultiAgentTrackingVectorEnv(registration.resolve_config(env_id, config), num_envs,
+                                       observation_dtype=observation_dtype, autoreset_mode=autoreset_mode,
+                                       copy=copy, **overrides)
+
+
+def make_vector_from_gymnasium(num_envs: int = 1, config: Any = None, **kwargs: Any) -> MultiAgentTrackingVectorEnv:
+    """Entry point of `gymnasium.make_vec(id, num_envs, vectorization_mode='vector_entry_point')`."""
+    return MultiAgentTrackingVectorEnv(config, num_envs, **kwargs)

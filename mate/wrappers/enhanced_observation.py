@@ -1,0 +1,121 @@
+"""EnhancedObservation: every agent sees every entity (full observability), targets see the true warehouse stock.
+
+The array function `enhance_observations` does the work on joint observations with any leading batch
+axes, `(..., Nc, D_c)` and `(..., Nt, D_t)`, so a vector env can call it on `(B, N, D)` arrays.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from mate.constants import CAMERA_STATE_DIM_PUBLIC, NUM_WAREHOUSES, PRESERVED_DIM, TARGET_STATE_DIM_PUBLIC
+from mate.spaces import camera_observation_slices_of, target_observation_slices_of
+
+from .base import MateWrapper, assert_base_environment, check_choice, forbid_inside
+
+__all__ = ['EnhancedObservation', 'empty_warehouses', 'enhance_observations', 'flagged_records', 'public_records']
+
+TEAMS = ('both', 'camera', 'target', 'none')
+
+_CAMERA_PUBLIC = slice(PRESERVED_DIM, PRESERVED_DIM + CAMERA_STATE_DIM_PUBLIC)
+_TARGET_PUBLIC = slice(PRESERVED_DIM, PRESERVED_DIM + TARGET_STATE_DIM_PUBLIC)
+TARGET_EMPTY_BITS = slice(PRESERVED_DIM + 10, PRESERVED_DIM + 10 + NUM_WAREHOUSES)
+"""Own empty_bits inside a target observation (the last 4 entries of its private state)."""
+
+
+def flagged_records(records: np.ndarray) -> np.ndarray:
+    """(..., n, d) records -> (..., 1, n * (d + 1)): each record followed by a flag 1, flattened into one row
+    block that broadcasts over the agent axis."""
+    records = np.asarray(records, dtype=np.float64)
+    ones = np.ones(records.shape[:-1] + (1,))
+    flagged = np.concatenate([records, ones], axis=-1)
+    return flagged.reshape(records.shape[:-2] + (1, flagged.shape[-2] * flagged.shape[-1]))
+
+
+def public_records(camera_obs: np.ndarray, target_obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Public states read from each agent's own private state: cameras (..., Nc, 6), targets (..., Nt, 4) (copies)."""
+    return camera_obs[..., _CAMERA_PUBLIC].copy(), target_obs[..., _TARGET_PUBLIC].copy()
+
+
+def empty_warehouses(remaining_cargoes: np.ndarray) -> np.ndarray:
+    """(..., 4) float 0/1: warehouse w has no cargo left to send (row w of `remaining_cargoes` (..., 4, 4) is zero)."""
+    return (~np.asarray(remaining_cargoes).any(axis=-1)).astype(np.float64)
+
+
+def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle_states: np.ndarray,
+                         empty_bits: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int,
+                         camera: bool = True, target: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Fill every opponent, obstacle and teammate record with the entity's public state and flag 1, in place.
+
+    Args:
+        camera_obs: (..., Nc, D_c) joint camera observations (modified in place when `camera`).
+        target_obs: (..., Nt, D_t) joint target observations (modified in place when `target`).
+        obstacle_states: (..., No, 3) obstacle [x, y, r] per slot.
+        empty_bits: (..., 4) true emptiness of each warehouse (see `empty_warehouses`), written into each
+            target's own empty_bits.
+    Returns:
+        the two arrays.
+    """
+    counts = (num_cameras, num_targets, num_obstacles)
+    cameras, targets = public_records(camera_obs, target_obs)
+    cameras, targets, obstacles = flagged_records(cameras), flagged_records(targets), flagged_records(obstacle_states)
+    if camera:
+        s = camera_observation_slices_of(*counts)
+        camera_obs[..., s['opponent_states_with_mask']] = targets
+        camera_obs[..., s['obstacle_states_with_mask']] = obstacles
+        camera_obs[..., s['teammate_states_with_mask']] = cameras
+    if target:
+        s = target_observation_slices_of(*counts)
+        target_obs[..., TARGET_EMPTY_BITS] = np.asarray(empty_bits, dtype=np.float64)[..., None, :]
+        target_obs[..., s['opponent_states_with_mask']] = cameras
+        target_obs[..., s['obstacle_states_with_mask']] = obstacles
+        target_obs[..., s['teammate_states_with_mask']] = targets
+    return camera_obs, target_obs
+
+
+class EnhancedObservation(MateWrapper):
+    """Full observability for one or both teams.
+
+    Camera side: every camera sees all targets, all obstacles and all cameras (public states, flag 1).
+    Target side: every target sees all cameras, obstacles and targets, and its own `empty_bits` become the
+    truth (warehouse w is empty iff it has no cargo left to send). `team='none'` passes through.
+
+    Order: before (inside) any single-team wrapper, RelativeCoordinates and RescaledObservation.
+    """
+
+    def __init__(self, env, team: str = 'both') -> None:
+        name = type(self).__name__
+        assert_base_environment(env, name)
+        check_choice('team', team, TEAMS)
+        from .relative_coordinates import RelativeCoordinates
+        from .rescaled_observation import RescaledObservation
+        forbid_inside(env, name, (RelativeCoordinates, RescaledObservation), 'it reads absolute, unscaled values')
+        super().__init__(env)
+        self.team = team
+        self.enhance_camera = team in ('camera', 'both')
+        self.enhance_target = team in ('target', 'both')
+        base = env.unwrapped
+        self._counts = (base.num_cameras, base.num_targets, base.num_obstacles)
+
+    def _arguments(self) -> str:
+        return f'team={self.team}'
+
+    def observation(self, observation: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The enhanced joint observations (the given arrays, modified in place)."""
+        if not (self.enhance_camera or self.enhance_target):
+            return observation
+        camera_obs, target_obs = observation
+        base = self.env.unwrapped
+        return enhance_observations(camera_obs, target_obs, base.obstacle_states,
+                                    empty_warehouses(base.remaining_cargoes), *self._counts,
+                                    camera=self.enhance_camera, target=self.enhance_target)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, Any]:
+        observation, infos = self.env.reset(seed=seed, options=options)
+        return self.observation(observation), infos
+
+    def step(self, action):
+        observation, reward, terminated, truncated, infos = self.env.step(action)
+        return self.observation(observation), reward, terminated, truncated, infos
