@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 console = Console()
+TEAM_CHOICES = ('both', 'camera', 'target', 'none')
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -39,53 +40,94 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    import numpy as np
-    from rich.progress import Progress
+    import json
 
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from . import evaluate as ev
+    from .messages import Team
     from .registration import make
 
-    env = make('MultiAgentTracking-v0', config=args.config)
-    if args.max_episode_steps is not None:
-        env = make('MultiAgentTracking-v0', config=env.config, max_episode_steps=args.max_episode_steps)
-    rows = []
-    with Progress(console=console, transient=True) as progress:
-        task = progress.add_task(f'{env.name}: random vs random', total=args.episodes)
+    if args.episodes < 1:
+        raise SystemExit('mate evaluate: --episodes must be at least 1')
+    camera_cls = ev.resolve_agent(args.camera_agent, Team.CAMERA)
+    target_cls = ev.resolve_agent(args.target_agent, Team.TARGET)
+    camera_kwargs, target_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs'), _json_kwargs(
+        args.target_kwargs, '--target-kwargs')
+    env = make('MultiAgentTracking-v0', config=args.config, wrappers=_evaluation_wrappers(args))
+    camera_factory = lambda seed: camera_cls(**{**camera_kwargs, 'seed': seed})  # noqa: E731
+    target_factory = lambda seed: target_cls(**{**target_kwargs, 'seed': seed})  # noqa: E731
+    console.print(f'environment: {env}')
+    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+
+    recorder = None if args.no_render or not (args.save_gif or args.save_video) else ev.FrameRecorder(
+        args.frame_size, args.frame_every)
+    results = []
+    columns = (TextColumn('[progress.description]{task.description}'), BarColumn(), MofNCompleteColumn(),
+               TimeRemainingColumn(), TextColumn('{task.fields[status]}'))
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task('evaluating', total=args.episodes, status='')
         for episode in range(args.episodes):
-            rows.append(_random_episode(env, args.seed + episode))
-            progress.advance(task)
-    table = Table(title=f'{env.name}, {args.episodes} episodes, random cameras vs random targets')
-    table.add_column('metric')
-    table.add_column('mean ± std', justify='right')
-    for key in rows[0]:
-        values = np.array([row[key] for row in rows], dtype=float)
-        table.add_row(key.replace('_', ' '), f'{values.mean():.4f} ± {values.std(ddof=1) if len(values) > 1 else 0:.4f}')
-    console.print(table)
+            result = ev.play_episode(env, camera_factory, target_factory, args.seed + episode,
+                                     args.max_episode_steps, recorder if episode == 0 else None)
+            results.append(result)
+            progress.update(task, advance=1, status=f'coverage {result.coverage_rate:.3f}, '
+                                                    f'{result.steps_per_second:,.0f} steps/s')
+    summary = ev.summarise(results)
+    _print_summary(env, args, summary)
+    if recorder is not None:
+        recorder.close()
+        _save_frames(recorder.frames, args)
+    if args.json:
+        settings = {k: v for k, v in vars(args).items() if k != 'run'}
+        console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}')
     return 0
 
 
-def _random_episode(env, seed: int) -> dict:
-    """One episode with uniform random actions; per-episode means and sums."""
-    import numpy as np
+def _json_kwargs(text: str, flag: str) -> dict:
+    import json
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SystemExit(f'mate evaluate: {flag} is not valid JSON ({exc}): {text!r}') from None
+    if not isinstance(value, dict):
+        raise SystemExit(f'mate evaluate: {flag} must be a JSON object, got {text!r}')
+    return value
 
-    rng = np.random.default_rng(seed)
-    env.reset(seed=seed)
-    p = env.params
-    camera_high = np.array([p.camera_rotation_step, p.camera_zooming_step])
-    coverage, real_coverage, returns = [], [], np.zeros(2)
-    done = False
-    while not done:
-        action = (rng.uniform(-1, 1, (p.num_cameras, 2)) * camera_high,
-                  rng.uniform(-p.target_step_size, p.target_step_size, (p.num_targets, 2)))
-        _, rewards, terminated, truncated, infos = env.step(action)
-        info = infos[1][0]
-        coverage.append(info['coverage_rate'])
-        real_coverage.append(info['real_coverage_rate'])
-        returns += rewards
-        done = terminated or truncated
-    return {'coverage_rate': np.mean(coverage), 'real_coverage_rate': np.mean(real_coverage),
-            'transport_rate': info['mean_transport_rate'], 'camera_return': returns[0],
-            'target_return': returns[1], 'delivered_cargoes': info['num_delivered_cargoes'],
-            'episode_length': len(coverage)}
+
+def _evaluation_wrappers(args: argparse.Namespace) -> list:
+    from . import wrappers
+    stack = []
+    for flag, wrapper in (('enhanced_observation', wrappers.EnhancedObservation),
+                          ('shared_field_of_view', wrappers.SharedFieldOfView),
+                          ('no_communication', wrappers.NoCommunication)):
+        team = getattr(args, flag)
+        if team != 'none':
+            stack.append(lambda env, w=wrapper, t=team: w(env, team=t))
+    if args.render_communication:
+        stack.append(lambda env: wrappers.RenderCommunication(env, duration=args.render_communication))
+    return stack
+
+
+def _print_summary(env, args: argparse.Namespace, summary: list[dict]) -> None:
+    table = Table(title=f'{env.name}: {args.camera_agent} cameras vs {args.target_agent} targets, '
+                        f'{args.episodes} episode{"s" if args.episodes > 1 else ""} (seeds {args.seed}..'
+                        f'{args.seed + args.episodes - 1}, at most {args.max_episode_steps} steps)')
+    for column in ('team', 'metric', 'mean', 'std'):
+        table.add_column(column, justify='right' if column in ('mean', 'std') else 'left')
+    for row in summary:
+        digits = 1 if abs(row['mean']) >= 100 else 4
+        table.add_row(row['team'], row['metric'], f"{row['mean']:,.{digits}f}", f"{row['std']:,.{digits}f}")
+    console.print(table)
+
+
+def _save_frames(frames: list, args: argparse.Namespace) -> None:
+    from .video import save_gif, save_video
+    fps = max(1, round(30 / args.frame_every))
+    if args.save_gif:
+        console.print(f'first episode ({len(frames)} frames) saved to {save_gif(frames, args.save_gif, fps=fps)}')
+    if args.save_video:
+        console.print(f'first episode video saved to {save_video(frames, args.save_video, fps=fps)}')
 
 
 def _generate_config(args: argparse.Namespace) -> int:
@@ -138,12 +180,32 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--json', default=None, help='also write the results to this JSON file')
     bench.set_defaults(run=_bench)
 
-    evaluate = commands.add_parser('evaluate', help='play episodes and summarise coverage, transport and returns')
-    evaluate.add_argument('--config', default='MATE-4v8-9', help='preset name or YAML/JSON path (default MATE-4v8-9)')
-    evaluate.add_argument('--episodes', type=int, default=5)
-    evaluate.add_argument('--seed', type=int, default=0, help='episode i uses seed + i')
-    evaluate.add_argument('--max-episode-steps', type=int, default=1000,
-                          help='episode length cap (default 1000; the presets allow 10000)')
+    evaluate = commands.add_parser(
+        'evaluate', help='play camera agents against target agents and summarise the episodes',
+        description='Play episodes (episode i: a fresh env reset with seed + i, agents seeded alike) and print '
+                    'mean and std of coverage, transport and returns per team. By default greedy cameras play '
+                    'greedy targets on MATE-4v8-9 and the first episode is saved as a GIF.')
+    evaluate.add_argument('--config', '--cfg', default='MATE-4v8-9', help='preset name or YAML/JSON path (default MATE-4v8-9)')
+    evaluate.add_argument('--camera-agent', default='greedy',
+                          help="random|naive|greedy|heuristic|mixture, module:Class, checkpoint:PATH or pretrained:NAME")
+    evaluate.add_argument('--target-agent', default='greedy', help='as --camera-agent')
+    evaluate.add_argument('--camera-kwargs', default='{}', help='JSON keyword arguments of the camera agent')
+    evaluate.add_argument('--target-kwargs', default='{}', help='JSON keyword arguments of the target agent')
+    evaluate.add_argument('--episodes', type=int, default=20)
+    evaluate.add_argument('--seed', type=int, default=0, help='episode i uses seed + i (agents too)')
+    evaluate.add_argument('--max-episode-steps', type=int, default=2000, help='step cap per episode (default 2000)')
+    for flag in ('enhanced-observation', 'shared-field-of-view', 'no-communication'):
+        evaluate.add_argument(f'--{flag}', nargs='?', const='both', default='none', choices=TEAM_CHOICES,
+                              metavar='TEAM', help=f'add the {flag.replace("-", " ")} wrapper for TEAM (bare flag: both)')
+    evaluate.add_argument('--render-communication', nargs='?', type=int, const=20, default=None, metavar='DURATION',
+                          help='draw message arrows in the recorded frames (bare flag: 20 steps)')
+    evaluate.add_argument('--no-render', action='store_true', help='record nothing (no GIF, no video)')
+    evaluate.add_argument('--save-gif', default='mate-evaluate.gif', metavar='PATH',
+                          help='GIF of the first episode (default mate-evaluate.gif; empty string: none)')
+    evaluate.add_argument('--save-video', default=None, metavar='PATH', help='MP4 of the first episode')
+    evaluate.add_argument('--frame-size', type=int, default=400, help='recorded frame size in pixels (default 400)')
+    evaluate.add_argument('--frame-every', type=int, default=4, help='record every N-th step (default 4)')
+    evaluate.add_argument('--json', default=None, metavar='PATH', help='write per-episode results and the summary')
     evaluate.set_defaults(run=_evaluate)
 
     generate = commands.add_parser('generate-config', help='write a config with camera placement covering the terrain')

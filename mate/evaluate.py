@@ -1,0 +1,161 @@
+"""`mate evaluate`: play camera agents against target agents and summarise the episodes.
+
+Protocol (the one behind the reference statistics of the original): episode i uses seed
+`seed + i`: a fresh environment reset with that seed, camera agents `CameraCls(seed=...)`
+spawned per camera and target agents likewise; each step the camera team observes,
+communicates (two rounds) and acts, then the target team does, then the env steps. An
+episode ends when every cargo unit is delivered or after `max_episode_steps` steps.
+The first episode can be rendered to a GIF and/or a video.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .agents import (CameraAgentBase, GreedyCameraAgent, GreedyTargetAgent, HeuristicCameraAgent,
+                     HeuristicTargetAgent, MixtureCameraAgent, MixtureTargetAgent, NaiveCameraAgent, NaiveTargetAgent,
+                     RandomCameraAgent, RandomTargetAgent, TargetAgentBase, group_reset, group_step)
+from .messages import Team
+
+BUILT_IN_AGENTS = {
+    Team.CAMERA: {'random': RandomCameraAgent, 'naive': NaiveCameraAgent, 'greedy': GreedyCameraAgent,
+                  'heuristic': HeuristicCameraAgent, 'mixture': MixtureCameraAgent},
+    Team.TARGET: {'random': RandomTargetAgent, 'naive': NaiveTargetAgent, 'greedy': GreedyTargetAgent,
+                  'heuristic': HeuristicTargetAgent, 'mixture': MixtureTargetAgent},
+}
+BASE_CLASSES = {Team.CAMERA: CameraAgentBase, Team.TARGET: TargetAgentBase}
+
+
+def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
+    """An agent factory from a short name (`greedy`), `module:Class`, `checkpoint:PATH` or
+    `pretrained:NAME`; called with the agent's keyword arguments (seed included)."""
+    if spec in BUILT_IN_AGENTS[team]:
+        return BUILT_IN_AGENTS[team][spec]
+    prefix = spec.split(':', 1)[0]
+    if prefix in ('checkpoint', 'pretrained'):
+        try:
+            from .learn import load_agent
+        except ImportError as exc:
+            raise ValueError(f'{spec!r}: loading learned policies needs the training extra '
+                             f"(pip install 'mate[train]'): {exc}") from None
+        return load_agent(spec, team)
+    if ':' not in spec:
+        names = ', '.join(BUILT_IN_AGENTS[team])
+        raise ValueError(f'unknown {team.name.lower()} agent {spec!r}: use one of {names}, '
+                         "'module:Class', 'checkpoint:PATH' or 'pretrained:NAME'")
+    module_name, _, attribute = spec.partition(':')
+    try:
+        cls = getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f'cannot load agent {spec!r}: {exc}') from None
+    base = BASE_CLASSES[team]
+    if not (isinstance(cls, type) and issubclass(cls, base)):
+        raise ValueError(f'agent {spec!r} must be a subclass of mate.{base.__name__}')
+    return cls
+
+
+@dataclass
+class EpisodeResult:
+    """Summary of one episode (rates are means over its steps, returns are sums)."""
+    seed: int
+    coverage_rate: float
+    real_coverage_rate: float
+    transport_rate: float
+    camera_return: float
+    target_return: float
+    normalized_target_return: float
+    delivered_cargoes: int
+    episode_length: int
+    steps_per_second: float
+
+
+class FrameRecorder:
+    """Renders every `every`-th step of an episode into frames of `size` x `size` pixels."""
+
+    def __init__(self, size: int = 400, every: int = 4, max_frames: int = 300) -> None:
+        from .render import Renderer
+        self.renderer = Renderer('rgb_array', window_size=size)
+        self.every, self.max_frames, self.frames = every, max_frames, []
+        self.seconds = 0.0  # time spent drawing, left out of the episode's steps/s
+
+    def __call__(self, env, step: int) -> None:
+        if step % self.every == 0 and len(self.frames) < self.max_frames:
+            start = time.perf_counter()
+            self.frames.append(self.renderer.render(env.unwrapped))
+            self.seconds += time.perf_counter() - start
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
+                 recorder: FrameRecorder | None = None) -> EpisodeResult:
+    """One episode of the protocol in the module docstring."""
+    (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=seed)
+    cameras = camera_factory(seed=seed).spawn(env.num_cameras)
+    targets = target_factory(seed=seed).spawn(env.num_targets)
+    group_reset(cameras, camera_obs)
+    group_reset(targets, target_obs)
+    coverage, real_coverage, returns = [], [], np.zeros(2)
+    if recorder:
+        recorder(env, 0)
+    start = time.perf_counter()
+    for step in range(1, max_steps + 1):
+        camera_action = group_step(env, cameras, camera_obs, camera_infos)
+        target_action = group_step(env, targets, target_obs, target_infos)
+        (camera_obs, target_obs), rewards, terminated, truncated, (camera_infos, target_infos) = env.step(
+            (camera_action, target_action))
+        info = target_infos[0] if target_infos else camera_infos[0]
+        coverage.append(info['coverage_rate'])
+        real_coverage.append(info['real_coverage_rate'])
+        returns += rewards
+        if recorder:
+            recorder(env, step)
+        if terminated or truncated:
+            break
+    elapsed = time.perf_counter() - start - (recorder.seconds if recorder else 0.0)
+    return EpisodeResult(
+        seed=seed, coverage_rate=float(np.mean(coverage)), real_coverage_rate=float(np.mean(real_coverage)),
+        transport_rate=float(info['mean_transport_rate']), camera_return=float(returns[0]),
+        target_return=float(returns[1]), normalized_target_return=float(returns[1] / env.max_target_team_episode_reward),
+        delivered_cargoes=int(info['num_delivered_cargoes']), episode_length=step,
+        steps_per_second=step / max(elapsed, 1e-9))
+
+
+SUMMARY_ROWS = (
+    ('camera', 'coverage rate', 'coverage_rate'),
+    ('camera', 'real coverage rate', 'real_coverage_rate'),
+    ('camera', 'team return', 'camera_return'),
+    ('target', 'transport rate', 'transport_rate'),
+    ('target', 'delivered cargo', 'delivered_cargoes'),
+    ('target', 'team return', 'target_return'),
+    ('target', 'normalised return', 'normalized_target_return'),
+    ('episode', 'length (steps)', 'episode_length'),
+    ('episode', 'speed (steps/s)', 'steps_per_second'),
+)
+
+
+def summarise(results: list[EpisodeResult]) -> list[dict]:
+    """Mean and sample standard deviation over episodes of every summary row (works for any
+    number of episodes >= 1, deliveries or not)."""
+    rows = []
+    for team, label, key in SUMMARY_ROWS:
+        values = np.array([getattr(r, key) for r in results], dtype=float)
+        std = float(values.std(ddof=1)) if len(values) > 1 else 0.0
+        rows.append({'team': team, 'metric': label, 'key': key, 'mean': float(values.mean()), 'std': std})
+    return rows
+
+
+def write_json(path: str | Path, settings: dict, results: list[EpisodeResult], summary: list[dict]) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({'settings': settings, 'summary': summary,
+                                'episodes': [asdict(r) for r in results]}, indent=2))
+    return path

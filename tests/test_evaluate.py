@@ -1,0 +1,100 @@
+"""`mate evaluate`: agent resolution, the episode protocol, the summary, and the recorded GIF."""
+
+import json
+import os
+
+os.environ.setdefault('SDL_VIDEODRIVER', 'dummy')
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import mate
+from mate import evaluate as ev
+from mate.cli import main
+from mate.messages import Team
+
+
+def test_short_names_and_module_paths_resolve():
+    assert ev.resolve_agent('greedy', Team.CAMERA) is mate.GreedyCameraAgent
+    assert ev.resolve_agent('heuristic', Team.TARGET) is mate.HeuristicTargetAgent
+    assert ev.resolve_agent('mate:RandomTargetAgent', Team.TARGET) is mate.RandomTargetAgent
+
+
+@pytest.mark.parametrize('spec, team, message', [
+    ('greedyy', Team.CAMERA, "unknown camera agent 'greedyy'"),
+    ('mate:GreedyTargetAgent', Team.CAMERA, 'must be a subclass of mate.CameraAgentBase'),
+    ('mate:NoSuchAgent', Team.TARGET, "cannot load agent 'mate:NoSuchAgent'"),
+    ('no_such_module:Agent', Team.TARGET, "cannot load agent 'no_such_module:Agent'"),
+])
+def test_bad_agent_specs_are_explained(spec, team, message):
+    with pytest.raises(ValueError, match=message):
+        ev.resolve_agent(spec, team)
+
+
+def test_episode_protocol_is_reproducible_and_capped():
+    env = mate.make('MATE-4v8-9-v0')
+    first = ev.play_episode(env, mate.GreedyCameraAgent, mate.GreedyTargetAgent, seed=3, max_steps=60)
+    again = ev.play_episode(env, mate.GreedyCameraAgent, mate.GreedyTargetAgent, seed=3, max_steps=60)
+    assert first.episode_length == 60
+    for key in ('coverage_rate', 'real_coverage_rate', 'camera_return', 'target_return', 'delivered_cargoes'):
+        assert getattr(first, key) == getattr(again, key)
+    assert first.camera_return == -first.target_return
+    assert 0.0 <= first.coverage_rate <= 1.0
+
+
+def test_summary_works_without_any_delivery():
+    """The original's summary crashed when no episode delivered anything (fixed)."""
+    env = mate.make('MATE-4v8-9-v0')
+    results = [ev.play_episode(env, mate.RandomCameraAgent, mate.RandomTargetAgent, seed=s, max_steps=20)
+               for s in range(2)]
+    assert all(r.delivered_cargoes == 0 for r in results)
+    summary = {row['key']: row for row in ev.summarise(results)}
+    assert summary['delivered_cargoes']['mean'] == 0.0
+    assert summary['transport_rate']['mean'] == 0.0
+    expected = np.mean([r.coverage_rate for r in results])
+    assert summary['coverage_rate']['mean'] == pytest.approx(expected)
+    assert summary['coverage_rate']['std'] == pytest.approx(np.std([r.coverage_rate for r in results], ddof=1))
+
+
+def test_command_prints_the_table_and_writes_a_gif_that_shows_the_game(tmp_path, capsys):
+    gif, report = tmp_path / 'episode.gif', tmp_path / 'results.json'
+    assert main(['evaluate', '--episodes', '2', '--max-episode-steps', '40', '--frame-every', '2',
+                 '--save-gif', str(gif), '--json', str(report)]) == 0
+    out = capsys.readouterr().out
+    for text in ('coverage rate', 'transport rate', 'team return', 'length (steps)', str(gif)):
+        assert text in out
+    with Image.open(gif) as image:
+        assert image.n_frames == 21  # steps 0, 2, ..., 40
+        frames = []
+        for index in (0, 20):
+            image.seek(index)
+            frames.append(np.asarray(image.convert('RGB'), dtype=int))
+    assert np.abs(frames[0] - frames[1]).sum() > 0          # the game moves
+    first = frames[0].reshape(-1, 3)
+    tinted = first.max(axis=1) - first.min(axis=1) > 12     # coloured, not white/grey/black
+    warehouses = 4 * (150 / 2100 * 400) ** 2 / 400 ** 2    # share of the frame the warehouse squares cover
+    assert tinted.mean() > warehouses + 0.05                 # camera sectors are drawn
+    data = json.loads(report.read_text())
+    assert len(data['episodes']) == 2 and data['episodes'][1]['seed'] == 1
+    assert {row['key'] for row in data['summary']} >= {'coverage_rate', 'target_return', 'episode_length'}
+
+
+def test_no_render_writes_nothing(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(['evaluate', '--episodes', '1', '--max-episode-steps', '5', '--no-render']) == 0
+    assert not list(tmp_path.iterdir())
+
+
+def test_agent_kwargs_must_be_a_json_object():
+    with pytest.raises(SystemExit, match='--camera-kwargs is not valid JSON'):
+        main(['evaluate', '--episodes', '1', '--camera-kwargs', '{memory: 3}', '--no-render'])
+    with pytest.raises(SystemExit, match='--target-kwargs must be a JSON object'):
+        main(['evaluate', '--episodes', '1', '--target-kwargs', '[1, 2]', '--no-render'])
+
+
+def test_wrapper_flags_build_the_documented_stack(tmp_path):
+    assert main(['evaluate', '--episodes', '1', '--max-episode-steps', '5', '--enhanced-observation', 'target',
+                 '--no-communication', '--render-communication', '--save-gif', str(tmp_path / 'x.gif'),
+                 '--frame-every', '5']) == 0
+    assert (tmp_path / 'x.gif').is_file()
