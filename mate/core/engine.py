@@ -20,7 +20,7 @@ from numba import njit
 
 from ..constants import NUM_WAREHOUSES
 from .cargo import transport_cargoes
-from .jit import kernel
+from .jit import inline_kernel
 from .kinematics import move_targets, rotate_and_zoom_cameras
 from .observe import global_state, joint_observation, update_coverage
 from .params import Params
@@ -35,7 +35,7 @@ PARALLEL_MIN_ROWS = 32
 """Each thread gets at least this many rows; smaller batches run on the calling thread."""
 
 
-@kernel
+@inline_kernel
 def step_row(p, w, b, camera_actions, target_actions, camera_obs, target_obs):
     """One step of row b: cameras act, targets move, perception, cargo and rewards, counters,
     observations written to camera_obs (Nc, D_c) and target_obs (Nt, D_t)."""
