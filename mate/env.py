@@ -49,7 +49,7 @@ from .core.snapshot import get_snapshot, goal_bits, set_snapshot
 from .core.world import empty_world
 from .messages import Message, MessageChannel, Team
 
-__all__ = ['MultiAgentTracking']
+__all__ = ['MultiAgentTracking', 'GameDescription']
 
 _ONE = np.ones(1, dtype=bool)
 
@@ -82,7 +82,35 @@ def _row_scalar(field: str, kind):
     return property(lambda self: kind(getattr(self._world, field)[0]), doc=f'Current `{field}`.')
 
 
-class MultiAgentTracking(gym.Env):
+class GameDescription:
+    """Read-only facts of the configured game, for classes holding `params` and `config`
+    (the single env and the vector env)."""
+
+    params: Any
+    config: dict
+
+    @property
+    def name(self) -> str:
+        return self.config['name']
+
+    @property
+    def num_cameras(self) -> int:
+        return self.params.num_cameras
+
+    @property
+    def num_targets(self) -> int:
+        return self.params.num_targets
+
+    @property
+    def num_obstacles(self) -> int:
+        return self.params.num_obstacles
+
+    @property
+    def max_episode_steps(self) -> int:
+        return self.params.max_episode_steps
+
+
+class MultiAgentTracking(GameDescription, gym.Env):
     __doc__ = __doc__
 
     metadata = {'render_modes': ['human', 'rgb_array'], 'render_fps': 60}
@@ -291,22 +319,6 @@ class MultiAgentTracking(gym.Env):
 
     # ------------------------------------------------------------------ properties
     @property
-    def name(self) -> str:
-        return self.config['name']
-
-    @property
-    def num_cameras(self) -> int:
-        return self.params.num_cameras
-
-    @property
-    def num_targets(self) -> int:
-        return self.params.num_targets
-
-    @property
-    def num_obstacles(self) -> int:
-        return self.params.num_obstacles
-
-    @property
     def num_warehouses(self) -> int:
         return len(WAREHOUSES)
 
@@ -317,10 +329,6 @@ class MultiAgentTracking(gym.Env):
     @property
     def target_observation_dim(self) -> int:
         return self.target_observation_space.shape[0]
-
-    @property
-    def max_episode_steps(self) -> int:
-        return self.params.max_episode_steps
 
     @property
     def tracked_bits(self) -> np.ndarray:

@@ -71,7 +71,7 @@ from gymnasium.vector.utils import batch_space
 from . import registration
 from .core import engine
 from .core.world import empty_world
-from .env import MultiAgentTracking
+from .env import GameDescription, MultiAgentTracking
 
 try:
     from gymnasium.vector import AutoresetMode
@@ -105,7 +105,7 @@ def _box(low: np.ndarray, high: np.ndarray, dtype) -> spaces.Box:
     return spaces.Box(low.astype(dtype), high.astype(dtype), dtype=dtype)
 
 
-class MultiAgentTrackingVectorEnv(VectorEnv):
+class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     __doc__ = __doc__
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
@@ -311,26 +311,6 @@ class MultiAgentTrackingVectorEnv(VectorEnv):
         out = np.empty(self.state_space.shape, dtype=self.observation_dtype)
         engine.global_states(self.params, self._world, out)
         return out
-
-    @property
-    def num_cameras(self) -> int:
-        return self.params.num_cameras
-
-    @property
-    def num_targets(self) -> int:
-        return self.params.num_targets
-
-    @property
-    def num_obstacles(self) -> int:
-        return self.params.num_obstacles
-
-    @property
-    def max_episode_steps(self) -> int:
-        return self.params.max_episode_steps
-
-    @property
-    def name(self) -> str:
-        return self.config['name']
 
     def __repr__(self) -> str:
         return (f'MultiAgentTrackingVectorEnv({self.name}, num_envs={self.num_envs}, '

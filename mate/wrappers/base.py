@@ -22,7 +22,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from mate.constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
+from mate.constants import (
+    CAMERA_STATE_DIM_PRIVATE,
+    PRESERVED_DIM,
+    TARGET_STATE_DIM_PRIVATE,
+)
 
 __all__ = [
     'MateWrapper',
@@ -104,6 +108,47 @@ class MateWrapper(gym.Wrapper):
 
     def __repr__(self) -> str:
         return str(self)
+
+
+class ObservationMateWrapper(MateWrapper):
+    """A MATE wrapper that only changes observations: `reset` and `step` pass them through
+    `self.observation` (override), everything else is untouched."""
+
+    def observation(self, observation: Any) -> Any:
+        raise NotImplementedError
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, Any]:
+        observation, infos = self.env.reset(seed=seed, options=options)
+        return self.observation(observation), infos
+
+    def step(self, action):
+        observation, reward, terminated, truncated, infos = self.env.step(action)
+        return self.observation(observation), reward, terminated, truncated, infos
+
+
+class TeamObservationWrapper(ObservationMateWrapper):
+    """Base of the observation wrappers with a `team` argument in {'both', 'camera', 'target',
+    'none'} that read absolute, unscaled observations of the two-team env (EnhancedObservation,
+    SharedFieldOfView). Sets `self.for_camera`, `self.for_target` and `self._counts`."""
+
+    TEAMS = ('both', 'camera', 'target', 'none')
+
+    def __init__(self, env, team: str = 'both') -> None:
+        name = type(self).__name__
+        assert_base_environment(env, name)
+        check_choice('team', team, self.TEAMS)
+        from .relative_coordinates import RelativeCoordinates
+        from .rescaled_observation import RescaledObservation
+        forbid_inside(env, name, (RelativeCoordinates, RescaledObservation), 'it reads absolute, unscaled values')
+        super().__init__(env)
+        self.team = team
+        self.for_camera = team in ('camera', 'both')
+        self.for_target = team in ('target', 'both')
+        base = env.unwrapped
+        self._counts = (base.num_cameras, base.num_targets, base.num_obstacles)
+
+    def _arguments(self) -> str:
+        return f'team={self.team}'
 
 
 # ---------------------------------------------------------------------------- ordering checks

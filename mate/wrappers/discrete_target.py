@@ -14,7 +14,13 @@ import numpy as np
 from gymnasium import spaces
 
 from .base import MateWrapper, assert_base_environment, forbid_twice
-from .discrete_camera import check_levels, discrete_indices, grid_actions, nearest_grid_indices, square_grid
+from .discrete_camera import (
+    check_levels,
+    discrete_indices,
+    grid_actions,
+    nearest_grid_indices,
+    square_grid,
+)
 
 __all__ = ['DiscreteTarget', 'disk_grid']
 

@@ -6,18 +6,21 @@ axes, `(..., Nc, D_c)` and `(..., Nt, D_t)`, so a vector env can call it on `(B,
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from mate.constants import CAMERA_STATE_DIM_PUBLIC, NUM_WAREHOUSES, PRESERVED_DIM, TARGET_STATE_DIM_PUBLIC
+from mate.constants import (
+    CAMERA_STATE_DIM_PUBLIC,
+    NUM_WAREHOUSES,
+    PRESERVED_DIM,
+    TARGET_STATE_DIM_PUBLIC,
+)
 from mate.spaces import camera_observation_slices_of, target_observation_slices_of
 
-from .base import MateWrapper, assert_base_environment, check_choice, forbid_inside
+from .base import TeamObservationWrapper
 
 __all__ = ['EnhancedObservation', 'empty_warehouses', 'enhance_observations', 'flagged_records', 'public_records']
 
-TEAMS = ('both', 'camera', 'target', 'none')
+TEAMS = TeamObservationWrapper.TEAMS
 
 _CAMERA_PUBLIC = slice(PRESERVED_DIM, PRESERVED_DIM + CAMERA_STATE_DIM_PUBLIC)
 _TARGET_PUBLIC = slice(PRESERVED_DIM, PRESERVED_DIM + TARGET_STATE_DIM_PUBLIC)
@@ -75,7 +78,7 @@ def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacl
     return camera_obs, target_obs
 
 
-class EnhancedObservation(MateWrapper):
+class EnhancedObservation(TeamObservationWrapper):
     """Full observability for one or both teams.
 
     Camera side: every camera sees all targets, all obstacles and all cameras (public states, flag 1).
@@ -85,37 +88,12 @@ class EnhancedObservation(MateWrapper):
     Order: before (inside) any single-team wrapper, RelativeCoordinates and RescaledObservation.
     """
 
-    def __init__(self, env, team: str = 'both') -> None:
-        name = type(self).__name__
-        assert_base_environment(env, name)
-        check_choice('team', team, TEAMS)
-        from .relative_coordinates import RelativeCoordinates
-        from .rescaled_observation import RescaledObservation
-        forbid_inside(env, name, (RelativeCoordinates, RescaledObservation), 'it reads absolute, unscaled values')
-        super().__init__(env)
-        self.team = team
-        self.enhance_camera = team in ('camera', 'both')
-        self.enhance_target = team in ('target', 'both')
-        base = env.unwrapped
-        self._counts = (base.num_cameras, base.num_targets, base.num_obstacles)
-
-    def _arguments(self) -> str:
-        return f'team={self.team}'
-
     def observation(self, observation: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The enhanced joint observations (the given arrays, modified in place)."""
-        if not (self.enhance_camera or self.enhance_target):
+        if not (self.for_camera or self.for_target):
             return observation
         camera_obs, target_obs = observation
         base = self.env.unwrapped
         return enhance_observations(camera_obs, target_obs, base.obstacle_states,
                                     empty_warehouses(base.remaining_cargoes), *self._counts,
-                                    camera=self.enhance_camera, target=self.enhance_target)
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, Any]:
-        observation, infos = self.env.reset(seed=seed, options=options)
-        return self.observation(observation), infos
-
-    def step(self, action):
-        observation, reward, terminated, truncated, infos = self.env.step(action)
-        return self.observation(observation), reward, terminated, truncated, infos
+                                    camera=self.for_camera, target=self.for_target)

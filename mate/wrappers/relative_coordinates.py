@@ -7,17 +7,20 @@ conversion is `mate.agents.utils.convert_coordinates`, which accepts any leading
 
 from __future__ import annotations
 
-from typing import Any
-
 from mate.agents.utils import convert_coordinates
 from mate.messages import Team
 
-from .base import MateWrapper, assert_mate_environment, find_wrapper, forbid_twice
+from .base import (
+    ObservationMateWrapper,
+    assert_mate_environment,
+    find_wrapper,
+    forbid_twice,
+)
 
 __all__ = ['RelativeCoordinates']
 
 
-class _PerTeamObservation(MateWrapper):
+class _PerTeamObservation(ObservationMateWrapper):
     """Shared plumbing: apply `self.transform(obs, team)` to each team's observation (or to the single team's)."""
 
     def __init__(self, env) -> None:
@@ -41,13 +44,6 @@ class _PerTeamObservation(MateWrapper):
         camera_obs, target_obs = observation
         return self.transform(camera_obs, Team.CAMERA), self.transform(target_obs, Team.TARGET)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, Any]:
-        observation, infos = self.env.reset(seed=seed, options=options)
-        return self.observation(observation), infos
-
-    def step(self, action):
-        observation, reward, terminated, truncated, infos = self.env.step(action)
-        return self.observation(observation), reward, terminated, truncated, infos
 
 
 class RelativeCoordinates(_PerTeamObservation):

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from .base import MateWrapper, assert_multi_agent_environment, find_wrapper, forbid_twice
+from .base import (
+    MateWrapper,
+    assert_multi_agent_environment,
+    find_wrapper,
+    forbid_twice,
+)
 
 __all__ = ['RepeatedRewardIndividualDone']
 

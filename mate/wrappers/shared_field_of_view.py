@@ -6,14 +6,12 @@ The array function `share_field_of_view` works on joint observations with any le
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from mate.spaces import camera_observation_slices_of, target_observation_slices_of
 
-from .base import MateWrapper, assert_base_environment, check_choice, forbid_inside
-from .enhanced_observation import TARGET_EMPTY_BITS, TEAMS, flagged_records, public_records
+from .base import TeamObservationWrapper
+from .enhanced_observation import TARGET_EMPTY_BITS, flagged_records, public_records
 
 __all__ = ['SharedFieldOfView', 'share_field_of_view']
 
@@ -63,7 +61,7 @@ def share_field_of_view(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle
     return camera_obs, target_obs
 
 
-class SharedFieldOfView(MateWrapper):
+class SharedFieldOfView(TeamObservationWrapper):
     """Each team shares its field of view: an entity seen by one teammate is seen by all.
 
     Cameras: OR of the target and obstacle flags over all cameras; every camera sees all cameras.
@@ -73,35 +71,10 @@ class SharedFieldOfView(MateWrapper):
     Order: before (inside) any single-team wrapper, RelativeCoordinates and RescaledObservation.
     """
 
-    def __init__(self, env, team: str = 'both') -> None:
-        name = type(self).__name__
-        assert_base_environment(env, name)
-        check_choice('team', team, TEAMS)
-        from .relative_coordinates import RelativeCoordinates
-        from .rescaled_observation import RescaledObservation
-        forbid_inside(env, name, (RelativeCoordinates, RescaledObservation), 'it reads absolute, unscaled values')
-        super().__init__(env)
-        self.team = team
-        self.shared_camera = team in ('camera', 'both')
-        self.shared_target = team in ('target', 'both')
-        base = env.unwrapped
-        self._counts = (base.num_cameras, base.num_targets, base.num_obstacles)
-
-    def _arguments(self) -> str:
-        return f'team={self.team}'
-
     def observation(self, observation: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The shared joint observations (the given arrays, modified in place)."""
-        if not (self.shared_camera or self.shared_target):
+        if not (self.for_camera or self.for_target):
             return observation
         camera_obs, target_obs = observation
         return share_field_of_view(camera_obs, target_obs, self.env.unwrapped.obstacle_states, *self._counts,
-                                   camera=self.shared_camera, target=self.shared_target)
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, Any]:
-        observation, infos = self.env.reset(seed=seed, options=options)
-        return self.observation(observation), infos
-
-    def step(self, action):
-        observation, reward, terminated, truncated, infos = self.env.step(action)
-        return self.observation(observation), reward, terminated, truncated, infos
+                                   camera=self.for_camera, target=self.for_target)
