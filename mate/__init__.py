@@ -85,3 +85,5 @@ from .wrappers import (  # noqa: E402  (wrappers: observation, action, reward, s
                        SingleTarget,
                        WrapperOrderError,
 )
+
+from . import learn  # noqa: E402,F401  (mate.learn: MAPPO/IPPO training; torch loaded lazily)

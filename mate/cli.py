@@ -168,6 +168,12 @@ def _rllib_train(args: argparse.Namespace) -> int:
     return rllib_train.run(args, console)
 
 
+def _train(args: argparse.Namespace) -> int:
+    from .learn import command
+
+    return command.run(args, console)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='mate', description='MATE: the Multi-Agent Tracking Environment')
     commands = parser.add_subparsers(dest='command', required=True)
@@ -226,6 +232,11 @@ def build_parser() -> argparse.ArgumentParser:
     rllib_train = commands.add_parser('rllib-train', help='train PPO cameras against rule-based targets (Ray RLlib)')
     add_rllib_train_arguments(rllib_train)
     rllib_train.set_defaults(run=_rllib_train)
+
+    from .learn.command import add_arguments as add_train_arguments  # imports no torch
+    train = commands.add_parser('train', help='train MAPPO/IPPO cameras or targets against greedy opponents (PyTorch)')
+    add_train_arguments(train)
+    train.set_defaults(run=_train)
     return parser
 
 

@@ -1,0 +1,164 @@
+"""Trained policies as `mate` agents, and `load_agent('checkpoint:PATH' | 'pretrained:NAME', team)`.
+
+A policy agent preprocesses its raw observation exactly as in training (relative coordinates, then
+rescaling to [-1, 1]), picks one of the `levels**2` discrete actions, maps it onto the grid of
+`DiscreteCamera` / `DiscreteTarget` scaled by its own step bounds, and holds the decision for
+`frame_skip` env steps (the training frame skip). It does not communicate.
+
+HRL camera policies (`meta['hrl']`) instead hold a target selection (one bit per target slot) for
+`frame_skip` steps and let the rule executor of `mate.learn.hrl` aim at every step.
+
+The network is shared, read-only, by every agent cloned from one prototype (`spawn`).
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..agents.base import CameraAgentBase, TargetAgentBase
+from ..messages import Team
+from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from .envs import as_team, discrete_to_continuous, preprocess_observation
+from .hrl import executor_actions
+from .ppo import Actor
+
+__all__ = [
+    'PRETRAINED_DIR',
+    'LoadedPolicy',
+    'PolicyCameraAgent',
+    'PolicyTargetAgent',
+    'export_policy',
+    'load_agent',
+    'load_policy',
+    'pretrained_path',
+]
+
+PRETRAINED_DIR = Path(__file__).resolve().parent.parent / 'pretrained'
+
+
+class LoadedPolicy:
+    """An actor network plus what is needed to feed it; deep copies return the same object (shared)."""
+
+    def __init__(self, actor: Actor, meta: dict, source: str = '') -> None:
+        self.actor = actor.eval()
+        self.meta = dict(meta)
+        self.source = source
+
+    def __deepcopy__(self, memo):
+        return self
+
+    @torch.no_grad()
+    def logits(self, processed: np.ndarray) -> np.ndarray:
+        return self.actor(torch.as_tensor(processed, dtype=torch.float32)).numpy()
+
+
+def load_policy(path, team=None) -> LoadedPolicy:
+    """The actor of a checkpoint. CheckpointError if unreadable or trained for the other team."""
+    expect = None if team is None else dict(team=as_team(team).name.lower())
+    data = load_checkpoint(path, expect=expect)
+    meta, config = data['meta'], data['config']
+    actor = Actor(meta['obs_dim'], meta['num_actions'], tuple(config['hidden']), config['activation'])
+    try:
+        actor.load_state_dict(data['actor'])
+    except RuntimeError as exc:
+        raise CheckpointError(f'checkpoint {str(path)!r}: actor weights do not fit its own metadata: '
+                              f'{str(exc).splitlines()[0]}') from None
+    return LoadedPolicy(actor, meta, str(path))
+
+
+def export_policy(checkpoint, out, note: str = '') -> Path:
+    """Write the acting part of a checkpoint (actor weights, meta, config, step count, `note`) to `out`:
+    a small file for `mate/pretrained/` that `load_policy` / `pretrained:NAME` read."""
+    data = load_checkpoint(checkpoint)
+    actor = {k: v.clone() for k, v in data['actor'].items()}
+    return save_checkpoint(out, dict(actor=actor, meta=data['meta'], config=data['config'],
+                                     env_steps=data.get('env_steps', 0), note=note))
+
+
+class _PolicyAgentMixin:
+    """Shared logic of the camera and target policy agents."""
+
+    def __init__(self, policy: LoadedPolicy, seed: int | None = None, deterministic: bool = False,
+                 frame_skip: int | None = None) -> None:
+        if policy.meta['team'] != self.TEAM.name.lower():
+            raise CheckpointError(f'policy {policy.source!r} was trained for the {policy.meta["team"]} team; '
+                                  f'{type(self).__name__} needs a {self.TEAM.name.lower()} policy')
+        self.policy = policy
+        self.deterministic = bool(deterministic)
+        self.frame_skip = int(frame_skip or policy.meta.get('frame_skip', 1))
+        self._held = None
+        self._countdown = 0
+        super().__init__(seed=seed)
+
+    @classmethod
+    def from_checkpoint(cls, path, seed: int | None = None, deterministic: bool = False,
+                        frame_skip: int | None = None):
+        return cls(load_policy(path, cls.TEAM), seed=seed, deterministic=deterministic, frame_skip=frame_skip)
+
+    def reset(self, observation) -> None:
+        super().reset(observation)
+        counts = (self.num_cameras, self.num_targets, self.num_obstacles)
+        if list(counts) != list(self.policy.meta['counts']):
+            raise ValueError(f'policy {self.policy.source!r} was trained with (cameras, targets, obstacles) = '
+                             f'{tuple(self.policy.meta["counts"])}; this environment has {counts}')
+        self._held, self._countdown = None, 0
+
+    def act(self, observation, info=None, deterministic=None):
+        observation = self._accept(observation)
+        if self._countdown <= 0 or self._held is None:
+            processed = preprocess_observation(observation, self.TEAM, self.num_cameras, self.num_targets,
+                                               self.num_obstacles)
+            meta = self.policy.meta
+            heads = meta.get('action_heads', 1)
+            logits = self.policy.logits(processed[None])[0].reshape(heads, -1)
+            greedy = self.deterministic if deterministic is None else deterministic
+            if greedy:
+                choice = logits.argmax(axis=-1)
+            else:
+                p = np.exp(logits - logits.max(axis=-1, keepdims=True))
+                p /= p.sum(axis=-1, keepdims=True)
+                u = self.np_random.random((heads, 1))
+                choice = np.minimum((p.cumsum(axis=-1) < u).sum(axis=-1), p.shape[-1] - 1)
+            self._held = choice
+            self._countdown = self.frame_skip
+        self._countdown -= 1
+        if self.policy.meta.get('hrl'):   # target selection held; the executor re-aims every step
+            return executor_actions(observation, self._held, self.num_cameras, self.num_targets,
+                                    self.num_obstacles)
+        return discrete_to_continuous(self._held[:1], observation[None], self.TEAM, self.policy.meta['levels'])[0]
+
+
+class PolicyCameraAgent(_PolicyAgentMixin, CameraAgentBase):
+    """A camera driven by a trained `mate.learn` policy (`PolicyCameraAgent.from_checkpoint(path)`)."""
+
+
+class PolicyTargetAgent(_PolicyAgentMixin, TargetAgentBase):
+    """A target driven by a trained `mate.learn` policy (`PolicyTargetAgent.from_checkpoint(path)`)."""
+
+
+AGENT_CLASSES = {Team.CAMERA: PolicyCameraAgent, Team.TARGET: PolicyTargetAgent}
+
+
+def pretrained_path(name: str) -> Path:
+    """Path of a shipped policy `mate/pretrained/NAME.pt`; ValueError listing the available ones."""
+    path = PRETRAINED_DIR / f'{name}.pt'
+    if not path.is_file():
+        names = sorted(p.stem for p in PRETRAINED_DIR.glob('*.pt'))
+        raise ValueError(f'no pretrained policy {name!r}; available: {", ".join(names) or "none"}')
+    return path
+
+
+def load_agent(spec: str, team):
+    """An agent factory for `checkpoint:PATH` or `pretrained:NAME`, called as `factory(seed=..., **kwargs)`
+    (kwargs: deterministic, frame_skip). The checkpoint is read once, here, so errors surface early."""
+    team = as_team(team)
+    kind, sep, value = spec.partition(':')
+    if not sep or kind not in ('checkpoint', 'pretrained') or not value:
+        raise ValueError(f"agent spec {spec!r}: expected 'checkpoint:PATH' or 'pretrained:NAME'")
+    path = Path(value).expanduser() if kind == 'checkpoint' else pretrained_path(value)
+    policy = load_policy(path, team)
+    return functools.partial(AGENT_CLASSES[team], policy)

@@ -1,0 +1,57 @@
+"""Checkpoint files of `mate.learn`: one `torch.save` dict, written atomically, checked on load.
+
+Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
+'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
+observation/state dims, agent and action counts, algo)}. Loaded with `weights_only=True`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+
+__all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_checkpoint']
+
+CHECKPOINT_FORMAT = 'mate.learn/1'
+REQUIRED = ('actor', 'meta', 'config')
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be read, is not a mate.learn checkpoint, or does not fit the experiment."""
+
+
+def save_checkpoint(path, payload: dict) -> Path:
+    """Write `payload` (+ the format tag) to `path` via a temporary file and an atomic rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    torch.save({'format': CHECKPOINT_FORMAT, **payload}, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def load_checkpoint(path, expect: dict | None = None) -> dict:
+    """Read a checkpoint; CheckpointError if it is unreadable, of another format, or if any `expect`
+    entry differs from the stored `meta` (e.g. team, env id, observation size)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f'checkpoint {str(path)!r} does not exist')
+    try:
+        data = torch.load(path, map_location='cpu', weights_only=True)
+    except Exception as exc:  # noqa: BLE001  (truncated zip, random bytes, pickled objects, ...)
+        raise CheckpointError(f'checkpoint {str(path)!r} is corrupt or not a mate.learn checkpoint '
+                              f'({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ""})') from None
+    if not isinstance(data, dict) or data.get('format') != CHECKPOINT_FORMAT:
+        found = data.get('format') if isinstance(data, dict) else type(data).__name__
+        raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected {CHECKPOINT_FORMAT!r}')
+    missing = [key for key in REQUIRED if key not in data]
+    if missing:
+        raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
+    meta = data['meta']
+    for key, value in (expect or {}).items():
+        if meta.get(key) != value:
+            raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: {key} is '
+                                  f'{meta.get(key)!r} in the checkpoint, {value!r} here')
+    return data

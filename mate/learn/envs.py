@@ -1,0 +1,220 @@
+"""`TeamVecEnv`: the training view of B batched games for one team against a batched greedy opponent.
+
+What a learner sees per decision step (the paper's wrapper stack, done on arrays):
+
+* discrete actions, `levels**2` per agent (the grids of `DiscreteCamera` / `DiscreteTarget`, scaled by
+  each agent's own step bounds read from its observation);
+* the opponent (`VecGreedyTarget` / `VecGreedyCamera`) acts at every raw step;
+* frame skip k: a decision is held for k raw steps; rewards are summed (camera: coverage rate, the
+  `AuxiliaryCameraRewards` setting of the paper; target: the raw dense team reward);
+* observations with coordinates relative to the agent (`convert_coordinates`) and rescaled to
+  [-1, 1] (`rescale_observation`); the global state rescaled with the state-space bounds, its
+  unbounded counters log-compressed (`compress`);
+* episodes cut at `horizon` raw steps (the paper: 500 decisions);
+* `hrl=True` (cameras): the action is one keep/ignore bit per target slot, (B, Nc, Nt), and the rule
+  executor of `mate.learn.hrl` turns it into rotation/zoom at every raw step of the held decision.
+
+Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
+ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
+episode; those raw steps' rewards are not credited to anyone. The row's last observation and state
+are kept (`final_obs`, `final_state`) so that the learner can bootstrap through a truncation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import make_vec
+from ..agents.utils import (
+    convert_coordinates,
+    normalize_observation,
+    rescale_observation,
+)
+from ..constants import PRESERVED_DIM
+from ..messages import Team
+from ..wrappers.discrete_camera import square_grid
+from ..wrappers.discrete_target import disk_grid
+from .hrl import executor_actions
+from .opponents import VecGreedyCamera, VecGreedyTarget
+
+__all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'discrete_to_continuous', 'preprocess_observation']
+
+PAPER_SETTINGS = {
+    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5, horizon=2500),
+    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10, horizon=5000),
+}
+"""Paper defaults per trained team (spec training.md §0): preset, frame skip, raw-step episode cut."""
+
+
+def as_team(team) -> Team:
+    """Team from a Team, its value, or a name ('camera' / 'target', any case)."""
+    return Team[team.upper()] if isinstance(team, str) else Team(team)
+
+
+def preprocess_observation(observation, team, num_cameras, num_targets, num_obstacles) -> np.ndarray:
+    """Raw observations (..., D) -> float32 relative coordinates rescaled to [-1, 1]."""
+    team = as_team(team)
+    relative = convert_coordinates(observation, team, num_cameras, num_targets, num_obstacles)
+    return rescale_observation(relative, team, num_cameras, num_targets, num_obstacles).astype(np.float32)
+
+
+def discrete_to_continuous(indices, observation, team, levels: int = 5) -> np.ndarray:
+    """Action indices (..., N) -> continuous actions (..., N, 2) scaled by each agent's own bounds,
+    read from its raw observation (..., N, D): camera (rotation step, zooming step), target step size."""
+    indices = np.asarray(indices, dtype=np.int64)
+    observation = np.asarray(observation)
+    if as_team(team) is Team.CAMERA:
+        high = observation[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9].astype(np.float64)
+        return square_grid(levels)[indices] * high
+    step = observation[..., PRESERVED_DIM + 4:PRESERVED_DIM + 5].astype(np.float64)
+    return disk_grid(levels)[indices] * step
+
+
+def compress(x: np.ndarray) -> np.ndarray:
+    """float32 x, with the entries beyond [-1, 1] (unbounded counters: bounties, freights, cargo counts up
+    to 200) squashed logarithmically, sign(x) (1 + log|x|), so that they do not saturate the critic."""
+    magnitude = np.abs(x)
+    return np.where(magnitude > 1.0, np.sign(x) * (1.0 + np.log(np.maximum(magnitude, 1.0))), x).astype(np.float32)
+
+
+class TeamVecEnv:
+    """B games, one trained team (`'camera'` or `'target'`), the other team a batched greedy opponent.
+
+    `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
+    `step(actions (B, N) int)` -> (obs, state, reward (B,), done (B,), truncated (B,), info) where done
+    covers both ends of an episode, `truncated` the horizon/time-limit ones, and info holds
+    `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean raw-step coverage of the
+    decision, and `episodes`: a list of finished-episode dicts (`coverage`: step-mean coverage rate,
+    `return`: the learner's reward summed, `raw_return`: the target team's raw reward summed and divided
+    by the preset's maximum target-team episode reward (the paper's normalised reward), `length`).
+    """
+
+    def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
+                 frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
+                 seed: int | None = 0, config=None, hrl: bool = False, **overrides) -> None:
+        team = as_team(team)
+        if hrl and team is not Team.CAMERA:
+            raise ValueError('HRL (target selection + rule executor) exists for cameras only')
+        self.hrl = bool(hrl)
+        defaults = PAPER_SETTINGS[team.name.lower()]
+        self.team = team
+        self.env_id = env_id or defaults['env_id']
+        self.frame_skip = int(frame_skip or defaults['frame_skip'])
+        self.horizon = int(horizon or defaults['horizon'])
+        self.levels = levels
+        self.num_envs = num_envs
+        kwargs = dict(overrides)
+        kwargs['max_episode_steps'] = self.horizon
+        self.vec = make_vec(self.env_id, num_envs=num_envs, config=config, observation_dtype=np.float32,
+                            autoreset_mode='next_step', **kwargs)
+        nc, nt, no = self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles
+        self.counts = (nc, nt, no)
+        self.num_agents = nc if team is Team.CAMERA else nt
+        # the policy's action: `action_heads` independent choices among `action_choices` per agent
+        self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, levels ** 2)
+        self.num_actions = self.action_heads * self.action_choices     # logits per agent
+        self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
+        self.state_dim = self.vec.single_state_space.shape[0]
+        if team is Team.CAMERA:
+            self.opponent = VecGreedyTarget(num_envs, nt, seed=None if seed is None else seed + 7919)
+        else:
+            self.opponent = VecGreedyCamera(num_envs, nc, nt, no, seed=None if seed is None else seed + 7919)
+        self._seed = seed
+        self._raw = None
+        self._return = np.zeros(num_envs)
+        self._raw_return = np.zeros(num_envs)
+        self._max_reward = float(self.vec.params.max_target_team_episode_reward)
+        self._coverage_sum = np.zeros(num_envs)
+        self._length = np.zeros(num_envs, dtype=np.int64)
+
+    # ------------------------------------------------------------------ helpers
+    def _own(self, observations):
+        return observations[0] if self.team is Team.CAMERA else observations[1]
+
+    def _other(self, observations):
+        return observations[1] if self.team is Team.CAMERA else observations[0]
+
+    def _process(self, raw):
+        return preprocess_observation(raw, self.team, *self.counts)
+
+    def _state(self):
+        return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
+
+    # ------------------------------------------------------------------ API
+    def reset(self, seed: int | None = None):
+        observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
+        self.opponent.reset(self._other(observations))
+        self._raw = self._own(observations).copy()
+        self._other_raw = self._other(observations)
+        self._own_raw = self._own(observations)
+        self._return[:] = 0.0
+        self._raw_return[:] = 0.0
+        self._coverage_sum[:] = 0.0
+        self._length[:] = 0
+        return self._process(self._raw), self._state()
+
+    def step(self, actions):
+        B = self.num_envs
+        actions = np.asarray(actions)
+        if self.hrl:
+            selection = actions.reshape(B, self.num_agents, self.action_heads)
+        else:
+            own_actions = discrete_to_continuous(actions.reshape(B, self.num_agents), self._raw, self.team,
+                                                 self.levels)
+        reward = np.zeros(B)
+        coverage = np.zeros(B)
+        counted = np.zeros(B)
+        done = np.zeros(B, dtype=bool)
+        truncated = np.zeros(B, dtype=bool)
+        final_obs = np.zeros((B, self.num_agents, self.obs_dim), dtype=np.float32)
+        final_state = np.zeros((B, self.state_dim), dtype=np.float32)
+        episodes = []
+        restarting = np.zeros(B, dtype=bool)     # rows whose episode ended at the previous raw step
+        for _ in range(self.frame_skip):
+            if self.hrl:   # closed loop: the executor re-aims at every raw step from the fresh observation
+                own_actions = executor_actions(self._own_raw, selection, *self.counts)
+            other = self.opponent.act(self._other_raw)
+            joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
+            observations, rewards, terminated, truncated_now, infos = self.vec.step(joint)
+            if restarting.any():
+                self.opponent.reset(self._other(observations), restarting)
+            live = ~done & ~restarting
+            r = rewards[0] if self.team is Team.CAMERA else rewards[1]
+            if self.team is Team.CAMERA:
+                r = infos['coverage_rate']
+            reward += np.where(live, r, 0.0)
+            coverage += np.where(live, infos['coverage_rate'], 0.0)
+            counted += live
+            self._return += np.where(live, r, 0.0)
+            self._raw_return += np.where(live, rewards[1], 0.0)    # target-team raw reward (zero-sum game)
+            self._coverage_sum += np.where(live, infos['coverage_rate'], 0.0)
+            self._length += live
+            ended = live & (terminated | truncated_now)
+            restarting = ended.copy()
+            if ended.any():
+                rows = np.flatnonzero(ended)
+                final_obs[rows] = self._process(self._own(observations)[rows])
+                final_state[rows] = self._state()[rows]
+                truncated[rows] = truncated_now[rows] & ~terminated[rows]
+                done |= ended
+                for i in rows:
+                    episodes.append(dict(coverage=self._coverage_sum[i] / max(self._length[i], 1),
+                                         length=int(self._length[i]), **{'return': float(self._return[i])},
+                                         raw_return=float(self._raw_return[i]) / self._max_reward))
+                self._return[rows] = 0.0
+                self._raw_return[rows] = 0.0
+                self._coverage_sum[rows] = 0.0
+                self._length[rows] = 0
+            self._other_raw = self._other(observations)
+            self._own_raw = self._own(observations)
+        if restarting.any():   # ended at the last raw step: restart now so the next decision is clean
+            other = self.opponent.act(self._other(observations))
+            joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
+            observations, *_ = self.vec.step(joint)
+            self.opponent.reset(self._other(observations), restarting)
+        self._other_raw = self._other(observations)
+        self._own_raw = self._own(observations)
+        self._raw = self._own(observations).copy()
+        info = dict(final_obs=final_obs, final_state=final_state, coverage=coverage / np.maximum(counted, 1),
+                    episodes=episodes)
+        return self._process(self._raw), self._state(), reward, done, truncated, info

@@ -1,0 +1,47 @@
+"""HRL cameras (spec training.md §3): the policy picks a subset of targets, a rule executor aims at it.
+
+High-level action: one keep/ignore bit per target slot, (..., Nt) in {0, 1}. The executor runs at every
+raw step on the camera's fresh raw observation:
+
+* valid = selected and currently visible (the camera's own flags);
+* no valid target: the action lower bound (-rotation step, -zooming step), a clockwise sweep that
+  narrows the view (and so lengthens the sight range);
+* otherwise aim at the centroid of the valid targets: rotation = bearing - orientation wrapped to
+  (-180, 180], zoom = the greedy camera's desired viewing angle for the centroid's distance - current
+  angle; both clipped to the per-step limits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..constants import PRESERVED_DIM
+from ..messages import Team
+from ..spaces import observation_indices_of
+from .opponents import desired_viewing_angles
+
+__all__ = ['executor_actions']
+
+_OWN = PRESERVED_DIM
+
+
+def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras: int, num_targets: int,
+                     num_obstacles: int) -> np.ndarray:
+    """Continuous camera actions (..., 2) in degrees from raw observations (..., D) and selection bits
+    (..., Nt). Also returns nothing else: the valid-selection statistics are cheap to recompute."""
+    observation = np.asarray(observation, dtype=np.float64)
+    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
+    records = observation[..., begin:begin + 5 * num_targets].reshape(observation.shape[:-1] + (num_targets, 5))
+    valid = (np.asarray(selection) > 0.5) & (records[..., 4] > 0.5)                  # (..., Nt)
+    count = valid.sum(axis=-1)
+    centroid = (records[..., :2] * valid[..., None]).sum(axis=-2) / np.maximum(count, 1)[..., None]
+    own = observation[..., _OWN:_OWN + 9]
+    x, y, rx, ry, theta, max_range = (own[..., k] for k in (0, 1, 3, 4, 5, 6))
+    high = own[..., 7:9]
+    orientation = np.degrees(np.arctan2(ry, rx))
+    bearing = np.degrees(np.arctan2(centroid[..., 1] - y, centroid[..., 0] - x))
+    rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
+    distance = np.hypot(centroid[..., 0] - x, centroid[..., 1] - y)
+    zoom = desired_viewing_angles(np.where(count > 0, distance, 1.0), theta, np.hypot(rx, ry), max_range) - theta
+    aimed = np.clip(np.stack([rotation, zoom], axis=-1), -high, high)
+    return np.where((count > 0)[..., None], aimed, -high)

@@ -1,0 +1,116 @@
+"""Learning curves of the paper's cooperative settings, 3 seeds each, as PNG (mean ± std over seeds).
+
+    python scripts/paper_curves.py --steps 2e6 --out results/       # trains, then plots
+    python scripts/paper_curves.py --plot-only --out results/        # plots existing runs
+
+Experiments (spec training.md §0): cameras (flat and HRL) vs batched greedy targets on MATE-4v8-9 (frame
+skip 5, coverage-rate reward; curve: rollout coverage rate, with the greedy cameras' 0.61 as a reference line)
+and targets vs batched greedy cameras on MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward;
+curve: episode target reward normalised by the preset's maximum). Runs go to OUT/runs/NAME-seedS and
+resume after an interruption (`mate train` checkpoints). `--jobs 2` runs two trainings at a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+EXPERIMENTS = {
+    # name: (mate train arguments, figure, metric column, y label, reference line (value, label) or None)
+    'camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9'], 'cameras-4v8-9', 'rollout_coverage',
+                     'mean coverage rate', (0.61, 'greedy cameras')),
+    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'], 'cameras-4v8-9',
+                         'rollout_coverage', 'mean coverage rate', (0.61, 'greedy cameras')),
+    'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], 'targets-2v4-0',
+                     'episode_normalized_target_return', 'normalised target episode reward',
+                     (0.485, 'greedy targets (mate evaluate, 20 episodes)')),
+    'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], 'targets-4v8-0',
+                     'episode_normalized_target_return', 'normalised target episode reward', None),
+}
+
+
+def run_one(out: Path, name: str, algo: str, seed: int, steps: float, extra: list[str]) -> int:
+    run_dir = out / 'runs' / f'{algo}-{name}-seed{seed}'
+    command = [sys.executable, '-m', 'mate.cli', 'train', algo, *EXPERIMENTS[name][0], '--steps', str(steps),
+               '--seed', str(seed), '--run-dir', str(run_dir), '--no-progress', *extra]
+    print(' '.join(command), flush=True)
+    return subprocess.call(command, stdout=subprocess.DEVNULL)
+
+
+def read_curve(path: Path, column: str):
+    with open(path, newline='') as f:
+        rows = list(csv.DictReader(f))
+    x = np.array([float(r['env_steps']) for r in rows])
+    y = np.array([float(r[column]) for r in rows])
+    return x, y
+
+
+def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    figures = {}
+    for name, (_, figure, column, label, reference) in EXPERIMENTS.items():
+        figures.setdefault(figure, []).append((name, column, label, reference))
+    for figure, members in figures.items():
+        fig, ax = plt.subplots(figsize=(6, 4))
+        drawn = False
+        for name, column, label, reference in members:
+            for algo in algos:
+                curves = [read_curve(p, column) for seed in seeds
+                          if (p := out / 'runs' / f'{algo}-{name}-seed{seed}' / 'progress.csv').exists()]
+                curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
+                if not curves:
+                    continue
+                grid = np.linspace(0, min(x[-1] for x, _ in curves), 200)
+                ys = np.array([np.interp(grid, x, y) for x, y in curves])
+                mean, std = ys.mean(0), ys.std(0)
+                prefix = 'HRL-' if name.startswith('hrl') else ''
+                ax.plot(grid, mean, label=f'{prefix}{algo.upper()} ({len(ys)} seed{"s" * (len(ys) > 1)})')
+                ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
+                drawn = True
+        if not drawn:
+            plt.close(fig)
+            continue
+        if reference is not None:
+            ax.axhline(reference[0], color='grey', linestyle='--', label=reference[1])
+        ax.set_xlabel('decision steps')
+        ax.set_ylabel(label)
+        ax.set_title(figure)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / f'{figure}.png', dpi=120)
+        plt.close(fig)
+        print(f'wrote {out / f"{figure}.png"}')
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--out', default='results', type=Path)
+    parser.add_argument('--steps', type=float, default=2e6)
+    parser.add_argument('--algos', nargs='+', default=['mappo', 'ippo'])
+    parser.add_argument('--seeds', nargs='+', type=int, default=[0, 1, 2])
+    parser.add_argument('--experiments', nargs='+', default=list(EXPERIMENTS), choices=list(EXPERIMENTS))
+    parser.add_argument('--jobs', type=int, default=1)
+    parser.add_argument('--plot-only', action='store_true')
+    parser.add_argument('--train-args', default='', help='extra `mate train` arguments, one string')
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    if not args.plot_only:
+        tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds]
+        with ThreadPoolExecutor(args.jobs) as pool:
+            codes = list(pool.map(lambda t: run_one(args.out, *t, args.steps, args.train_args.split()), tasks))
+        if any(codes):
+            print(f'{sum(c != 0 for c in codes)} runs failed', file=sys.stderr)
+    plot(args.out, args.algos, args.seeds)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+
+import mate
+from mate.agents.greedy import desired_viewing_angle
+from mate.learn import PolicyCameraAgent, TeamVecEnv
+from mate.learn.hrl import executor_actions
+from mate.learn.ppo import PPOConfig, train
+
+
+def _camera_obs(seed=0):
+    env = mate.make('MATE-4v8-0-v0')
+    for s in range(seed, seed + 50):
+        (camera_obs, _), _ = env.reset(seed=s)
+        flags = camera_obs[:, 22:22 + 40].reshape(4, 8, 5)[..., 4]
+        if flags.any():
+            return camera_obs, flags
+    raise AssertionError('no camera sees a target')
+
+
+def test_executor_sweeps_without_a_valid_selection():
+    camera_obs, flags = _camera_obs()
+    nothing = np.zeros((4, 8))
+    assert np.allclose(executor_actions(camera_obs, nothing, 4, 8, 0), [[-5.0, -2.5]] * 4)
+    invisible_only = (flags < 0.5).astype(float)
+    assert np.allclose(executor_actions(camera_obs, invisible_only, 4, 8, 0), [[-5.0, -2.5]] * 4)
+
+
+def test_executor_aims_at_a_single_selected_target_like_the_greedy_rule():
+    camera_obs, flags = _camera_obs()
+    c, t = map(int, np.argwhere(flags)[0])
+    selection = np.zeros((4, 8))
+    selection[c, t] = 1
+    action = executor_actions(camera_obs, selection, 4, 8, 0)[c]
+    own = camera_obs[c, 13:22]
+    tx, ty = camera_obs[c, 22 + 5 * t:22 + 5 * t + 2]
+    bearing = np.degrees(np.arctan2(ty - own[1], tx - own[0]))
+    rotation = (bearing - np.degrees(np.arctan2(own[4], own[3])) + 180) % 360 - 180
+    distance = np.hypot(tx - own[0], ty - own[1])
+    zoom = desired_viewing_angle(distance, own[5], np.hypot(own[3], own[4]), own[6]) - own[5]
+    assert np.allclose(action, np.clip([rotation, zoom], [-5, -2.5], [5, 2.5]))
+
+
+@pytest.mark.parametrize('algo', ['mappo', 'ippo'])
+def test_hrl_env_and_policy_agent(tmp_path, algo):
+    env = TeamVecEnv('camera', num_envs=4, env_id='MATE-2v4-0-v0', hrl=True, seed=0)
+    assert (env.action_heads, env.action_choices, env.num_actions) == (4, 2, 8)
+    env.reset()
+    *_, info = env.step(np.ones((4, 2, 4), dtype=np.int64))
+    assert info['coverage'].shape == (4,)
+    config = PPOConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', hrl=True, num_envs=4, rollout_length=4,
+                       total_steps=16, epochs=1, hidden=(8,))
+    train(config, tmp_path, progress=False)
+    agent = PolicyCameraAgent.from_checkpoint(tmp_path / 'final.pt', seed=0)
+    single = mate.make('MATE-2v4-0-v0')
+    (camera_obs, _), _ = single.reset(seed=0)
+    agent.reset(camera_obs[0])
+    action = agent.act(camera_obs[0])
+    assert action.shape == (2,) and np.all(np.abs(action) <= [5.0, 2.5])
+    assert agent._held.shape == (4,)

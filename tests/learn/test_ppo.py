@@ -1,0 +1,95 @@
+import pytest
+import torch
+
+from mate.learn.ppo import (
+    Actor,
+    PPOConfig,
+    ValueNormalizer,
+    compute_gae,
+    critic_inputs,
+    piecewise,
+    ppo_policy_loss,
+    train,
+)
+
+from .toy import CueMatching
+
+
+def test_gae_matches_hand_computation():
+    gamma, lam = 0.9, 0.8
+    rewards = torch.tensor([1.0, 2.0, 3.0])
+    values = torch.tensor([0.5, 1.0, 1.5])
+    dones = torch.tensor([0.0, 1.0, 0.0])      # the episode ends after step 1
+    last = torch.tensor(2.0)
+    # step 2: delta = 3 + 0.9 * 2 - 1.5 = 3.3;            A2 = 3.3
+    # step 1: delta = 2 + 0 - 1.0 = 1.0 (terminal);       A1 = 1.0
+    # step 0: delta = 1 + 0.9 * 1.0 - 0.5 = 1.4;          A0 = 1.4 + 0.9 * 0.8 * 1.0 = 2.12
+    adv, ret = compute_gae(rewards, values, dones, last, gamma, lam)
+    assert adv.tolist() == pytest.approx([2.12, 1.0, 3.3])
+    assert ret.tolist() == pytest.approx([2.62, 2.0, 4.8])
+
+
+def test_gae_lambda_one_is_discounted_return_minus_value():
+    rewards = torch.ones(4, 3)
+    values = torch.zeros(4, 3)
+    adv, _ = compute_gae(rewards, values, torch.zeros(4, 3), torch.zeros(3), 0.5, 1.0)
+    assert adv[:, 0].tolist() == pytest.approx([1 + 0.5 + 0.25 + 0.125, 1.75, 1.5, 1.0])
+
+
+def test_policy_loss_sign_and_clipping():
+    old = torch.zeros(2)
+    adv = torch.tensor([1.0, -1.0])
+    # unchanged policy: loss = -mean(A)
+    assert float(ppo_policy_loss(old, old, adv, 0.2)) == pytest.approx(0.0)
+    assert float(ppo_policy_loss(old[:1], old[:1], adv[:1], 0.2)) == pytest.approx(-1.0)
+    # raising the probability of a positive-advantage action lowers the loss, until the clip at 1 + eps
+    up = torch.log(torch.tensor([1.1]))
+    assert float(ppo_policy_loss(up, old[:1], adv[:1], 0.2)) == pytest.approx(-1.1)
+    far = torch.log(torch.tensor([2.0])).requires_grad_()
+    loss = ppo_policy_loss(far, old[:1], adv[:1], 0.2)
+    assert float(loss.detach()) == pytest.approx(-1.2)
+    loss.backward()
+    assert float(far.grad) == 0.0            # clipped: no gradient pushes further
+    # negative advantage: a lower ratio is clipped at 1 - eps, a higher one is not
+    low = torch.log(torch.tensor([0.5]))
+    assert float(ppo_policy_loss(low, old[:1], adv[1:], 0.2)) == pytest.approx(0.8)
+    high = torch.log(torch.tensor([1.5]))
+    assert float(ppo_policy_loss(high, old[:1], adv[1:], 0.2)) == pytest.approx(1.5)
+
+
+def test_schedules():
+    sched = ((0, 0.05), (100, 0.01), (200, 0.0))
+    assert piecewise(sched, 50, True) == pytest.approx(0.03)
+    assert piecewise(sched, 50, False) == pytest.approx(0.05)
+    assert piecewise(sched, 1000, True) == 0.0
+
+
+def test_value_normalizer_round_trip():
+    norm = ValueNormalizer()
+    x = torch.randn(1000) * 7 + 3
+    norm.update(x)
+    assert float(norm.mean) == pytest.approx(float(x.mean()), rel=1e-3)
+    assert torch.allclose(norm.denormalize(norm.normalize(x)), x, atol=1e-4)
+
+
+def test_actor_head_starts_near_uniform_and_critic_inputs():
+    actor = Actor(10, 25)
+    logits = actor(torch.randn(5, 10))
+    assert logits.abs().max() < 0.1
+    obs, state = torch.zeros(3, 4, 10), torch.ones(3, 7)
+    x = critic_inputs('mappo', obs, state)
+    assert x.shape == (3, 4, 11) and torch.equal(x[0, 2, 7:], torch.eye(4)[2])
+    assert critic_inputs('ippo', obs, state) is obs
+
+
+@pytest.mark.parametrize('algo', ['mappo', 'ippo'])
+def test_tiny_run_improves_return(tmp_path, algo):
+    rows = []
+    config = PPOConfig(algo=algo, total_steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4,
+                       hidden=(32,), lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1)
+    train(config, tmp_path, progress=False, callback=rows.append,
+          envs=CueMatching(num_envs=16, num_agents=2, num_actions=4))
+    first, last = rows[0]['rollout_coverage'], rows[-1]['rollout_coverage']
+    assert first < 0.45                  # random: 0.25 of the agents match their cue
+    assert last > 0.8, [round(r['rollout_coverage'], 3) for r in rows]
+    assert (tmp_path / 'progress.csv').read_text().count('\n') == len(rows) + 1

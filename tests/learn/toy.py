@@ -1,0 +1,36 @@
+"""A trivial batched task for the learner: every agent sees a one-hot cue and is paid for matching it."""
+
+import numpy as np
+
+
+class CueMatching:
+    """B envs x N agents; obs = one-hot of a random cue among A actions; team reward = fraction of agents
+    whose action equals their cue; episodes of `length` decisions (the last one is a truncation)."""
+
+    team = 'camera'
+    frame_skip = 1
+
+    def __init__(self, num_envs=16, num_agents=2, num_actions=4, length=8, seed=0):
+        self.num_envs, self.num_agents, self.num_actions, self.length = num_envs, num_agents, num_actions, length
+        self.obs_dim = num_actions
+        self.state_dim = num_agents * num_actions
+        self.counts = (num_agents, 1, 0)
+        self.rng = np.random.default_rng(seed)
+
+    def _observe(self):
+        self.cue = self.rng.integers(self.num_actions, size=(self.num_envs, self.num_agents))
+        obs = np.eye(self.num_actions, dtype=np.float32)[self.cue]
+        return obs, obs.reshape(self.num_envs, -1).copy()
+
+    def reset(self, seed=None):
+        self.t = 0
+        return self._observe()
+
+    def step(self, actions):
+        reward = (np.asarray(actions) == self.cue).mean(axis=1).astype(np.float64)
+        self.t += 1
+        done = np.full(self.num_envs, self.t % self.length == 0)
+        final_obs, final_state = self._observe()
+        info = dict(final_obs=final_obs, final_state=final_state, coverage=reward,
+                    episodes=[dict(coverage=0.0, length=self.length, **{'return': 0.0})] if done[0] else [])
+        return final_obs, final_state, reward, done, done.copy(), info
