@@ -4,86 +4,37 @@
     env = mate.make('MultiAgentTracking-v0')           # MATE-4v8-9 by default
     (camera_obs, target_obs), infos = env.reset(seed=0)
     (camera_obs, target_obs), rewards, terminated, truncated, infos = env.step(env.action_space.sample())
+
+Everything a user of the original MATE finds at package level is re-exported here: constants,
+the environment, messages, spaces helpers, agents, group helpers and wrappers.
 """
+# ruff: noqa: F401  (this module re-exports the public API)
 
 from . import constants, spaces
+from .agents import (AgentBase, CameraAgentBase, CameraStatePrivate, CameraStatePublic, GreedyCameraAgent,
+                     GreedyTargetAgent, HeuristicCameraAgent, HeuristicTargetAgent, MixtureCameraAgent,
+                     MixtureTargetAgent, NaiveCameraAgent, NaiveTargetAgent, ObstacleState, RandomCameraAgent,
+                     RandomTargetAgent, StateBase, TargetAgentBase, TargetStatePrivate, TargetStatePublic,
+                     convert_coordinates, group_act, group_communicate, group_observe, group_reset, group_step,
+                     normalize_observation, rescale_observation, split_observation)
 from .config import ConfigError, list_presets, read_config
-from .constants import *  # noqa: F401,F403  (the original re-exports its constants at package level)
+from .constants import *  # noqa: F403  (the original re-exports its constants at package level)
 from .core.snapshot import SnapshotError
 from .env import MultiAgentTracking
 from .messages import Message, MessageChannel, Team
 from .registration import WrapperSpec, make, make_environment, registered_ids
-from .spaces import (
-                     camera_coordinate_mask_of,
-                     camera_observation_indices_of,
-                     camera_observation_slices_of,
-                     camera_observation_space_of,
-                     coordinate_mask_of,
-                     observation_indices_of,
-                     observation_slices_of,
-                     observation_space_of,
-                     state_space_of,
-                     target_coordinate_mask_of,
-                     target_observation_indices_of,
-                     target_observation_slices_of,
-                     target_observation_space_of,
-)
+from .spaces import (camera_coordinate_mask_of, camera_observation_indices_of, camera_observation_slices_of,
+                     camera_observation_space_of, coordinate_mask_of, observation_indices_of, observation_slices_of,
+                     observation_space_of, state_space_of, target_coordinate_mask_of, target_observation_indices_of,
+                     target_observation_slices_of, target_observation_space_of)
+from .vector import MultiAgentTrackingVectorEnv, make_vec
+from .wrappers import (AuxiliaryCameraRewards, AuxiliaryTargetRewards, DiscreteCamera, DiscreteTarget,
+                       EnhancedObservation, ExtraCommunicationDelays, MateWrapper, MessageFilter,
+                       MoreTrainingInformation, MultiCamera, MultiTarget, NoCommunication, RandomMessageDropout,
+                       RelativeCoordinates, RenderCommunication, RepeatedRewardIndividualDone, RescaledObservation,
+                       RestrictedCommunicationRange, SharedFieldOfView, SingleCamera, SingleTarget,
+                       WrapperOrderError)
+
+from . import learn  # last: it builds on the names above (torch is imported lazily)
 
 __version__ = '0.1.0'
-from .vector import MultiAgentTrackingVectorEnv, make_vec  # noqa: E402
-from .agents import (  # noqa: E402  (agents: base classes, group helpers, built-in agents)
-                     AgentBase,
-                     CameraAgentBase,
-                     CameraStatePrivate,
-                     CameraStatePublic,
-                     GreedyCameraAgent,
-                     GreedyTargetAgent,
-                     HeuristicCameraAgent,
-                     HeuristicTargetAgent,
-                     MixtureCameraAgent,
-                     MixtureTargetAgent,
-                     NaiveCameraAgent,
-                     NaiveTargetAgent,
-                     ObstacleState,
-                     RandomCameraAgent,
-                     RandomTargetAgent,
-                     StateBase,
-                     TargetAgentBase,
-                     TargetStatePrivate,
-                     TargetStatePublic,
-                     convert_coordinates,
-                     group_act,
-                     group_communicate,
-                     group_observe,
-                     group_reset,
-                     group_step,
-                     normalize_observation,
-                     rescale_observation,
-                     split_observation,
-)
-from .wrappers import (  # noqa: E402  (wrappers: observation, action, reward, single-team, communication)
-                       AuxiliaryCameraRewards,
-                       AuxiliaryTargetRewards,
-                       DiscreteCamera,
-                       DiscreteTarget,
-                       EnhancedObservation,
-                       ExtraCommunicationDelays,
-                       MateWrapper,
-                       MessageFilter,
-                       MoreTrainingInformation,
-                       MultiCamera,
-                       MultiTarget,
-                       NoCommunication,
-                       RandomMessageDropout,
-                       RelativeCoordinates,
-                       RenderCommunication,
-                       RepeatedRewardIndividualDone,
-                       RescaledObservation,
-                       RestrictedCommunicationRange,
-                       SharedFieldOfView,
-                       SingleCamera,
-                       SingleTarget,
-                       WrapperOrderError,
-)
-
-from . import learn  # noqa: E402,F401  (mate.learn: MAPPO/IPPO training; torch loaded lazily)

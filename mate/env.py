@@ -217,7 +217,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
         return self._camera_obs[0].copy(), self._target_obs[0].copy()
 
     def _infos(self, target_reward: float) -> tuple[list[dict], list[dict]]:
-        w, p = self._world, self.params
+        w = self._world
         shared = {
             'coverage_rate': float(w.coverage_rate[0]),
             'real_coverage_rate': float(w.real_coverage_rate[0]),

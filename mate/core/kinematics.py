@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 
 from ..constants import MAX_CAMERA_VIEWING_ANGLE, TERRAIN_SIZE
-from .jit import inline_kernel, kernel
+from .jit import inline_kernel
 
 
 @inline_kernel

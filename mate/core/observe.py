@@ -6,7 +6,6 @@ fill one (B, N, D) buffer without allocating.
 
 from __future__ import annotations
 
-import math
 
 from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
 from .jit import inline_kernel, kernel
