@@ -47,6 +47,13 @@ def empty_warehouses(remaining_cargoes: np.ndarray) -> np.ndarray:
     return (~np.asarray(remaining_cargoes).any(axis=-1)).astype(np.float64)
 
 
+def all_flagged_records(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle_states: np.ndarray):
+    """(cameras (..., Nc, 7), targets (..., Nt, 5), obstacles (..., No, 4)): every entity's public
+    state with flag 1, cut from the joint observations' own-state blocks."""
+    cameras, targets = public_records(camera_obs, target_obs)
+    return flagged_records(cameras), flagged_records(targets), flagged_records(obstacle_states)
+
+
 def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle_states: np.ndarray,
                          empty_bits: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int,
                          camera: bool = True, target: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -62,8 +69,7 @@ def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacl
         the two arrays.
     """
     counts = (num_cameras, num_targets, num_obstacles)
-    cameras, targets = public_records(camera_obs, target_obs)
-    cameras, targets, obstacles = flagged_records(cameras), flagged_records(targets), flagged_records(obstacle_states)
+    cameras, targets, obstacles = all_flagged_records(camera_obs, target_obs, obstacle_states)
     if camera:
         s = camera_observation_slices_of(*counts)
         camera_obs[..., s['opponent_states_with_mask']] = targets

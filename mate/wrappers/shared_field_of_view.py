@@ -11,7 +11,7 @@ import numpy as np
 from mate.spaces import camera_observation_slices_of, target_observation_slices_of
 
 from .base import TeamObservationWrapper
-from .enhanced_observation import TARGET_EMPTY_BITS, flagged_records, public_records
+from .enhanced_observation import TARGET_EMPTY_BITS, all_flagged_records
 
 __all__ = ['SharedFieldOfView', 'share_field_of_view']
 
@@ -40,8 +40,7 @@ def share_field_of_view(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle
         the two arrays.
     """
     counts = (num_cameras, num_targets, num_obstacles)
-    cameras, targets = public_records(camera_obs, target_obs)
-    cameras, targets, obstacles = flagged_records(cameras), flagged_records(targets), flagged_records(obstacle_states)
+    cameras, targets, obstacles = all_flagged_records(camera_obs, target_obs, obstacle_states)
     if camera:
         s = camera_observation_slices_of(*counts)
         shared_targets = _shared_block(camera_obs, s['opponent_mask'], targets)
