@@ -16,12 +16,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 import mate
+from mate import evaluate
 from mate.bench import machine_facts
 
 PRESET = 'MATE-4v8-9-v0'
@@ -35,26 +35,10 @@ PAIRINGS = {
 
 
 def play_episode(camera_class, target_class, seed: int, max_steps: int = MAX_STEPS) -> dict:
-    """One episode of the protocol; returns steps, seconds in the step loop and mean coverage."""
-    env = mate.make(PRESET)
-    (camera_obs, target_obs), _ = env.reset(seed=seed)
-    cameras = camera_class(seed=seed).spawn(env.num_cameras)
-    targets = target_class(seed=seed).spawn(env.num_targets)
-    mate.group_reset(cameras, camera_obs)
-    mate.group_reset(targets, target_obs)
-    camera_infos = target_infos = None
-    coverage = 0.0
-    start = time.perf_counter()
-    for step in range(1, max_steps + 1):
-        camera_actions = mate.group_step(env, cameras, camera_obs, camera_infos)
-        target_actions = mate.group_step(env, targets, target_obs, target_infos)
-        (camera_obs, target_obs), _, terminated, truncated, (camera_infos, target_infos) = env.step(
-            (camera_actions, target_actions))
-        coverage += camera_infos[0]['coverage_rate']
-        if terminated or truncated:
-            break
-    seconds = time.perf_counter() - start
-    return {'seed': seed, 'steps': step, 'seconds': seconds, 'coverage_rate': coverage / step}
+    """One episode of the protocol (`mate.evaluate.play_episode`); steps, loop seconds, coverage."""
+    result = evaluate.play_episode(mate.make(PRESET), camera_class, target_class, seed, max_steps)
+    return {'seed': seed, 'steps': result.episode_length,
+            'seconds': result.episode_length / result.steps_per_second, 'coverage_rate': result.coverage_rate}
 
 
 def measure(name: str, seconds: float) -> dict:

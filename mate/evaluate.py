@@ -19,9 +19,22 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .agents import (CameraAgentBase, GreedyCameraAgent, GreedyTargetAgent, HeuristicCameraAgent,
-                     HeuristicTargetAgent, MixtureCameraAgent, MixtureTargetAgent, NaiveCameraAgent, NaiveTargetAgent,
-                     RandomCameraAgent, RandomTargetAgent, TargetAgentBase, group_reset, group_step)
+from .agents import (
+    CameraAgentBase,
+    GreedyCameraAgent,
+    GreedyTargetAgent,
+    HeuristicCameraAgent,
+    HeuristicTargetAgent,
+    MixtureCameraAgent,
+    MixtureTargetAgent,
+    NaiveCameraAgent,
+    NaiveTargetAgent,
+    RandomCameraAgent,
+    RandomTargetAgent,
+    TargetAgentBase,
+    group_reset,
+    group_step,
+)
 from .messages import Team
 
 BUILT_IN_AGENTS = {
@@ -83,44 +96,52 @@ class FrameRecorder:
         from .render import Renderer
         self.renderer = Renderer('rgb_array', window_size=size)
         self.every, self.max_frames, self.frames = every, max_frames, []
-        self.seconds = 0.0  # time spent drawing, left out of the episode's steps/s
 
-    def __call__(self, env, step: int) -> None:
+    def __call__(self, env, step: int, joint_action=None) -> None:
         if step % self.every == 0 and len(self.frames) < self.max_frames:
-            start = time.perf_counter()
             self.frames.append(self.renderer.render(env.unwrapped))
-            self.seconds += time.perf_counter() - start
 
     def close(self) -> None:
         self.renderer.close()
 
 
 def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
-                 recorder: FrameRecorder | None = None) -> EpisodeResult:
-    """One episode of the protocol in the module docstring."""
+                 on_step: Callable | None = None) -> EpisodeResult:
+    """One episode of the protocol in the module docstring.
+
+    `on_step(env, step, joint_action)` is called after reset (step 0, joint_action None) and
+    after every step with the (camera_action, target_action) just played (e.g. a
+    `FrameRecorder`); its time is left out of the episode's steps/s.
+    """
     (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=seed)
     cameras = camera_factory(seed=seed).spawn(env.num_cameras)
     targets = target_factory(seed=seed).spawn(env.num_targets)
     group_reset(cameras, camera_obs)
     group_reset(targets, target_obs)
     coverage, real_coverage, returns = [], [], np.zeros(2)
-    if recorder:
-        recorder(env, 0)
+    callback_seconds = 0.0
+
+    def observe(step: int, joint_action) -> None:
+        nonlocal callback_seconds
+        if on_step is not None:
+            start = time.perf_counter()
+            on_step(env, step, joint_action)
+            callback_seconds += time.perf_counter() - start
+
+    observe(0, None)
     start = time.perf_counter()
     for step in range(1, max_steps + 1):
-        camera_action = group_step(env, cameras, camera_obs, camera_infos)
-        target_action = group_step(env, targets, target_obs, target_infos)
-        (camera_obs, target_obs), rewards, terminated, truncated, (camera_infos, target_infos) = env.step(
-            (camera_action, target_action))
+        joint_action = (group_step(env, cameras, camera_obs, camera_infos),
+                        group_step(env, targets, target_obs, target_infos))
+        (camera_obs, target_obs), rewards, terminated, truncated, (camera_infos, target_infos) = env.step(joint_action)
         info = target_infos[0] if target_infos else camera_infos[0]
         coverage.append(info['coverage_rate'])
         real_coverage.append(info['real_coverage_rate'])
         returns += rewards
-        if recorder:
-            recorder(env, step)
+        observe(step, joint_action)
         if terminated or truncated:
             break
-    elapsed = time.perf_counter() - start - (recorder.seconds if recorder else 0.0)
+    elapsed = time.perf_counter() - start - callback_seconds
     return EpisodeResult(
         seed=seed, coverage_rate=float(np.mean(coverage)), real_coverage_rate=float(np.mean(real_coverage)),
         transport_rate=float(info['mean_transport_rate']), camera_return=float(returns[0]),

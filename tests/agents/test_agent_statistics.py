@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import mate
+from mate.evaluate import play_episode
 
 SEEDS = range(20)
 MAX_STEPS = 2000
@@ -27,28 +28,17 @@ RANDOM = {'coverage_rate': (0.2858, 0.0322), 'real_coverage_rate': (0.1881, 0.04
 
 
 def play(camera_class, target_class, seed: int, max_steps: int = MAX_STEPS, record: bool = False) -> dict:
-    env = mate.make('MATE-4v8-9-v0')
-    (camera_obs, target_obs), _ = env.reset(seed=seed)
-    cameras = camera_class(seed=seed).spawn(env.num_cameras)
-    targets = target_class(seed=seed).spawn(env.num_targets)
-    mate.group_reset(cameras, camera_obs)
-    mate.group_reset(targets, target_obs)
-    camera_infos = target_infos = None
-    coverage, real_coverage, target_return, actions = [], [], 0.0, []
-    for step in range(1, max_steps + 1):
-        camera_actions = mate.group_step(env, cameras, camera_obs, camera_infos)
-        target_actions = mate.group_step(env, targets, target_obs, target_infos)
-        if record:
-            actions.append(np.concatenate([np.ravel(camera_actions), np.ravel(target_actions)]))
-        (camera_obs, target_obs), (_, target_reward), terminated, truncated, (camera_infos, target_infos) = \
-            env.step((camera_actions, target_actions))
-        coverage.append(env.coverage_rate)
-        real_coverage.append(env.real_coverage_rate)
-        target_return += target_reward
-        if terminated or truncated:
-            break
-    return {'coverage_rate': np.mean(coverage), 'real_coverage_rate': np.mean(real_coverage),
-            'normalized_target_return': target_return / env.max_target_team_episode_reward, 'steps': step,
+    """One episode of the groundtruth.md protocol (`mate.evaluate.play_episode`); with `record`,
+    also every step's joint action, flattened."""
+    actions = []
+
+    def keep_action(env, step, joint_action):
+        if record and joint_action is not None:
+            actions.append(np.concatenate([np.ravel(part) for part in joint_action]))
+
+    result = play_episode(mate.make('MATE-4v8-9-v0'), camera_class, target_class, seed, max_steps, keep_action)
+    return {'coverage_rate': result.coverage_rate, 'real_coverage_rate': result.real_coverage_rate,
+            'normalized_target_return': result.normalized_target_return, 'steps': result.episode_length,
             'actions': np.array(actions)}
 
 
