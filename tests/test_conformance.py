@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mate.constants import WAREHOUSE_RADIUS, WAREHOUSES
+
 SHARED = Path(__file__).resolve().parents[1].parent / 'shared'
 CHECK = SHARED / 'checks' / 'conformance.py'
 FIXTURES = SHARED / 'reference' / 'fixtures'
@@ -67,12 +69,11 @@ def _ambiguous_pickup_steps(fixture: Path) -> set[int]:
     to draw, not on their behaviour.
     """
     data = _read_all(fixture)
-    warehouses = np.array([[925.0, 925.0], [-925.0, 925.0], [-925.0, -925.0], [925.0, -925.0]])
     steps = set()
     for k in np.flatnonzero(data['pickup'].any(axis=1)):
         for t in np.flatnonzero(data['pickup'][k]):
             xy, capacity = data['target_state'][k + 1][t, :2], data['target_state'][k + 1][t, 5]
-            at = np.flatnonzero(np.max(np.abs(warehouses - xy), axis=1) <= 75.0)
+            at = np.flatnonzero(np.max(np.abs(WAREHOUSES - xy), axis=1) <= WAREHOUSE_RADIUS)
             waiting = data['remaining_cargoes'][k][at[0]] if len(at) == 1 else np.zeros(4)
             loads = {min(capacity, n) for n in waiting if n > 0}
             if len(loads) > 1:
