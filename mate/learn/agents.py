@@ -24,7 +24,7 @@ from ..messages import Team
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import as_team, discrete_to_continuous, preprocess_observation
 from .hrl import executor_actions
-from .ppo import Actor
+from .ppo import Actor, make_actor
 
 __all__ = [
     'PRETRAINED_DIR',
@@ -51,9 +51,22 @@ class LoadedPolicy:
     def __deepcopy__(self, memo):
         return self
 
+    @property
+    def recurrent(self) -> bool:
+        return bool(getattr(self.actor, 'recurrent', False))
+
+    def initial_memory(self, *shape: int):
+        """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
+        return self.actor.initial_state(*shape) if self.recurrent else None
+
     @torch.no_grad()
-    def logits(self, processed: np.ndarray) -> np.ndarray:
-        return self.actor(torch.as_tensor(processed, dtype=torch.float32)).numpy()
+    def logits(self, processed: np.ndarray, memory=None):
+        """Logits (..., A) of processed observations (..., D); with a recurrent actor also the next memory."""
+        obs = torch.as_tensor(processed, dtype=torch.float32)
+        if not self.recurrent:
+            return self.actor(obs).numpy()
+        logits, memory = self.actor.step(obs, memory)
+        return logits.numpy(), memory
 
 
 def load_policy(path, team=None) -> LoadedPolicy:
@@ -61,7 +74,11 @@ def load_policy(path, team=None) -> LoadedPolicy:
     expect = None if team is None else dict(team=as_team(team).name.lower())
     data = load_checkpoint(path, expect=expect)
     meta, config = data['meta'], data['config']
-    actor = Actor(meta['obs_dim'], meta['num_actions'], tuple(config['hidden']), config['activation'])
+    try:
+        actor = make_actor(meta.get('actor', 'mlp'), meta['obs_dim'], meta['num_actions'], tuple(config['hidden']),
+                           config['activation'], meta, int(config.get('lstm', 0)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CheckpointError(f'checkpoint {str(path)!r}: cannot build its actor from the metadata: {exc}') from None
     try:
         actor.load_state_dict(data['actor'])
     except RuntimeError as exc:
@@ -106,6 +123,7 @@ class _PolicyAgentMixin:
             raise ValueError(f'policy {self.policy.source!r} was trained with (cameras, targets, obstacles) = '
                              f'{tuple(self.policy.meta["counts"])}; this environment has {counts}')
         self._held, self._countdown = None, 0
+        self._memory = self.policy.initial_memory(1)
 
     def act(self, observation, info=None, deterministic=None):
         observation = self._accept(observation)
@@ -114,7 +132,11 @@ class _PolicyAgentMixin:
                                                self.num_obstacles)
             meta = self.policy.meta
             heads = meta.get('action_heads', 1)
-            logits = self.policy.logits(processed[None])[0].reshape(heads, -1)
+            if self.policy.recurrent:
+                logits, self._memory = self.policy.logits(processed[None], self._memory)
+            else:
+                logits = self.policy.logits(processed[None])
+            logits = logits[0].reshape(heads, -1)
             greedy = self.deterministic if deterministic is None else deterministic
             if greedy:
                 choice = logits.argmax(axis=-1)

@@ -23,12 +23,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--minibatches', type=int, default=4)
     parser.add_argument('--hrl', action='store_true',
                         help='cameras only: the policy selects targets (one bit per target), a rule executor aims (paper §HRL)')
+    parser.add_argument('--actor', choices=('mlp', 'per-target'), default='mlp',
+                        help="policy network: 'mlp' (paper) or, with --hrl, 'per-target' (one shared scorer per target slot)")
+    parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
+                        help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
     parser.add_argument('--entropy-schedule', default=None, metavar='JSON',
                         help='[[step, coef], ...] piecewise linear (default paper: 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M)')
     parser.add_argument('--lr-schedule', default=None, metavar='JSON', help='[[step, lr], ...] step function')
+    parser.add_argument('--snapshot-every', type=int, default=0, metavar='N',
+                        help='keep the policy every N iterations as RUN_DIR/snapshots/policy-STEPS.pt (default off)')
     parser.add_argument('--threads', type=int, default=1, help='torch threads (default 1)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
     parser.add_argument('--fresh', action='store_true', help='ignore an existing checkpoint in the run directory')
@@ -63,9 +69,16 @@ def run(args: argparse.Namespace, console) -> int:
     config = PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                        num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
                        minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
-                       gae_lambda=args.gae_lambda, torch_threads=args.threads, hrl=args.hrl, **_env(args.config), **extra)
+                       gae_lambda=args.gae_lambda, torch_threads=args.threads,
+                       snapshot_every=args.snapshot_every, actor=args.actor, lstm=args.lstm, hrl=args.hrl, **_env(args.config), **extra)
     if args.hrl and args.team != 'camera':
         raise SystemExit('mate train: --hrl exists for cameras only')
+    if args.lstm and args.actor != 'mlp':
+        raise SystemExit(f'mate train: --lstm works with --actor mlp only (got --actor {args.actor})')
+    if args.lstm < 0:
+        raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
+    if args.actor == 'per-target' and not args.hrl:
+        raise SystemExit("mate train: --actor per-target scores target slots; it needs --hrl")
     name = f'hrl-{args.algo}' if args.hrl else args.algo
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     resolved = config.resolved()

@@ -32,6 +32,7 @@ from ..agents.utils import (
 )
 from ..constants import PRESERVED_DIM
 from ..messages import Team
+from ..spaces import observation_indices_of
 from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
 from .hrl import executor_actions
@@ -114,6 +115,8 @@ class TeamVecEnv:
         self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, levels ** 2)
         self.num_actions = self.action_heads * self.action_choices     # logits per agent
         self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
+        # where the opponent records (5 values each) start in an observation of the trained team
+        self.target_records = int(observation_indices_of(team, nc, nt, no)[2]) if team is Team.CAMERA else None
         self.state_dim = self.vec.single_state_space.shape[0]
         if team is Team.CAMERA:
             self.opponent = VecGreedyTarget(num_envs, nt, seed=None if seed is None else seed + 7919)

@@ -41,8 +41,12 @@ __all__ = [
     'Critic',
     'PPOConfig',
     'ValueNormalizer',
+    'PerTargetActor',
+    'RecurrentActor',
     'action_distribution',
     'compute_gae',
+    'make_actor',
+    'minibatch_rows',
     'piecewise',
     'ppo_policy_loss',
     'train',
@@ -61,6 +65,8 @@ class PPOConfig:
     horizon: int | None = None           # raw steps per training episode; None: 500 decisions
     levels: int = 5                      # discrete levels per action axis (25 actions)
     hrl: bool = False                    # cameras only: select targets (Nt bits), rule executor aims (§3)
+    actor: str = 'mlp'                   # 'mlp', or 'per-target' (HRL: one shared scorer per target slot)
+    lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     num_envs: int = 64
     rollout_length: int = 25             # decisions per env per iteration (paper: 25-step fragments)
@@ -78,6 +84,7 @@ class PPOConfig:
     seed: int = 0
     torch_threads: int = 1
     checkpoint_every: int = 20           # iterations
+    snapshot_every: int = 0              # iterations; > 0 keeps the actor as snapshots/policy-STEPS.pt
 
     def resolved(self) -> PPOConfig:
         """A copy with the team's paper defaults filled in."""
@@ -147,6 +154,86 @@ class Actor(nn.Module):
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         return self.head(self.body(obs))
+
+
+class PerTargetActor(nn.Module):
+    """HRL selection policy that scores every target slot with the same small network.
+
+    context = MLP(observation); logits of slot i = head([record_i, context]) where record_i is the
+    slot's 5 observed values (location, radius, ..., visibility flag). Slots carry no identity
+    (`shuffle_entities`), so sharing the scorer across them lets one sample teach all eight.
+    Output: (..., Nt x 2) keep/ignore logits, the layout of `Actor` with `action_distribution`.
+    """
+
+    def __init__(self, obs_dim: int, records: tuple[int, int], hidden=(256, 256), activation: str = 'tanh',
+                 head_width: int = 128) -> None:
+        super().__init__()
+        self.begin, self.num_targets = int(records[0]), int(records[1])
+        self.body, width = mlp(obs_dim, hidden, activation)
+        act, gain = ACTIVATIONS[activation]
+        self.head = nn.Sequential(linear(width + 5, head_width, 1.0, gain), act(), linear(head_width, 2, 0.01, 1.0))
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        context = self.body(obs)
+        records = obs[..., self.begin:self.begin + 5 * self.num_targets].reshape(
+            *obs.shape[:-1], self.num_targets, 5)
+        joint = torch.cat([records, context.unsqueeze(-2).expand(*records.shape[:-1], context.shape[-1])], dim=-1)
+        return self.head(joint).reshape(*obs.shape[:-1], 2 * self.num_targets)
+
+
+class RecurrentActor(nn.Module):
+    """The paper's recurrent policy: MLP -> LSTM -> head on [MLP features, LSTM output] (skip-concat).
+
+    `step(obs (..., D), state)` -> (logits (..., A), state); `state` is a pair (h, c) of (..., L).
+    `forward(obs (T, ..., D), state, starts (T, ...))` runs a sequence, zeroing the state of the rows
+    where `starts[t]` (an episode begins at t) before step t; returns logits (T, ..., A).
+    """
+
+    recurrent = True
+
+    def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh',
+                 lstm: int = 256) -> None:
+        super().__init__()
+        self.body, width = mlp(obs_dim, hidden, activation)
+        self.cell = nn.LSTMCell(width, lstm)
+        self.head = linear(width + lstm, num_actions, 0.01, 1.0)
+        self.lstm_size = lstm
+
+    def initial_state(self, *shape: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size)
+
+    def step(self, obs: torch.Tensor, state):
+        features = self.body(obs)
+        lead = features.shape[:-1]
+        h, c = self.cell(features.reshape(-1, features.shape[-1]),
+                         (state[0].reshape(-1, self.lstm_size), state[1].reshape(-1, self.lstm_size)))
+        h, c = h.reshape(*lead, self.lstm_size), c.reshape(*lead, self.lstm_size)
+        return self.head(torch.cat([features, h], dim=-1)), (h, c)
+
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
+        logits = []
+        for t in range(obs.shape[0]):
+            keep = (~starts[t]).to(obs.dtype).reshape(*starts.shape[1:], *([1] * (state[0].dim() - starts.dim() + 1)))
+            state = (state[0] * keep, state[1] * keep)
+            out, state = self.step(obs[t], state)
+            logits.append(out)
+        return torch.stack(logits)
+
+
+def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: str, meta: dict,
+               lstm: int = 0) -> nn.Module:
+    """The actor named by `PPOConfig.actor` ('mlp' or 'per-target'; the latter for HRL cameras only),
+    recurrent when `lstm` > 0 (MLP actors only)."""
+    if kind == 'mlp':
+        return RecurrentActor(obs_dim, num_actions, hidden, activation, lstm) if lstm else \
+            Actor(obs_dim, num_actions, hidden, activation)
+    if lstm:
+        raise ValueError(f"actor {kind!r} has no recurrent version; use actor 'mlp' with lstm > 0")
+    if kind == 'per-target':
+        if not meta.get('hrl'):
+            raise ValueError("actor 'per-target' scores target slots: it needs HRL cameras (hrl=True)")
+        return PerTargetActor(obs_dim, (meta['target_records'], meta['counts'][1]), hidden, activation)
+    raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target'")
 
 
 class Critic(nn.Module):
@@ -225,6 +312,18 @@ def compute_gae(rewards, values, dones, last_values, gamma: float, lam: float):
     return advantages, advantages + values
 
 
+def minibatch_rows(T: int, B: int, minibatches: int, sequences: bool, generator) -> list[torch.Tensor]:
+    """Shuffled minibatches of row indices t * B + b into a (T, B) rollout flattened t-major.
+
+    Feed-forward: independent (t, b) rows. `sequences` (recurrent actor): whole env sequences, each
+    minibatch the T steps of a group of envs, ordered t-major (its first len/T rows are the envs at t = 0).
+    """
+    if not sequences:
+        return list(torch.randperm(T * B, generator=generator).split(math.ceil(T * B / minibatches)))
+    groups = torch.randperm(B, generator=generator).split(math.ceil(B / minibatches))
+    return [(torch.arange(T)[:, None] * B + group[None, :]).reshape(-1) for group in groups]
+
+
 def ppo_policy_loss(new_logp, old_logp, advantages, clip: float) -> torch.Tensor:
     """Clipped surrogate objective, as a loss to minimise: -E[min(r A, clip(r, 1-e, 1+e) A)]."""
     ratio = torch.exp(new_logp - old_logp)
@@ -289,13 +388,15 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
     # ---- networks and optimiser
     torch.manual_seed(config.seed)
-    actor = Actor(D, A, config.hidden, config.activation)
+    meta = dict(team=config.team, env_id=config.env_id, frame_skip=config.frame_skip, levels=config.levels,
+                obs_dim=D, state_dim=S, num_agents=N, num_actions=A, action_heads=H, action_choices=C,
+                hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
+                actor=config.actor, lstm=config.lstm, target_records=getattr(envs, 'target_records', None))
+    actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
+    recurrent = getattr(actor, 'recurrent', False)
     critic = Critic(critic_input_dim(config.algo, D, S, N), config.hidden, config.activation)
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
-    meta = dict(team=config.team, env_id=config.env_id, frame_skip=config.frame_skip, levels=config.levels,
-                obs_dim=D, state_dim=S, num_agents=N, num_actions=A, action_heads=H, action_choices=C,
-                hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())))
     env_steps, iteration = 0, 0
     checkpoint_path = run_dir / 'checkpoint.pt'
     if resume and checkpoint_path.exists():
@@ -313,6 +414,10 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
                                    meta=dict(meta, algo=config.algo)))
 
+    def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
+        save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
+                                   config=config.to_dict(), env_steps=env_steps, note=f'iteration {iteration}'))
+
     def values_of(obs_t, state_t):
         return value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t)))
 
@@ -325,6 +430,9 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     value_buf = torch.zeros(T, B, N)
     reward_buf = torch.zeros(T, B)
     done_buf = torch.zeros(T, B)
+    start_buf = torch.zeros(T, B, dtype=torch.bool)      # an episode begins at this decision (recurrent actor)
+    memory = actor.initial_state(B, N) if recurrent else None
+    starting = torch.ones(B, dtype=torch.bool)
 
     obs, state = envs.reset(seed=config.seed + 10_007 * iteration)
     obs, state = torch.from_numpy(obs), torch.from_numpy(state)
@@ -342,9 +450,15 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             # ---- collect
             coverage = []
             t_collect = time.perf_counter()
+            memory_at_start = memory
             for t in range(T):
                 with torch.no_grad():
-                    dist = action_distribution(actor(obs), H, C)
+                    if recurrent:
+                        keep = (~starting).float()[:, None, None]
+                        logits, memory = actor.step(obs, (memory[0] * keep, memory[1] * keep))
+                    else:
+                        logits = actor(obs)
+                    dist = action_distribution(logits, H, C)
                     action = torch.multinomial(dist.probs.reshape(-1, C), 1, generator=generator).reshape(B, N, H)
                     value = values_of(obs, state)
                 next_obs, next_state, reward, done, truncated, info = envs.step(action.numpy()[..., 0] if H == 1 else action.numpy())
@@ -356,6 +470,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
                 reward_buf[t], done_buf[t] = reward, torch.from_numpy(done).float()
+                start_buf[t], starting = starting, torch.from_numpy(done).clone()
                 obs, state = torch.from_numpy(next_obs), torch.from_numpy(next_state)
                 coverage.append(float(info['coverage'].mean()))
                 episodes.extend(info['episodes'])
@@ -372,18 +487,24 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             value_norm.update(returns)
 
             # ---- learn: K epochs over shuffled minibatches of (decision, env) rows, all agents of a row together
+            # (recurrent actor: minibatches of whole env sequences, replayed from the rollout's first memory)
+            def logits_of(rows):
+                if not recurrent:
+                    return actor(b_obs[rows])
+                envs_ = rows[:len(rows) // T]          # rows are t-major: the first T-th are t = 0, i.e. the envs
+                first = (memory_at_start[0][envs_], memory_at_start[1][envs_])
+                seq = actor(obs_buf[:, envs_], first, start_buf[:, envs_])
+                return seq.reshape(-1, *seq.shape[2:])
+
             flat = lambda x: x.reshape(T * B, *x.shape[2:])
             b_obs, b_state, b_action, b_logp = flat(obs_buf), flat(state_buf), flat(action_buf), flat(logp_buf)
             b_adv, b_ret = flat(advantages), value_norm.normalize(flat(returns))
             b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
             stats = dict(policy_loss=0.0, value_loss=0.0, entropy=0.0, approx_kl=0.0, clip_fraction=0.0)
-            size = math.ceil(T * B / config.minibatches)
             updates = 0
             for _ in range(config.epochs):
-                order = torch.randperm(T * B, generator=generator)
-                for begin in range(0, T * B, size):
-                    idx = order[begin:begin + size]
-                    dist = action_distribution(actor(b_obs[idx]), H, C)
+                for idx in minibatch_rows(T, B, config.minibatches, recurrent, generator):
+                    dist = action_distribution(logits_of(idx), H, C)
                     new_logp = dist.log_prob(b_action[idx]).sum(-1)
                     policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
                     value_loss = 0.5 * (critic(critic_inputs(config.algo, b_obs[idx], b_state[idx]))
@@ -427,6 +548,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     f"episode return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}"))
             if iteration % config.checkpoint_every == 0:
                 checkpoint(checkpoint_path)
+            if config.snapshot_every and iteration % config.snapshot_every == 0:
+                snapshot(run_dir / 'snapshots' / f'policy-{env_steps:010d}.pt')
         checkpoint(checkpoint_path)
         checkpoint(run_dir / 'final.pt')
     finally:

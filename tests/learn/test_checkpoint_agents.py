@@ -107,3 +107,43 @@ def test_export_policy_is_small_and_loads(tmp_path):
     assert 'optimizer' not in data and data['note'] == 'test'
     agent = PolicyCameraAgent.from_checkpoint(small)
     assert agent.policy.meta['team'] == 'camera'
+
+
+@pytest.mark.parametrize('variant', [dict(lstm=16), dict(hrl=True, actor='per-target')])
+def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, variant):
+    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=4, rollout_length=4,
+                       total_steps=2 * 4 * 4, epochs=1, hidden=(16,), snapshot_every=1, seed=0, **variant)
+    train(config, tmp_path, progress=False)
+    snapshots = sorted((tmp_path / 'snapshots').glob('policy-*.pt'))
+    assert [p.name for p in snapshots] == ['policy-0000000016.pt', 'policy-0000000032.pt']
+    policy = load_policy(snapshots[-1], 'camera')
+    assert policy.recurrent == bool(variant.get('lstm'))
+    env = mate.make('MATE-2v4-0-v0')
+    (camera_obs, _), _ = env.reset(seed=0)
+    agent = PolicyCameraAgent(policy, seed=0, deterministic=True)
+    agent.reset(camera_obs[0])
+    first = [agent.act(camera_obs[0]) for _ in range(6)]
+    agent.reset(camera_obs[0])                     # a reset forgets the recurrent memory: same actions again
+    assert all(np.array_equal(a, b) for a, b in zip(first, [agent.act(camera_obs[0]) for _ in range(6)]))
+    if variant.get('lstm'):                        # the memory changes the logits of the same observation
+        from mate.learn.envs import preprocess_observation
+        x = preprocess_observation(camera_obs[:1], 'camera', 2, 4, 0)
+        logits0, memory = policy.logits(x, policy.initial_memory(1))
+        logits1, _ = policy.logits(x, memory)
+        assert not np.allclose(logits0, logits1)
+
+
+def test_per_target_actor_scores_every_slot_with_one_head():
+    from mate.learn.ppo import PerTargetActor
+    torch.manual_seed(0)
+    actor = PerTargetActor(30, (10, 4), hidden=(16,))
+    obs = torch.randn(2, 30)
+    perm = [2, 0, 3, 1]
+    # slot i's logits = head([record_i, context(obs)]); swapping two records swaps their logits
+    records = obs[:, 10:30].reshape(2, 4, 5)
+    context = actor.body(obs)
+    joint = torch.cat([records, context[:, None].expand(2, 4, context.shape[-1])], -1)
+    out = actor(obs).reshape(2, 4, 2)
+    assert torch.allclose(out, actor.head(joint), atol=1e-6)
+    assert torch.allclose(actor.head(joint[:, perm]), out[:, perm], atol=1e-6)
+    assert not torch.allclose(out[:, 0], out[:, 1])

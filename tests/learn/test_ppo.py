@@ -4,15 +4,17 @@ import torch
 from mate.learn.ppo import (
     Actor,
     PPOConfig,
+    RecurrentActor,
     ValueNormalizer,
     compute_gae,
     critic_inputs,
+    minibatch_rows,
     piecewise,
     ppo_policy_loss,
     train,
 )
 
-from .toy import CueMatching
+from .toy import CueMatching, CueRecall
 
 
 def test_gae_matches_hand_computation():
@@ -93,3 +95,45 @@ def test_tiny_run_improves_return(tmp_path, algo):
     assert first < 0.45                  # random: 0.25 of the agents match their cue
     assert last > 0.8, [round(r['rollout_coverage'], 3) for r in rows]
     assert (tmp_path / 'progress.csv').read_text().count('\n') == len(rows) + 1
+
+
+def test_minibatch_rows_cover_the_rollout_once():
+    generator = torch.Generator().manual_seed(0)
+    for sequences in (False, True):
+        batches = minibatch_rows(5, 8, 4, sequences, generator)
+        assert sorted(torch.cat(batches).tolist()) == list(range(40))
+    for rows in minibatch_rows(5, 8, 4, True, generator):     # whole sequences, t-major
+        envs = rows[:2]
+        assert rows.tolist() == [t * 8 + int(e) for t in range(5) for e in envs]
+
+
+def test_recurrent_actor_resets_its_memory_at_episode_starts():
+    torch.manual_seed(0)
+    actor = RecurrentActor(3, 4, hidden=(8,), lstm=6)
+    obs = torch.randn(4, 2, 3)                                   # T=4 steps, 2 rows
+    state = (torch.randn(2, 6), torch.randn(2, 6))
+    starts = torch.tensor([[False, False], [False, True], [False, False], [False, False]])
+    logits = actor(obs, state, starts)
+    fresh = actor(obs[1:, 1:], actor.initial_state(1), torch.zeros(3, 1, dtype=torch.bool))
+    assert torch.allclose(logits[1:, 1:], fresh, atol=1e-6)     # row 1 restarted at t=1: old memory gone
+    step_by_step, memory = [], state
+    for t in range(4):
+        keep = (~starts[t]).float()[:, None]
+        out, memory = actor.step(obs[t], (memory[0] * keep, memory[1] * keep))
+        step_by_step.append(out)
+    assert torch.allclose(logits, torch.stack(step_by_step), atol=1e-6)
+
+
+@pytest.mark.parametrize('lstm', [0, 32])
+def test_only_a_recurrent_actor_solves_cue_recall(tmp_path, lstm):
+    rows = []
+    config = PPOConfig(algo='mappo', total_steps=16 * 16 * 30, num_envs=16, rollout_length=16, epochs=4,
+                       hidden=(32,), lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1, lstm=lstm)
+    train(config, tmp_path, progress=False, callback=rows.append,
+          envs=CueRecall(num_envs=16, num_agents=2, num_actions=4, length=8))
+    best = max(r['rollout_coverage'] for r in rows[-5:])
+    memoryless_bound = (1 + 7 / 4) / 8                          # 0.34: the cue is shown once per episode
+    if lstm:
+        assert best > 0.6, [round(r['rollout_coverage'], 3) for r in rows]
+    else:
+        assert best < memoryless_bound + 0.08, [round(r['rollout_coverage'], 3) for r in rows]

@@ -34,3 +34,27 @@ class CueMatching:
         info = dict(final_obs=final_obs, final_state=final_state, coverage=reward,
                     episodes=[dict(coverage=0.0, length=self.length, **{'return': 0.0})] if done[0] else [])
         return final_obs, final_state, reward, done, done.copy(), info
+
+
+class CueRecall(CueMatching):
+    """Like CueMatching, but the cue is shown only at the first decision of an episode (then a blank
+    observation with a 'later' bit) and stays the same for the whole episode: only a policy with memory
+    can keep matching it. A memoryless policy scores at most (1 + (length - 1) / A) / length."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.obs_dim = self.num_actions + 1
+        self.state_dim = self.num_agents * self.obs_dim
+
+    def _show(self, first):
+        obs = np.zeros((self.num_envs, self.num_agents, self.obs_dim), dtype=np.float32)
+        if first:
+            obs[..., :self.num_actions] = np.eye(self.num_actions, dtype=np.float32)[self.cue]
+        else:
+            obs[..., -1] = 1.0
+        return obs, obs.reshape(self.num_envs, -1).copy()
+
+    def _observe(self):
+        if self.t % self.length == 0:
+            self.cue = self.rng.integers(self.num_actions, size=(self.num_envs, self.num_agents))
+        return self._show(self.t % self.length == 0)
