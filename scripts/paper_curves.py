@@ -4,9 +4,10 @@
     python scripts/paper_curves.py --plot-only --out results/        # plots existing runs
 
 Experiments (spec training.md §0): cameras (flat and HRL) vs batched greedy targets on MATE-4v8-9 (frame
-skip 5, coverage-rate reward; curve: rollout coverage rate, with the greedy cameras' 0.61 as a reference line)
-and targets vs batched greedy cameras on MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward;
-curve: episode target reward normalised by the preset's maximum). Runs go to OUT/runs/NAME-seedS and
+skip 5, coverage-rate reward; curve: rollout coverage rate) and targets vs batched greedy cameras on
+MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward; curve: episode target reward normalised by the
+preset's maximum). The dashed line is the greedy agent of the trained team in the same setting (batched
+greedy opponents, training-length episodes), measured when plotting. Runs go to OUT/runs/NAME-seedS and
 resume after an interruption (`mate train` checkpoints). `--jobs 2` runs two trainings at a time.
 """
 
@@ -22,17 +23,48 @@ from pathlib import Path
 import numpy as np
 
 EXPERIMENTS = {
-    # name: (mate train arguments, figure, metric column, y label, reference line (value, label) or None)
+    # name: (mate train arguments, figure, metric column, y label)
     'camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9'], 'cameras-4v8-9', 'rollout_coverage',
-                     'mean coverage rate', (0.61, 'greedy cameras')),
-    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'], 'cameras-4v8-9',
-                         'rollout_coverage', 'mean coverage rate', (0.61, 'greedy cameras')),
+                     'mean coverage rate'),
+    # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
+    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl',
+                          '--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]'], 'cameras-4v8-9',
+                         'rollout_coverage', 'mean coverage rate'),
     'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], 'targets-2v4-0',
-                     'episode_normalized_target_return', 'normalised target episode reward',
-                     (0.485, 'greedy targets (mate evaluate, 20 episodes)')),
+                     'episode_normalized_target_return', 'normalised target episode reward'),
     'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], 'targets-4v8-0',
-                     'episode_normalized_target_return', 'normalised target episode reward', None),
+                     'episode_normalized_target_return', 'normalised target episode reward'),
 }
+FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0': ('target', 'MATE-2v4-0-v0'),
+                   'targets-4v8-0': ('target', 'MATE-4v8-0-v0')}
+
+
+def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) -> float:
+    """The greedy agent of `team` in the learner's setting: batched greedy cameras vs batched greedy targets,
+    one training episode per env (the 500-decision horizon in raw steps), scored with the curve's metric:
+    step-mean coverage rate (cameras) or normalised target episode reward (targets)."""
+    import mate
+    from mate.learn import PAPER_SETTINGS, VecGreedyCamera, VecGreedyTarget
+
+    horizon = PAPER_SETTINGS[team]['horizon']
+    vec = mate.make_vec(env_id, num_envs=num_envs, max_episode_steps=horizon)
+    (camera_obs, target_obs), _ = vec.reset(seed=seed)
+    cameras = VecGreedyCamera(num_envs, vec.num_cameras, vec.num_targets, vec.num_obstacles, seed=seed + 1)
+    targets = VecGreedyTarget(num_envs, vec.num_targets, seed=seed + 2)
+    cameras.reset(camera_obs)
+    targets.reset(target_obs)
+    live = np.ones(num_envs, dtype=bool)
+    coverage, steps, target_return = np.zeros(num_envs), np.zeros(num_envs), np.zeros(num_envs)
+    while live.any():
+        (camera_obs, target_obs), (_, target_reward), terminated, truncated, infos = vec.step(
+            (cameras.act(camera_obs), targets.act(target_obs)))
+        coverage += live * infos['coverage_rate']
+        target_return += live * target_reward
+        steps += live
+        live &= ~(terminated | truncated)
+    if team == 'camera':
+        return float(np.mean(coverage / steps))
+    return float(np.mean(target_return) / vec.params.max_target_team_episode_reward)
 
 
 def run_one(out: Path, name: str, algo: str, seed: int, steps: float, extra: list[str]) -> int:
@@ -57,12 +89,12 @@ def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
     import matplotlib.pyplot as plt
 
     figures = {}
-    for name, (_, figure, column, label, reference) in EXPERIMENTS.items():
-        figures.setdefault(figure, []).append((name, column, label, reference))
+    for name, (_, figure, column, label) in EXPERIMENTS.items():
+        figures.setdefault(figure, []).append((name, column, label))
     for figure, members in figures.items():
         fig, ax = plt.subplots(figsize=(6, 4))
         drawn = False
-        for name, column, label, reference in members:
+        for name, column, label in members:
             for algo in algos:
                 curves = [read_curve(p, column) for seed in seeds
                           if (p := out / 'runs' / f'{algo}-{name}-seed{seed}' / 'progress.csv').exists()]
@@ -79,8 +111,9 @@ def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
         if not drawn:
             plt.close(fig)
             continue
-        if reference is not None:
-            ax.axhline(reference[0], color='grey', linestyle='--', label=reference[1])
+        team, env_id = FIGURE_SETTINGS[figure]
+        ax.axhline(greedy_reference(team, env_id), color='grey', linestyle='--',
+                   label=f'greedy {team}s (same setting)')
         ax.set_xlabel('decision steps')
         ax.set_ylabel(label)
         ax.set_title(figure)

@@ -108,7 +108,7 @@ def main() -> None:
         note = (f"{best.name} of {args.run_dir.name}; {METRIC[team][0]} {learned.mean():.4f} +- {learned.std():.4f} vs "
                 f"greedy {greedy.mean():.4f} +- {greedy.std():.4f} (seeds 0-{args.test_episodes - 1}, {max_steps} steps, "
                 f"{'deterministic' if args.deterministic else 'stochastic'})")
-        out = export_policy(best, PRETRAINED_DIR / f'{args.export}.pt', note=note)
+        out = export_policy(best, PRETRAINED_DIR / f'{args.export}.pt', note=note, deterministic=args.deterministic)
         console.print(f'exported {out}')
 
 

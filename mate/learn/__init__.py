@@ -22,7 +22,7 @@ from .opponents import VecGreedyCamera, VecGreedyTarget
 
 _LAZY = {
     'PPOConfig': 'ppo', 'train': 'ppo', 'compute_gae': 'ppo', 'ppo_policy_loss': 'ppo', 'Actor': 'ppo',
-    'Critic': 'ppo', 'ValueNormalizer': 'ppo', 'piecewise': 'ppo',
+    'Critic': 'ppo', 'ValueNormalizer': 'ppo', 'piecewise': 'ppo', 'PAPER_HYPERPARAMETERS': 'ppo',
     'CheckpointError': 'checkpoint', 'save_checkpoint': 'checkpoint', 'load_checkpoint': 'checkpoint',
     'PolicyCameraAgent': 'agents', 'PolicyTargetAgent': 'agents', 'load_agent': 'agents',
     'load_policy': 'agents', 'pretrained_path': 'agents', 'export_policy': 'agents',

@@ -87,32 +87,35 @@ def load_policy(path, team=None) -> LoadedPolicy:
     return LoadedPolicy(actor, meta, str(path))
 
 
-def export_policy(checkpoint, out, note: str = '') -> Path:
+def export_policy(checkpoint, out, note: str = '', deterministic: bool = False) -> Path:
     """Write the acting part of a checkpoint (actor weights, meta, config, step count, `note`) to `out`:
-    a small file for `mate/pretrained/` that `load_policy` / `pretrained:NAME` read."""
+    a small file for `mate/pretrained/` that `load_policy` / `pretrained:NAME` read. `deterministic`
+    is stored as the agents' default way of acting (argmax instead of sampling), the way it was scored."""
     data = load_checkpoint(checkpoint)
     actor = {k: v.clone() for k, v in data['actor'].items()}
-    return save_checkpoint(out, dict(actor=actor, meta=data['meta'], config=data['config'],
+    meta = dict(data['meta'], deterministic=bool(deterministic))
+    return save_checkpoint(out, dict(actor=actor, meta=meta, config=data['config'],
                                      env_steps=data.get('env_steps', 0), note=note))
 
 
 class _PolicyAgentMixin:
     """Shared logic of the camera and target policy agents."""
 
-    def __init__(self, policy: LoadedPolicy, seed: int | None = None, deterministic: bool = False,
+    def __init__(self, policy: LoadedPolicy, seed: int | None = None, deterministic: bool | None = None,
                  frame_skip: int | None = None) -> None:
         if policy.meta['team'] != self.TEAM.name.lower():
             raise CheckpointError(f'policy {policy.source!r} was trained for the {policy.meta["team"]} team; '
                                   f'{type(self).__name__} needs a {self.TEAM.name.lower()} policy')
         self.policy = policy
-        self.deterministic = bool(deterministic)
+        # None: the policy file's default (exported policies: the way they were scored), else sampling
+        self.deterministic = bool(policy.meta.get('deterministic', False) if deterministic is None else deterministic)
         self.frame_skip = int(frame_skip or policy.meta.get('frame_skip', 1))
         self._held = None
         self._countdown = 0
         super().__init__(seed=seed)
 
     @classmethod
-    def from_checkpoint(cls, path, seed: int | None = None, deterministic: bool = False,
+    def from_checkpoint(cls, path, seed: int | None = None, deterministic: bool | None = None,
                         frame_skip: int | None = None):
         return cls(load_policy(path, cls.TEAM), seed=seed, deterministic=deterministic, frame_skip=frame_skip)
 

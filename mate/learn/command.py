@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ['add_arguments', 'run']
+__all__ = ['add_arguments', 'config_from_args', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,19 +23,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--minibatches', type=int, default=4)
     parser.add_argument('--hrl', action='store_true',
                         help='cameras only: the policy selects targets (one bit per target), a rule executor aims (paper §HRL)')
-    parser.add_argument('--actor', choices=('mlp', 'per-target'), default='mlp',
-                        help="policy network: 'mlp' (paper) or, with --hrl, 'per-target' (one shared scorer per target slot)")
+    parser.add_argument('--actor', choices=('mlp', 'per-target'), default=None,
+                        help="policy network: 'mlp' (paper) or, for cameras, 'per-target' (one shared scorer per target "
+                             "slot); default per-target for cameras, mlp for targets")
+    parser.add_argument('--paper', action='store_true',
+                        help="the paper's MLP actor and its schedules stretched over 10M steps (lr 5e-4 -> 1e-4 @4M -> "
+                             "5e-5 @8M; entropy 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M); explicit options still win")
     parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
                         help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
     parser.add_argument('--entropy-schedule', default=None, metavar='JSON',
-                        help='[[step, coef], ...] piecewise linear (default paper: 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M)')
-    parser.add_argument('--lr-schedule', default=None, metavar='JSON', help='[[step, lr], ...] step function')
+                        help='[[step, coef], ...] piecewise linear (default 0.01 -> 0.001 @1M -> 0 @3M)')
+    parser.add_argument('--lr-schedule', default=None, metavar='JSON',
+                        help='[[step, lr], ...] step function (default 5e-4, 2e-4 @1.5M, 1e-4 @3M)')
     parser.add_argument('--snapshot-every', type=int, default=0, metavar='N',
                         help='keep the policy every N iterations as RUN_DIR/snapshots/policy-STEPS.pt (default off)')
-    parser.add_argument('--threads', type=int, default=1, help='torch threads (default 1)')
+    parser.add_argument('--init-from', default=None, metavar='PATH',
+                        help='warm start from the networks of a checkpoint or exported policy of the same setting '
+                             '(steps and schedules start from 0)')
+    parser.add_argument('--threads', type=int, default=0,
+                        help='torch threads of the update phase (default 0: every core; collection always uses 1)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
     parser.add_argument('--fresh', action='store_true', help='ignore an existing checkpoint in the run directory')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar (CSV and TensorBoard only)')
@@ -54,11 +63,13 @@ def _env(config: str | None) -> dict:
     return dict(env_id='MultiAgentTracking-v0', config=config)
 
 
-def run(args: argparse.Namespace, console) -> int:
-    from .checkpoint import CheckpointError
-    from .ppo import PPOConfig, train
+def config_from_args(args: argparse.Namespace):
+    """The `PPOConfig` of parsed `mate train` arguments (SystemExit with a message for bad ones)."""
+    from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 
-    extra = {}
+    extra = dict(PAPER_HYPERPARAMETERS) if args.paper else {}
+    if args.actor:
+        extra['actor'] = args.actor
     for key in ('entropy_schedule', 'lr_schedule'):
         text = getattr(args, key)
         if text:
@@ -66,24 +77,29 @@ def run(args: argparse.Namespace, console) -> int:
                 extra[key] = tuple(tuple(p) for p in json.loads(text))
             except (ValueError, TypeError) as exc:
                 raise SystemExit(f'mate train: --{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
-    config = PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
-                       num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
-                       minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
-                       gae_lambda=args.gae_lambda, torch_threads=args.threads,
-                       snapshot_every=args.snapshot_every, actor=args.actor, lstm=args.lstm, hrl=args.hrl, **_env(args.config), **extra)
     if args.hrl and args.team != 'camera':
         raise SystemExit('mate train: --hrl exists for cameras only')
-    if args.lstm and args.actor != 'mlp':
-        raise SystemExit(f'mate train: --lstm works with --actor mlp only (got --actor {args.actor})')
     if args.lstm < 0:
         raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
-    if args.actor == 'per-target' and not args.hrl:
-        raise SystemExit("mate train: --actor per-target scores target slots; it needs --hrl")
+    if args.actor == 'per-target' and args.team != 'camera':
+        raise SystemExit("mate train: --actor per-target reads a camera's target slots; it needs --team camera")
+    return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
+                     num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
+                     minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
+                     gae_lambda=args.gae_lambda, torch_threads=args.threads, snapshot_every=args.snapshot_every,
+                     lstm=args.lstm, hrl=args.hrl, init_from=args.init_from, **_env(args.config), **extra)
+
+
+def run(args: argparse.Namespace, console) -> int:
+    from .checkpoint import CheckpointError
+    from .ppo import train
+
+    config = config_from_args(args)
     name = f'hrl-{args.algo}' if args.hrl else args.algo
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     resolved = config.resolved()
-    console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} (frame skip {resolved.frame_skip}, '
-                  f'{config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
+    console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({resolved.actor} actor, frame skip '
+                  f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
     if (run_dir / 'checkpoint.pt').exists() and not args.fresh:
         console.print(f'resuming from {run_dir / "checkpoint.pt"}')
     try:

@@ -115,8 +115,7 @@ class TeamVecEnv:
         self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, levels ** 2)
         self.num_actions = self.action_heads * self.action_choices     # logits per agent
         self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
-        # where the opponent records (5 values each) start in an observation of the trained team
-        self.target_records = int(observation_indices_of(team, nc, nt, no)[2]) if team is Team.CAMERA else None
+        self._target_records = int(observation_indices_of(team, nc, nt, no)[2])   # camera obs: target slots
         self.state_dim = self.vec.single_state_space.shape[0]
         if team is Team.CAMERA:
             self.opponent = VecGreedyTarget(num_envs, nt, seed=None if seed is None else seed + 7919)
@@ -144,6 +143,13 @@ class TeamVecEnv:
         return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
 
     # ------------------------------------------------------------------ API
+    def allowed_actions(self, processed: np.ndarray) -> np.ndarray:
+        """HRL: (..., N, Nt, 2) bool from processed observations (..., N, D): 'ignore' is always allowed,
+        'keep' only for the targets the camera sees (the executor ignores the others anyway)."""
+        begin = self._target_records
+        visible = processed[..., begin + 4:begin + 5 * self.counts[1]:5] > 0.5
+        return np.stack([np.ones_like(visible), visible], axis=-1)
+
     def reset(self, seed: int | None = None):
         observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
         self.opponent.reset(self._other(observations))

@@ -13,9 +13,10 @@ Rewards are team rewards, repeated to every agent. Values are learned on normali
 (running mean/std, "value normalisation"). Schedules (learning rate, entropy coefficient) are
 piecewise functions of decision steps, as in spec training.md §1.6.
 
-Deviations from the paper's RLlib runs, on purpose: a feed-forward policy (the paper's LSTM is not
-implemented yet), GAE lambda 0.95 (RLlib's default 1.0 is a flag away), no adaptive KL penalty,
-gradient-norm clipping at 10, horizon cuts bootstrap from the critic instead of counting as terminal.
+Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
+paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
+is a flag away), no adaptive KL penalty, gradient-norm clipping at 10, horizon cuts bootstrap from the
+critic instead of counting as terminal.
 """
 
 from __future__ import annotations
@@ -33,12 +34,15 @@ import numpy as np
 import torch
 from torch import nn
 
-from .checkpoint import load_checkpoint, save_checkpoint
+from ..messages import Team
+from ..spaces import observation_indices_of, observation_space_of
+from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
 
 __all__ = [
     'Actor',
     'Critic',
+    'PAPER_HYPERPARAMETERS',
     'PPOConfig',
     'ValueNormalizer',
     'PerTargetActor',
@@ -65,7 +69,8 @@ class PPOConfig:
     horizon: int | None = None           # raw steps per training episode; None: 500 decisions
     levels: int = 5                      # discrete levels per action axis (25 actions)
     hrl: bool = False                    # cameras only: select targets (Nt bits), rule executor aims (§3)
-    actor: str = 'mlp'                   # 'mlp', or 'per-target' (HRL: one shared scorer per target slot)
+    mask_invisible: bool = True          # HRL: a target the camera cannot see is never selected (see below)
+    actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     num_envs: int = 64
@@ -79,19 +84,21 @@ class PPOConfig:
     max_grad_norm: float | None = 10.0
     hidden: tuple = (256, 256)
     activation: str = 'tanh'
-    lr_schedule: tuple = ((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5))            # steps
-    entropy_schedule: tuple = ((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0))  # linear
+    lr_schedule: tuple = ((0, 5e-4), (1_500_000, 2e-4), (3_000_000, 1e-4))            # step function of steps
+    entropy_schedule: tuple = ((0, 0.01), (1_000_000, 0.001), (3_000_000, 0.0))       # piecewise linear
     seed: int = 0
-    torch_threads: int = 1
+    torch_threads: int = 0               # threads of the update phase; 0: every core (collection uses 1)
     checkpoint_every: int = 20           # iterations
     snapshot_every: int = 0              # iterations; > 0 keeps the actor as snapshots/policy-STEPS.pt
+    init_from: str | None = None         # warm start: network weights of this checkpoint/policy file, steps from 0
 
     def resolved(self) -> PPOConfig:
-        """A copy with the team's paper defaults filled in."""
+        """A copy with the team's defaults filled in (paper preset, frame skip and horizon; actor)."""
         defaults = PAPER_SETTINGS[self.team]
         frame_skip = self.frame_skip or defaults['frame_skip']
         return dataclasses.replace(self, env_id=self.env_id or defaults['env_id'], frame_skip=frame_skip,
-                                   horizon=self.horizon or 500 * frame_skip)
+                                   horizon=self.horizon or 500 * frame_skip,
+                                   actor=self.actor or ('per-target' if self.team == 'camera' else 'mlp'))
 
     def to_dict(self) -> dict:
         return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
@@ -107,6 +114,21 @@ class PPOConfig:
         if 'hidden' in data:
             data['hidden'] = tuple(data['hidden'])
         return cls(**data)
+
+
+PAPER_HYPERPARAMETERS = dict(
+    actor='mlp',
+    mask_invisible=False,
+    lr_schedule=((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)),
+    entropy_schedule=((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
+)
+"""The paper's settings where `PPOConfig`'s defaults differ (spec training.md §1.5-1.6; `mate train --paper`).
+Our defaults are tuned for budgets of a few million decision steps (docs/training.md has the measurements):
+the paper's schedules are stretched over 10 M steps and its entropy bonus of 0.05 keeps the policies
+nearly uniform for the first million steps; the per-target camera actor learns faster than the MLP.
+`mask_invisible` (HRL): the executor ignores selected targets that the camera does not see, so masking
+them changes no behaviour; it removes their random bits from the log-probabilities and the entropy,
+which otherwise add noise to every gradient (the paper's code had the mask, unused)."""
 
 
 def piecewise(schedule, step: float, interpolate: bool) -> float:
@@ -145,99 +167,206 @@ def mlp(inputs: int, hidden, activation: str) -> tuple[nn.Sequential, int]:
 
 
 class Actor(nn.Module):
-    """Shared policy: preprocessed local observation -> logits over the discrete actions."""
+    """Shared policy: preprocessed local observation -> logits over the discrete actions.
 
-    def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh') -> None:
+    `body` (MLP) embeds the observation; `logits_from(obs, context)` is the head on that embedding,
+    widened by `context_extra` inputs when a `RecurrentActor` appends its LSTM output to it.
+    """
+
+    def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh',
+                 context_extra: int = 0) -> None:
         super().__init__()
-        self.body, width = mlp(obs_dim, hidden, activation)
-        self.head = linear(width, num_actions, 0.01, 1.0)
+        self.body, self.width = mlp(obs_dim, hidden, activation)
+        self.head = linear(self.width + context_extra, num_actions, 0.01, 1.0)
+
+    def logits_from(self, obs: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
+        return self.head(context)
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        return self.head(self.body(obs))
+        return self.logits_from(obs, self.body(obs))
 
 
 class PerTargetActor(nn.Module):
-    """HRL selection policy that scores every target slot with the same small network.
+    """Camera policy that reads the target slots with one shared scorer (`--actor per-target`).
 
-    context = MLP(observation); logits of slot i = head([record_i, context]) where record_i is the
-    slot's 5 observed values (location, radius, ..., visibility flag). Slots carry no identity
-    (`shuffle_entities`), so sharing the scorer across them lets one sample teach all eight.
-    Output: (..., Nt x 2) keep/ignore logits, the layout of `Actor` with `action_distribution`.
+    Each of the Nt target slots gives 13 features: its 5 observed values (relative location, sight
+    range, loaded, visibility flag) and 8 computed from the observation (zero when the slot is not
+    visible): the offset along and across the camera's heading, the distance, the cosine and sine of
+    the bearing relative to the heading, how far inside the camera's own sector the target is (angle
+    margin cos(bearing) - cos(theta / 2), range margin 1 - distance / sight range), and whether the
+    sector of a teammate this camera sees contains the target too. A context MLP embeds the whole
+    observation; one scorer maps [slot features, context] to a slot embedding. Slots carry no
+    identity (`shuffle_entities`), so sharing the scorer lets one sample teach all of them.
+
+    Output (..., A): HRL cameras (`num_actions` None or 2 Nt) get keep/ignore logits per slot (the
+    layout of `Actor` with `action_distribution`); flat cameras get `num_actions` logits: a head on the
+    context and the mean and max of the visible slots' embeddings, plus the attention-weighted sum of
+    per-slot action logits (each visible slot proposes logits for "aim at this target", one shared layer,
+    softmax attention over the visible slots).
+    Input: camera observations processed as in training (relative coordinates, rescaled to [-1, 1]) of a
+    game with `counts` = (Nc, Nt, No) entities.
     """
 
-    def __init__(self, obs_dim: int, records: tuple[int, int], hidden=(256, 256), activation: str = 'tanh',
-                 head_width: int = 128) -> None:
+    SLOT_FEATURES = 13
+
+    def __init__(self, obs_dim: int, counts: tuple[int, int, int], hidden=(256, 256), activation: str = 'tanh',
+                 head_width: int = 64, num_actions: int | None = None, context_extra: int = 0) -> None:
         super().__init__()
-        self.begin, self.num_targets = int(records[0]), int(records[1])
-        self.body, width = mlp(obs_dim, hidden, activation)
+        nc, nt, no = (int(n) for n in counts)
+        starts = observation_indices_of(Team.CAMERA, nc, nt, no)
+        self.own, self.begin, self.teammates = int(starts[1]), int(starts[2]), int(starts[4])
+        self.num_cameras, self.num_targets = nc, nt
+        space = observation_space_of(Team.CAMERA, nc, nt, no)
+        # rescaled viewing angles v in [-1, 1] -> degrees: low + (v + 1) (high - low) / 2 (own state: index 5)
+        self.angle_low, self.angle_span = float(space.low[self.own + 5]), float(space.high[self.own + 5] - space.low[self.own + 5])
+        # offsets and sight vectors share one scale, so the geometry below works on rescaled values
+        assert space.high[self.begin] == space.high[self.own + 3] == space.high[self.teammates + 3]
+        self.hrl = num_actions is None or num_actions == 2 * nt
+        self.body, self.width = mlp(obs_dim, hidden, activation)
+        width = self.width + context_extra
         act, gain = ACTIVATIONS[activation]
-        self.head = nn.Sequential(linear(width + 5, head_width, 1.0, gain), act(), linear(head_width, 2, 0.01, 1.0))
+        # the scorer's first layer on [slot features, context], split so that the context part runs once per agent
+        joint = linear(width + self.SLOT_FEATURES, head_width, 1.0, gain)
+        self.slot_in = nn.Linear(self.SLOT_FEATURES, head_width)
+        self.context_in = nn.Linear(width, head_width, bias=False)
+        with torch.no_grad():
+            self.slot_in.weight.copy_(joint.weight[:, width:])
+            self.slot_in.bias.copy_(joint.bias)
+            self.context_in.weight.copy_(joint.weight[:, :width])
+        self.activation = act()
+        if self.hrl:
+            self.head = linear(head_width, 2, 0.01, 1.0)
+        else:
+            self.head = nn.Sequential(linear(width + 2 * head_width, head_width, 1.0, gain), act(),
+                                      linear(head_width, num_actions, 0.01, 1.0))
+            # per-slot action logits ("aim at this target") and an attention score over the visible slots
+            self.aim = linear(head_width, num_actions + 1, 0.01, 1.0)
+
+    def _half_angle_cosine(self, rescaled_angle: torch.Tensor) -> torch.Tensor:
+        degrees = self.angle_low + (rescaled_angle + 1.0) * 0.5 * self.angle_span
+        return torch.cos(torch.deg2rad(0.5 * degrees))
+
+    def slot_features(self, obs: torch.Tensor) -> torch.Tensor:
+        """(..., D) processed observations -> (..., Nt, 13) slot features (see the class docstring)."""
+        lead, nt, nc = obs.shape[:-1], self.num_targets, self.num_cameras
+        records = obs[..., self.begin:self.begin + 5 * nt].reshape(*lead, nt, 5)
+        dx, dy, visible = records[..., 0], records[..., 1], records[..., 4]
+        sight = obs[..., self.own + 3:self.own + 5]                       # own (R cos phi, R sin phi)
+        reach = sight.norm(dim=-1, keepdim=True).clamp_min(1e-6)
+        ux, uy = sight[..., 0:1] / reach, sight[..., 1:2] / reach
+        along, across = dx * ux + dy * uy, dy * ux - dx * uy
+        distance = torch.sqrt(dx * dx + dy * dy + 1e-12)
+        cos_bearing = along / distance
+        angle_margin = cos_bearing - self._half_angle_cosine(obs[..., self.own + 5:self.own + 6])
+        range_margin = 1.0 - distance / reach
+        # teammates this camera sees (flag 1, not itself: its own record sits at offset 0)
+        mates = obs[..., self.teammates:self.teammates + 7 * nc].reshape(*lead, nc, 7)
+        seen = (mates[..., 6] > 0.5) & (mates[..., :2].abs().sum(-1) > 1e-9)                  # (..., Nc)
+        to_target = records[..., None, :, :2] - mates[..., :, None, :2]                        # (..., Nc, Nt, 2)
+        gap = to_target.norm(dim=-1)
+        mate_reach = mates[..., 3:5].norm(dim=-1, keepdim=True)                                # (..., Nc, 1)
+        mate_cos = (to_target * mates[..., None, 3:5]).sum(-1) / (gap * mate_reach).clamp_min(1e-9)
+        inside = (gap <= mate_reach) & (mate_cos >= self._half_angle_cosine(mates[..., 5:6]))
+        covered = (inside & seen[..., None]).any(dim=-2).to(obs.dtype)
+        ego = torch.stack([along, across, distance, cos_bearing, across / distance, angle_margin, range_margin,
+                           covered], dim=-1)
+        return torch.cat([records, ego * visible[..., None]], dim=-1)
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        context = self.body(obs)
-        records = obs[..., self.begin:self.begin + 5 * self.num_targets].reshape(
-            *obs.shape[:-1], self.num_targets, 5)
-        joint = torch.cat([records, context.unsqueeze(-2).expand(*records.shape[:-1], context.shape[-1])], dim=-1)
-        return self.head(joint).reshape(*obs.shape[:-1], 2 * self.num_targets)
+        return self.logits_from(obs, self.body(obs))
+
+    def logits_from(self, obs: torch.Tensor, context: torch.Tensor) -> torch.Tensor:
+        slots = self.slot_features(obs)
+        embedded = self.activation(self.slot_in(slots) + self.context_in(context).unsqueeze(-2))
+        if self.hrl:
+            return self.head(embedded).reshape(*obs.shape[:-1], 2 * self.num_targets)
+        visible = slots[..., 4:5]
+        mean = (embedded * visible).sum(-2) / visible.sum(-2).clamp_min(1.0)
+        largest = torch.where(visible > 0.5, embedded, torch.full_like(embedded, -1.0)).amax(-2)
+        pooled = self.head(torch.cat([context, mean, largest], dim=-1))
+        aim = self.aim(embedded)                                                     # (..., Nt, A + 1)
+        score = aim[..., -1:].masked_fill(visible < 0.5, -1e9)
+        weights = torch.softmax(score, dim=-2) * visible                             # zero when nothing is seen
+        return pooled + (weights * aim[..., :-1]).sum(-2)
 
 
 class RecurrentActor(nn.Module):
-    """The paper's recurrent policy: MLP -> LSTM -> head on [MLP features, LSTM output] (skip-concat).
+    """The paper's recurrent policy around a feed-forward actor: its MLP body -> LSTM -> its head on
+    [MLP features, LSTM output] (skip-concat). The inner actor is built with `context_extra = lstm`.
 
     `step(obs (..., D), state)` -> (logits (..., A), state); `state` is a pair (h, c) of (..., L).
-    `forward(obs (T, ..., D), state, starts (T, ...))` runs a sequence, zeroing the state of the rows
-    where `starts[t]` (an episode begins at t) before step t; returns logits (T, ..., A).
+    `forward(obs (T, ..., D), state, starts (T, E))` runs sequences, zeroing the state of the rows where
+    `starts[t]` (an episode begins at t) before step t; returns logits (T, ..., A). `starts` may cover
+    only the leading axes of `obs` after T (one flag per env, shared by its agents).
     """
 
     recurrent = True
 
-    def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh',
-                 lstm: int = 256) -> None:
+    def __init__(self, inner: nn.Module, lstm: int = 256) -> None:
         super().__init__()
-        self.body, width = mlp(obs_dim, hidden, activation)
-        self.cell = nn.LSTMCell(width, lstm)
-        self.head = linear(width + lstm, num_actions, 0.01, 1.0)
+        self.inner = inner
+        self.lstm = nn.LSTM(inner.width, lstm)
         self.lstm_size = lstm
 
     def initial_state(self, *shape: int) -> tuple[torch.Tensor, torch.Tensor]:
         return torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size)
 
     def step(self, obs: torch.Tensor, state):
-        features = self.body(obs)
+        features = self.inner.body(obs)
         lead = features.shape[:-1]
-        h, c = self.cell(features.reshape(-1, features.shape[-1]),
-                         (state[0].reshape(-1, self.lstm_size), state[1].reshape(-1, self.lstm_size)))
+        h0, c0 = (x.reshape(1, -1, self.lstm_size) for x in state)
+        out, (h, c) = self.lstm(features.reshape(1, -1, features.shape[-1]), (h0, c0))
         h, c = h.reshape(*lead, self.lstm_size), c.reshape(*lead, self.lstm_size)
-        return self.head(torch.cat([features, h], dim=-1)), (h, c)
+        return self.inner.logits_from(obs, torch.cat([features, h], dim=-1)), (h, c)
 
     def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
-        logits = []
-        for t in range(obs.shape[0]):
-            keep = (~starts[t]).to(obs.dtype).reshape(*starts.shape[1:], *([1] * (state[0].dim() - starts.dim() + 1)))
-            state = (state[0] * keep, state[1] * keep)
-            out, state = self.step(obs[t], state)
-            logits.append(out)
-        return torch.stack(logits)
+        """One fused LSTM call over all sequences: each sequence is cut where an episode starts, and every
+        piece becomes a row of its own (zero initial state, or `state` for a piece that continues the
+        rollout's first step), left-aligned and padded; padding only follows a piece, so it cannot leak."""
+        T, lead = obs.shape[0], obs.shape[1:-1]
+        features = self.inner.body(obs)                                               # (T, ..., F)
+        flags = starts.reshape(T, *starts.shape[1:], *([1] * (len(lead) - starts.dim() + 1))).expand(T, *lead)
+        flags = flags.reshape(T, -1)                                                  # (T, S)
+        rows = flags.shape[1]
+        begins = flags.clone()
+        begins[0] = True                                                              # every sequence opens a piece
+        piece = torch.cumsum(begins.long(), dim=0) - 1                                # piece number within its sequence
+        counts = begins.sum(0)
+        piece = piece + (torch.cumsum(counts, 0) - counts)[None]                      # global piece index (T, S)
+        time = torch.arange(T)[:, None].expand(T, rows)
+        opened = torch.cummax(torch.where(begins, time, torch.zeros_like(time)), dim=0).values
+        position = time - opened                                                      # step within its piece
+        h0 = torch.zeros(1, int(counts.sum()), self.lstm_size)
+        c0 = torch.zeros_like(h0)
+        carried = ~flags[0]                                                           # first pieces that continue
+        first = piece[0]
+        h0[0, first] = state[0].reshape(rows, -1) * carried[:, None].to(h0.dtype)
+        c0[0, first] = state[1].reshape(rows, -1) * carried[:, None].to(c0.dtype)
+        packed = features.new_zeros(T, h0.shape[1], features.shape[-1])
+        packed = packed.index_put((position.reshape(-1), piece.reshape(-1)), features.reshape(T * rows, -1))
+        out, _ = self.lstm(packed, (h0, c0))
+        hidden = out[position.reshape(-1), piece.reshape(-1)].reshape(T, *lead, self.lstm_size)
+        return self.inner.logits_from(obs, torch.cat([features, hidden], dim=-1))
 
 
 def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: str, meta: dict,
                lstm: int = 0) -> nn.Module:
-    """The actor named by `PPOConfig.actor` ('mlp' or 'per-target'; the latter for HRL cameras only),
-    recurrent when `lstm` > 0 (MLP actors only)."""
+    """The actor named by `PPOConfig.actor` ('mlp' or 'per-target'; the latter for cameras only),
+    wrapped in a `RecurrentActor` when `lstm` > 0."""
     if kind == 'mlp':
-        return RecurrentActor(obs_dim, num_actions, hidden, activation, lstm) if lstm else \
-            Actor(obs_dim, num_actions, hidden, activation)
-    if lstm:
-        raise ValueError(f"actor {kind!r} has no recurrent version; use actor 'mlp' with lstm > 0")
-    if kind == 'per-target':
-        if not meta.get('hrl'):
-            raise ValueError("actor 'per-target' scores target slots: it needs HRL cameras (hrl=True)")
-        return PerTargetActor(obs_dim, (meta['target_records'], meta['counts'][1]), hidden, activation)
-    raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target'")
+        actor = Actor(obs_dim, num_actions, hidden, activation, context_extra=lstm)
+    elif kind == 'per-target':
+        if meta.get('team') != 'camera':
+            raise ValueError("actor 'per-target' reads a camera's target slots: it needs team 'camera'")
+        actor = PerTargetActor(obs_dim, tuple(meta['counts']), hidden, activation, num_actions=num_actions,
+                               context_extra=lstm)
+    else:
+        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target'")
+    return RecurrentActor(actor, lstm) if lstm else actor
 
 
 class Critic(nn.Module):
-    """Value in normalised units; input = state + agent one-hot (MAPPO) or local observation (IPPO)."""
+    """Value in normalised units of the global state (MAPPO) or of a local observation (IPPO)."""
 
     def __init__(self, input_dim: int, hidden=(256, 256), activation: str = 'tanh') -> None:
         super().__init__()
@@ -248,24 +377,31 @@ class Critic(nn.Module):
         return self.head(self.body(x)).squeeze(-1)
 
 
-def action_distribution(logits: torch.Tensor, heads: int, choices: int):
+def action_distribution(logits: torch.Tensor, heads: int, choices: int, allowed: torch.Tensor | None = None):
     """Independent categoricals: logits (..., heads x choices) -> batch shape (..., heads). Flat discrete
     actions are one head of levels**2 choices; HRL selections are Nt heads of 2 (keep/ignore). The
-    joint log-probability and entropy are sums over the heads."""
-    return torch.distributions.Categorical(logits=logits.reshape(*logits.shape[:-1], heads, choices))
+    joint log-probability and entropy are sums over the heads. `allowed` (..., heads, choices) bool
+    masks choices out (probability 0); a head with a single allowed choice adds nothing to either."""
+    logits = logits.reshape(*logits.shape[:-1], heads, choices)
+    if allowed is not None:
+        logits = logits.masked_fill(~allowed, torch.finfo(logits.dtype).min)
+    return torch.distributions.Categorical(logits=logits)
 
 
 def critic_inputs(algo: str, obs: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
-    """(..., N, D) observations and (..., S) states -> (..., N, input) critic inputs."""
-    if algo == 'ippo':
-        return obs
-    n = obs.shape[-2]
-    eye = torch.eye(n, dtype=obs.dtype).expand(*obs.shape[:-1], n)
-    return torch.cat([state.unsqueeze(-2).expand(*obs.shape[:-1], state.shape[-1]), eye], dim=-1)
+    """What the critic reads: the global state (..., S) for MAPPO (one value per env: the reward is
+    shared, so every agent's value is the same, as in the paper's critic), the local observations
+    (..., N, D) for IPPO (one value per agent)."""
+    return obs if algo == 'ippo' else state
 
 
-def critic_input_dim(algo: str, obs_dim: int, state_dim: int, num_agents: int) -> int:
-    return obs_dim if algo == 'ippo' else state_dim + num_agents
+def critic_input_dim(algo: str, obs_dim: int, state_dim: int) -> int:
+    return obs_dim if algo == 'ippo' else state_dim
+
+
+def per_agent(algo: str, values: torch.Tensor, num_agents: int) -> torch.Tensor:
+    """Critic outputs, (...,) per env (MAPPO) or (..., N) per agent (IPPO) -> (..., N)."""
+    return values if algo == 'ippo' else values.unsqueeze(-1).expand(*values.shape, num_agents)
 
 
 class ValueNormalizer(nn.Module):
@@ -377,7 +513,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     config = config.resolved()
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(config.torch_threads)
+    learn_threads = config.torch_threads or _usable_cores()
 
     # ---- environments
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
@@ -391,10 +527,10 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     meta = dict(team=config.team, env_id=config.env_id, frame_skip=config.frame_skip, levels=config.levels,
                 obs_dim=D, state_dim=S, num_agents=N, num_actions=A, action_heads=H, action_choices=C,
                 hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
-                actor=config.actor, lstm=config.lstm, target_records=getattr(envs, 'target_records', None))
+                actor=config.actor, lstm=config.lstm)
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
-    critic = Critic(critic_input_dim(config.algo, D, S, N), config.hidden, config.activation)
+    critic = Critic(critic_input_dim(config.algo, D, S), config.hidden, config.activation)
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
     env_steps, iteration = 0, 0
@@ -406,6 +542,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         value_norm.load_state_dict(saved['value_norm'])
         optimizer.load_state_dict(saved['optimizer'])
         env_steps, iteration = saved['env_steps'], saved['iteration']
+    elif config.init_from:
+        _warm_start(config.init_from, dict(meta, algo=config.algo), actor, critic, value_norm)
     generator = torch.Generator().manual_seed(config.seed * 1_000_003 + iteration)
 
     def checkpoint(path: Path) -> None:
@@ -418,8 +556,13 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
                                    config=config.to_dict(), env_steps=env_steps, note=f'iteration {iteration}'))
 
-    def values_of(obs_t, state_t):
-        return value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t)))
+    def allowed_of(obs_t):   # (..., N, H, C) choices the policy may take, or None (all)
+        return torch.from_numpy(envs.allowed_actions(obs_t.numpy())) if masking else None
+
+    masking = config.mask_invisible and hasattr(envs, 'allowed_actions') and meta['hrl']
+
+    def values_of(obs_t, state_t):   # (..., N) values of every agent, in return units
+        return per_agent(config.algo, value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t))), N)
 
     # ---- rollout storage: T decisions x B envs x N agents
     T = config.rollout_length
@@ -447,7 +590,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             for group in optimizer.param_groups:
                 group['lr'] = lr
 
-            # ---- collect
+            # ---- collect (one torch thread: the vector env runs its own threads)
+            torch.set_num_threads(1)
             coverage = []
             t_collect = time.perf_counter()
             memory_at_start = memory
@@ -458,7 +602,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                         logits, memory = actor.step(obs, (memory[0] * keep, memory[1] * keep))
                     else:
                         logits = actor(obs)
-                    dist = action_distribution(logits, H, C)
+                    dist = action_distribution(logits, H, C, allowed_of(obs))
                     action = torch.multinomial(dist.probs.reshape(-1, C), 1, generator=generator).reshape(B, N, H)
                     value = values_of(obs, state)
                 next_obs, next_state, reward, done, truncated, info = envs.step(action.numpy()[..., 0] if H == 1 else action.numpy())
@@ -488,6 +632,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
             # ---- learn: K epochs over shuffled minibatches of (decision, env) rows, all agents of a row together
             # (recurrent actor: minibatches of whole env sequences, replayed from the rollout's first memory)
+            torch.set_num_threads(learn_threads)
             def logits_of(rows):
                 if not recurrent:
                     return actor(b_obs[rows])
@@ -504,11 +649,11 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             updates = 0
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, recurrent, generator):
-                    dist = action_distribution(logits_of(idx), H, C)
+                    dist = action_distribution(logits_of(idx), H, C, allowed_of(b_obs[idx]))
                     new_logp = dist.log_prob(b_action[idx]).sum(-1)
                     policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
-                    value_loss = 0.5 * (critic(critic_inputs(config.algo, b_obs[idx], b_state[idx]))
-                                        - b_ret[idx]).pow(2).mean()
+                    predicted = per_agent(config.algo, critic(critic_inputs(config.algo, b_obs[idx], b_state[idx])), N)
+                    value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
                     entropy = dist.entropy().sum(-1).mean()
                     loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
                     optimizer.zero_grad()
@@ -557,6 +702,27 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         if bar is not None:
             bar[0].stop()
     return row
+
+
+WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm')
+"""Metadata a warm-start file must share with the experiment (the actor's shape and meaning)."""
+
+
+def _warm_start(path, meta: dict, actor: nn.Module, critic: nn.Module, value_norm: ValueNormalizer) -> None:
+    """Load the actor of `path` (a checkpoint or an exported policy) and, from a full checkpoint of the
+    same algorithm, the critic and value normaliser too; CheckpointError if the actor does not fit."""
+    saved = load_checkpoint(path, expect={key: meta[key] for key in WARM_START_KEYS})
+    try:
+        actor.load_state_dict(saved['actor'])
+    except RuntimeError as exc:
+        raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: {str(exc).splitlines()[0]}') from None
+    if 'critic' in saved and saved['meta'].get('algo') == meta['algo']:
+        critic.load_state_dict(saved['critic'])
+        value_norm.load_state_dict(saved['value_norm'])
+
+
+def _usable_cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1
 
 
 def _progress_bar(total: int, done: int):

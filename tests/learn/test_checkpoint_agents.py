@@ -16,7 +16,7 @@ from mate.learn.ppo import PPOConfig, train
 
 def _tiny_camera_checkpoint(tmp_path, algo='mappo', total=2 * 8 * 8):
     config = PPOConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
-                       total_steps=total, epochs=1, hidden=(16,), checkpoint_every=1, seed=0)
+                       total_steps=total, epochs=1, hidden=(16,), checkpoint_every=1, seed=0, actor='mlp')
     rows = []
     train(config, tmp_path, progress=False, callback=rows.append)
     return tmp_path / 'final.pt', rows
@@ -98,6 +98,26 @@ def test_cli_train_parser():
     assert args.algo == 'ippo' and args.team == 'target' and args.steps == 1e4
 
 
+def test_cli_train_defaults_and_paper_settings():
+    from mate.cli import build_parser
+    from mate.learn.command import config_from_args
+    from mate.learn.ppo import PAPER_HYPERPARAMETERS
+    parse = build_parser().parse_args
+    camera = config_from_args(parse(['train', 'mappo'])).resolved()
+    assert camera.actor == 'per-target' and camera.entropy_schedule[0] == (0, 0.01)
+    assert config_from_args(parse(['train', 'mappo', '--team', 'target'])).resolved().actor == 'mlp'
+    paper = config_from_args(parse(['train', 'mappo', '--paper']))
+    assert paper.actor == 'mlp' and paper.lr_schedule == PAPER_HYPERPARAMETERS['lr_schedule']
+    assert paper.entropy_schedule == PAPER_HYPERPARAMETERS['entropy_schedule']
+    mixed = config_from_args(parse(['train', 'mappo', '--paper', '--actor', 'per-target',
+                                    '--entropy-schedule', '[[0, 0.02]]']))
+    assert mixed.actor == 'per-target' and mixed.entropy_schedule == ((0, 0.02),)
+    with pytest.raises(SystemExit, match='needs --team camera'):
+        config_from_args(parse(['train', 'mappo', '--team', 'target', '--actor', 'per-target']))
+    with pytest.raises(SystemExit, match='must be JSON'):
+        config_from_args(parse(['train', 'mappo', '--lr-schedule', 'fast']))
+
+
 def test_export_policy_is_small_and_loads(tmp_path):
     from mate.learn import export_policy
     path, _ = _tiny_camera_checkpoint(tmp_path / 'run')
@@ -106,10 +126,15 @@ def test_export_policy_is_small_and_loads(tmp_path):
     data = load_checkpoint(small)
     assert 'optimizer' not in data and data['note'] == 'test'
     agent = PolicyCameraAgent.from_checkpoint(small)
-    assert agent.policy.meta['team'] == 'camera'
+    assert agent.policy.meta['team'] == 'camera' and not agent.deterministic
+    # an exported policy can carry the way it was scored (argmax) as its agents' default
+    scored = export_policy(path, tmp_path / 'scored.pt', deterministic=True)
+    assert PolicyCameraAgent.from_checkpoint(scored).deterministic
+    assert not PolicyCameraAgent.from_checkpoint(scored, deterministic=False).deterministic
 
 
-@pytest.mark.parametrize('variant', [dict(lstm=16), dict(hrl=True, actor='per-target')])
+@pytest.mark.parametrize('variant', [dict(actor='mlp', lstm=16), dict(hrl=True, actor='per-target'),
+                                     dict(actor='per-target', lstm=8)])
 def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, variant):
     config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=4, rollout_length=4,
                        total_steps=2 * 4 * 4, epochs=1, hidden=(16,), snapshot_every=1, seed=0, **variant)
@@ -133,17 +158,82 @@ def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, varian
         assert not np.allclose(logits0, logits1)
 
 
-def test_per_target_actor_scores_every_slot_with_one_head():
+def _camera_views(steps: int = 60, seed: int = 0):
+    """(processed camera observations (S, Nc, D), world snapshots) of random play on MATE-2v4-0, with
+    the cameras' viewing angles opened wide so that they often see each other and the same targets."""
+    from mate.learn.envs import preprocess_observation
+    env = mate.make('MATE-2v4-0-v0')
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    observations, worlds = [], []
+    for _ in range(steps):
+        world = env.get_world()
+        world['camera_orientation'] = rng.uniform(-180, 180, 2)
+        world['camera_viewing_angle'] = rng.uniform(60, 180, 2)
+        world['camera_sight_range'] = np.sqrt(30 * 1500 ** 2 / world['camera_viewing_angle'])
+        radians = np.radians(world['camera_orientation'])
+        world['camera_state'][:, 3] = world['camera_sight_range'] * np.cos(radians)
+        world['camera_state'][:, 4] = world['camera_sight_range'] * np.sin(radians)
+        world['camera_state'][:, 5] = world['camera_viewing_angle']
+        env.set_world(world)
+        camera_obs, _ = env.joint_observation()
+        observations.append(preprocess_observation(camera_obs, 'camera', 2, 4, 0))
+        worlds.append(env.get_world())
+        env.step((np.zeros((2, 2)), rng.uniform(-20, 20, (4, 2))))
+    return torch.as_tensor(np.array(observations)), worlds
+
+
+def test_per_target_actor_scores_every_slot_with_one_scorer():
     from mate.learn.ppo import PerTargetActor
     torch.manual_seed(0)
-    actor = PerTargetActor(30, (10, 4), hidden=(16,))
-    obs = torch.randn(2, 30)
-    perm = [2, 0, 3, 1]
-    # slot i's logits = head([record_i, context(obs)]); swapping two records swaps their logits
-    records = obs[:, 10:30].reshape(2, 4, 5)
-    context = actor.body(obs)
-    joint = torch.cat([records, context[:, None].expand(2, 4, context.shape[-1])], -1)
-    out = actor(obs).reshape(2, 4, 2)
-    assert torch.allclose(out, actor.head(joint), atol=1e-6)
-    assert torch.allclose(actor.head(joint[:, perm]), out[:, perm], atol=1e-6)
-    assert not torch.allclose(out[:, 0], out[:, 1])
+    obs, _ = _camera_views(steps=4)
+    obs, perm = obs.reshape(-1, obs.shape[-1]), [2, 0, 3, 1]
+    hrl = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(16,))              # keep/ignore logits per slot
+    out = hrl(obs).reshape(-1, 4, 2)
+    # the context sees the whole observation, so compare slots through the scorer alone
+    embedded = hrl.activation(hrl.slot_in(hrl.slot_features(obs)) + hrl.context_in(hrl.body(obs))[:, None])
+    assert torch.allclose(hrl.head(embedded), out, atol=1e-6)
+    assert torch.allclose(hrl.head(embedded[:, perm]), out[:, perm], atol=1e-6)
+    features = hrl.slot_features(obs)
+    differ = (features[:, :, None] != features[:, None, :]).any(-1)           # (rows, slot, slot)
+    row, a, b = (int(i) for i in differ.nonzero()[0])
+    assert not torch.allclose(out[row, a], out[row, b], rtol=0, atol=1e-9)    # different records, different logits
+    flat = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(16,), num_actions=25)   # pooled: 25 logits
+    assert flat(obs).shape == (obs.shape[0], 25)
+
+
+def test_per_target_actor_slot_features_match_the_world():
+    from mate.learn.ppo import PerTargetActor
+    obs, worlds = _camera_views()
+    actor = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(8,))
+    features = actor.slot_features(obs).numpy()                              # (S, Nc, Nt, 13)
+    visible = np.array([w['camera_target_view_mask'] for w in worlds])       # (S, Nc, Nt)
+    sees = np.array([w['camera_camera_view_mask'] for w in worlds])          # (S, Nc, Nc), diagonal true
+    other_tracks = np.stack([sees[:, 0, 1, None] & visible[:, 1], sees[:, 1, 0, None] & visible[:, 0]], axis=1)
+    assert np.array_equal(features[..., 4] > 0.5, visible)
+    assert np.array_equal(features[..., 12] > 0.5, visible & other_tracks)   # a teammate it sees covers it too
+    assert 0 < (visible & other_tracks).sum() < visible.sum()                # both cases occur
+    inside = features[visible]
+    assert np.all(inside[:, 10] >= -1e-6) and np.all(inside[:, 11] >= -1e-6)   # angle and range margins
+    assert np.allclose(inside[:, 5] ** 2 + inside[:, 6] ** 2, inside[:, 7] ** 2, atol=1e-5)   # along/across/distance
+    assert np.all(features[~visible][:, 5:] == 0)
+    assert np.all(np.abs(inside[:, 8]) <= 1 + 1e-6) and np.allclose(inside[:, 8] ** 2 + inside[:, 9] ** 2, 1, atol=1e-5)
+
+def test_warm_start_loads_the_networks_and_rejects_another_setting(tmp_path):
+    from mate.learn import CheckpointError
+    path, _ = _tiny_camera_checkpoint(tmp_path / 'first')
+    saved = load_checkpoint(path)
+    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
+                       total_steps=8 * 8, epochs=1, hidden=(16,), seed=3, actor='mlp', init_from=str(path),
+                       lr_schedule=((0, 0.0),))
+    train(config, tmp_path / 'second', progress=False)     # learning rate 0: the weights stay the loaded ones
+    warm = load_checkpoint(tmp_path / 'second' / 'final.pt')
+    assert warm['env_steps'] == 64                          # steps count from 0
+    for key, value in saved['actor'].items():
+        assert torch.equal(warm['actor'][key], value)
+    for key, value in saved['critic'].items():
+        assert torch.equal(warm['critic'][key], value)
+    other = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
+                      total_steps=8 * 8, hidden=(16,), hrl=True, actor='mlp', init_from=str(path))
+    with pytest.raises(CheckpointError, match='does not match this experiment'):
+        train(other, tmp_path / 'third', progress=False)

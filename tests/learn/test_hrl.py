@@ -58,3 +58,24 @@ def test_hrl_env_and_policy_agent(tmp_path, algo):
     action = agent.act(camera_obs[0])
     assert action.shape == (2,) and np.all(np.abs(action) <= [5.0, 2.5])
     assert agent._held.shape == (4,)
+
+
+def test_masked_selection_never_keeps_an_unseen_target():
+    import torch
+    from mate.learn.ppo import action_distribution
+    env = TeamVecEnv('camera', num_envs=8, env_id='MATE-4v8-0-v0', hrl=True, seed=0)
+    obs, _ = env.reset(seed=3)
+    allowed = env.allowed_actions(obs)                                        # (B, Nc, Nt, 2)
+    flags = obs[..., 22 + 4:22 + 40:5] > 0.5
+    assert allowed.shape == (8, 4, 8, 2) and allowed[..., 0].all() and np.array_equal(allowed[..., 1], flags)
+    assert flags.any() and not flags.all()
+    logits = torch.zeros(8, 4, 16)                                            # uniform before the mask
+    dist = action_distribution(logits, 8, 2, torch.from_numpy(allowed))
+    samples = dist.sample((200,))
+    assert not samples[:, ~torch.from_numpy(flags)].any()                     # never 'keep' an unseen target
+    assert samples[:, torch.from_numpy(flags)].float().mean() == pytest.approx(0.5, abs=0.05)
+    # a head with one allowed choice adds nothing to the log-probability or the entropy
+    entropy = dist.entropy()
+    assert torch.allclose(entropy[~torch.from_numpy(flags)], torch.zeros(()))
+    assert torch.allclose(entropy[torch.from_numpy(flags)], torch.tensor(np.log(2.0), dtype=torch.float32))
+    assert torch.all(dist.log_prob(torch.zeros(8, 4, 8, dtype=torch.long))[~torch.from_numpy(flags)] == 0)

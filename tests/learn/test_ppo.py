@@ -9,6 +9,7 @@ from mate.learn.ppo import (
     compute_gae,
     critic_inputs,
     minibatch_rows,
+    per_agent,
     piecewise,
     ppo_policy_loss,
     train,
@@ -79,15 +80,17 @@ def test_actor_head_starts_near_uniform_and_critic_inputs():
     logits = actor(torch.randn(5, 10))
     assert logits.abs().max() < 0.1
     obs, state = torch.zeros(3, 4, 10), torch.ones(3, 7)
-    x = critic_inputs('mappo', obs, state)
-    assert x.shape == (3, 4, 11) and torch.equal(x[0, 2, 7:], torch.eye(4)[2])
+    assert critic_inputs('mappo', obs, state) is state      # one value per env: the reward is shared
     assert critic_inputs('ippo', obs, state) is obs
+    values, local = torch.arange(3.0), torch.randn(3, 4)
+    assert torch.equal(per_agent('mappo', values, 4), values[:, None].expand(3, 4))
+    assert per_agent('ippo', local, 4) is local
 
 
 @pytest.mark.parametrize('algo', ['mappo', 'ippo'])
 def test_tiny_run_improves_return(tmp_path, algo):
     rows = []
-    config = PPOConfig(algo=algo, total_steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4,
+    config = PPOConfig(algo=algo, actor='mlp', total_steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4,
                        hidden=(32,), lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1)
     train(config, tmp_path, progress=False, callback=rows.append,
           envs=CueMatching(num_envs=16, num_agents=2, num_actions=4))
@@ -109,7 +112,7 @@ def test_minibatch_rows_cover_the_rollout_once():
 
 def test_recurrent_actor_resets_its_memory_at_episode_starts():
     torch.manual_seed(0)
-    actor = RecurrentActor(3, 4, hidden=(8,), lstm=6)
+    actor = RecurrentActor(Actor(3, 4, hidden=(8,), context_extra=6), lstm=6)
     obs = torch.randn(4, 2, 3)                                   # T=4 steps, 2 rows
     state = (torch.randn(2, 6), torch.randn(2, 6))
     starts = torch.tensor([[False, False], [False, True], [False, False], [False, False]])
@@ -124,10 +127,29 @@ def test_recurrent_actor_resets_its_memory_at_episode_starts():
     assert torch.allclose(logits, torch.stack(step_by_step), atol=1e-6)
 
 
+def test_recurrent_actor_sequences_equal_steps_with_several_episode_starts():
+    torch.manual_seed(1)
+    actor = RecurrentActor(Actor(5, 3, hidden=(8,), context_extra=4), lstm=4)
+    obs = torch.randn(6, 3, 2, 5)                                  # T=6 steps, 3 envs x 2 agents
+    state = (torch.randn(3, 2, 4), torch.randn(3, 2, 4))
+    starts = torch.zeros(6, 3, dtype=torch.bool)                   # one flag per env, shared by its agents
+    starts[0, 1] = True                                            # env 1 starts fresh at t = 0
+    starts[2, 2] = starts[4, 2] = True                             # env 2: two short episodes inside the window
+    logits = actor(obs, state, starts)
+    step_by_step, memory = [], state
+    for t in range(6):
+        keep = (~starts[t]).float()[:, None, None]
+        out, memory = actor.step(obs[t], (memory[0] * keep, memory[1] * keep))
+        step_by_step.append(out)
+    assert torch.allclose(logits, torch.stack(step_by_step), atol=1e-6)
+    logits.sum().backward()                                        # the fused path is differentiable
+    assert actor.lstm.weight_hh_l0.grad is not None and actor.lstm.weight_hh_l0.grad.abs().sum() > 0
+
+
 @pytest.mark.parametrize('lstm', [0, 32])
 def test_only_a_recurrent_actor_solves_cue_recall(tmp_path, lstm):
     rows = []
-    config = PPOConfig(algo='mappo', total_steps=16 * 16 * 30, num_envs=16, rollout_length=16, epochs=4,
+    config = PPOConfig(algo='mappo', actor='mlp', total_steps=16 * 16 * 30, num_envs=16, rollout_length=16, epochs=4,
                        hidden=(32,), lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1, lstm=lstm)
     train(config, tmp_path, progress=False, callback=rows.append,
           envs=CueRecall(num_envs=16, num_agents=2, num_actions=4, length=8))

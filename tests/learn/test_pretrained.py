@@ -1,0 +1,52 @@
+"""The policies shipped in mate/pretrained: they load, fit their preset, play, and keep the scores the
+docs report against the greedy agents (the acceptance protocol of `mate evaluate`: seeds 0-19)."""
+
+import numpy as np
+import pytest
+
+import mate
+from mate.evaluate import play_episode, resolve_agent
+from mate.learn.agents import PRETRAINED_DIR, load_agent, load_policy
+from mate.messages import Team
+
+SHIPPED = sorted(p.stem for p in PRETRAINED_DIR.glob('*.pt'))
+# name: (team, metric of EpisodeResult, episode step cap) as reported in docs/training.md
+PROTOCOL = {
+    'mappo-target-2v4-0': (Team.TARGET, 'normalized_target_return', 5000),
+    'hrl-mappo-camera-4v8-9': (Team.CAMERA, 'coverage_rate', 2000),
+}
+
+
+def test_the_promised_policies_are_shipped():
+    assert set(PROTOCOL) <= set(SHIPPED)
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_shipped_policy_loads_and_plays(name):
+    policy = load_policy(PRETRAINED_DIR / f'{name}.pt')
+    team = Team[policy.meta['team'].upper()]
+    assert policy.meta.get('deterministic'), 'shipped policies act the way they were scored (argmax)'
+    env = mate.make(policy.meta['env_id'])
+    assert list(policy.meta['counts']) == [env.num_cameras, env.num_targets, env.num_obstacles]
+    learned = load_agent(f'pretrained:{name}', team)
+    greedy = resolve_agent('greedy', Team.TARGET if team is Team.CAMERA else Team.CAMERA)
+    pair = (learned, greedy) if team is Team.CAMERA else (greedy, learned)
+    result = play_episode(env, *pair, seed=0, max_steps=60)
+    assert result.episode_length == 60 and 0.0 <= result.coverage_rate <= 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('name', sorted(PROTOCOL))
+def test_shipped_policy_beats_the_greedy_agent(name):
+    team, metric, max_steps = PROTOCOL[name]
+    policy = load_policy(PRETRAINED_DIR / f'{name}.pt', team)
+    env = mate.make(policy.meta['env_id'])
+    opponent = resolve_agent('greedy', Team.TARGET if team is Team.CAMERA else Team.CAMERA)
+
+    def score(factory):
+        pair = (factory, opponent) if team is Team.CAMERA else (opponent, factory)
+        return np.array([getattr(play_episode(env, *pair, seed=seed, max_steps=max_steps), metric)
+                         for seed in range(20)])
+
+    learned, greedy = score(load_agent(f'pretrained:{name}', team)), score(resolve_agent('greedy', team))
+    assert learned.mean() > greedy.mean(), (learned.mean(), greedy.mean())
