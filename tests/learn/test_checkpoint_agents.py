@@ -198,8 +198,33 @@ def test_per_target_actor_scores_every_slot_with_one_scorer():
     differ = (features[:, :, None] != features[:, None, :]).any(-1)           # (rows, slot, slot)
     row, a, b = (int(i) for i in differ.nonzero()[0])
     assert not torch.allclose(out[row, a], out[row, b], rtol=0, atol=1e-9)    # different records, different logits
-    flat = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(16,), num_actions=25)   # pooled: 25 logits
+    flat = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(16,), num_actions=25)   # pooled + pointer: 25 logits
     assert flat(obs).shape == (obs.shape[0], 25)
+
+
+def test_flat_per_target_head_ignores_slot_order_and_unseen_slots():
+    from mate.learn.ppo import PerTargetActor
+    torch.manual_seed(1)
+    obs, _ = _camera_views(steps=4)
+    obs = obs.reshape(-1, obs.shape[-1])
+    flat = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(16,), num_actions=25)
+    for layer in (flat.head[-1], flat.aim):                                  # larger than the 0.01 init
+        torch.nn.init.normal_(layer.weight, std=1.0)
+    context = flat.body(obs)                                                 # the context sees slot order: fix it
+    logits = flat.logits_from(obs, context)
+    begin, records = flat.begin, obs[:, flat.begin:flat.begin + 20].reshape(-1, 4, 5)
+    permuted = obs.clone()
+    permuted[:, begin:begin + 20] = records[:, [3, 1, 0, 2]].reshape(-1, 20)
+    assert torch.allclose(flat.logits_from(permuted, context), logits, atol=1e-5)
+    unseen = records[..., 4] < 0.5
+    assert unseen.any() and (~unseen).any()
+    changed = obs.clone()
+    shift = torch.tensor([0.3, -0.2, 0.1, 0.4, 0.0])                          # the flag stays 0
+    changed[:, begin:begin + 20] = torch.where(unseen[..., None], records + shift, records).reshape(-1, 20)
+    assert torch.allclose(flat.logits_from(changed, context), logits, atol=1e-5)   # only visible slots count
+    moved = obs.clone()
+    moved[:, begin:begin + 20] = torch.where(unseen[..., None], records, records + 0.05 * shift).reshape(-1, 20)
+    assert not torch.allclose(flat.logits_from(moved, context), logits, atol=1e-3)
 
 
 def test_per_target_actor_slot_features_match_the_world():
