@@ -533,7 +533,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     critic = Critic(critic_input_dim(config.algo, D, S), config.hidden, config.activation)
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
-    env_steps, iteration = 0, 0
+    env_steps, iteration, wall_before = 0, 0, 0.0     # wall_before: training seconds of earlier sessions
     checkpoint_path = run_dir / 'checkpoint.pt'
     if resume and checkpoint_path.exists():
         saved = load_checkpoint(checkpoint_path, expect=dict(meta, algo=config.algo))
@@ -542,6 +542,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         value_norm.load_state_dict(saved['value_norm'])
         optimizer.load_state_dict(saved['optimizer'])
         env_steps, iteration = saved['env_steps'], saved['iteration']
+        wall_before = float(saved.get('wall_seconds', 0.0))
     elif config.init_from:
         _warm_start(config.init_from, dict(meta, algo=config.algo), actor, critic, value_norm)
     generator = torch.Generator().manual_seed(config.seed * 1_000_003 + iteration)
@@ -550,6 +551,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         save_checkpoint(path, dict(actor=actor.state_dict(), critic=critic.state_dict(),
                                    value_norm=value_norm.state_dict(), optimizer=optimizer.state_dict(),
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
+                                   wall_seconds=wall_before + time.perf_counter() - start,
                                    meta=dict(meta, algo=config.algo)))
 
     def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
@@ -675,7 +677,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             elapsed = time.perf_counter() - start
             recent = list(episodes)
             row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
-                       wall_seconds=round(elapsed, 2), steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
+                       wall_seconds=round(wall_before + elapsed, 2), steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
                        collect_share=collect_seconds / max(time.perf_counter() - t_collect, 1e-9),
                        rollout_coverage=float(np.mean(coverage)),
                        episode_coverage=float(np.mean([e['coverage'] for e in recent])) if recent else float('nan'),

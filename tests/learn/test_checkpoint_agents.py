@@ -54,10 +54,15 @@ def test_round_trip_and_agent_plays(tmp_path):
 
 
 def test_resume_continues_and_mismatch_is_refused(tmp_path):
+    from mate.learn import save_checkpoint
     _, rows = _tiny_camera_checkpoint(tmp_path, total=2 * 8 * 8)
     assert rows[-1]['env_steps'] == 128
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    assert saved['wall_seconds'] >= rows[-1]['wall_seconds'] - 0.01
+    save_checkpoint(tmp_path / 'checkpoint.pt', dict(saved, wall_seconds=1000.0))   # as if trained 1000 s before
     _, more = _tiny_camera_checkpoint(tmp_path, total=4 * 8 * 8)   # resumes at 128 steps
     assert more[0]['iteration'] == 3 and more[-1]['env_steps'] == 256
+    assert 1000.0 < more[0]['wall_seconds'] <= more[-1]['wall_seconds']   # wall time continues over sessions
     with pytest.raises(CheckpointError, match='algo'):
         _tiny_camera_checkpoint(tmp_path, algo='ippo', total=6 * 8 * 8)
 
