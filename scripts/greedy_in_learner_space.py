@@ -27,16 +27,18 @@ from mate.learn.envs import TeamVecEnv
 from mate.learn.opponents import VecGreedyCamera
 from mate.messages import Team
 from mate.spaces import observation_indices_of
+from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 
 
 def play(env: TeamVecEnv, policy, decisions: int, seed: int) -> float:
     env.reset(seed=seed)
-    coverage = [env.step(policy(env._raw))[5]['coverage'].mean() for _ in range(decisions)]
+    coverage = [env.step(policy(env.raw_observations))[5]['coverage'].mean() for _ in range(decisions)]
     return float(np.mean(coverage))
 
 
 def snapped_greedy(env: TeamVecEnv, seed: int):
     greedy = VecGreedyCamera(env.num_envs, *env.counts, seed=seed)
+    grid = square_grid(env.levels)
     first = True
 
     def policy(raw):
@@ -44,10 +46,7 @@ def snapped_greedy(env: TeamVecEnv, seed: int):
         if first:
             greedy.reset(raw)
             first = False
-        action = greedy.act(raw)
-        high = raw[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9]
-        cell = np.clip(np.rint((action / high + 1.0) * (env.levels - 1) / 2), 0, env.levels - 1).astype(int)
-        return cell[..., 0] + env.levels * cell[..., 1]
+        return nearest_grid_indices(greedy.act(raw), grid, raw[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9])
     return policy
 
 

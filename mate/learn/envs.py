@@ -143,6 +143,11 @@ class TeamVecEnv:
         return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
 
     # ------------------------------------------------------------------ API
+    @property
+    def raw_observations(self) -> np.ndarray:
+        """(B, N, D) unprocessed observations of the trained team at the current decision (do not modify)."""
+        return self._raw
+
     def allowed_actions(self, processed: np.ndarray) -> np.ndarray:
         """HRL: (..., N, Nt, 2) bool from processed observations (..., N, D): 'ignore' is always allowed,
         'keep' only for the targets the camera sees (the executor ignores the others anyway)."""

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..core.engine import NUM_THREADS
 from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
@@ -513,7 +514,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     config = config.resolved()
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    learn_threads = config.torch_threads or _usable_cores()
+    learn_threads = config.torch_threads or NUM_THREADS
 
     # ---- environments
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
@@ -558,10 +559,10 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
                                    config=config.to_dict(), env_steps=env_steps, note=f'iteration {iteration}'))
 
+    masking = config.mask_invisible and hasattr(envs, 'allowed_actions') and meta['hrl']
+
     def allowed_of(obs_t):   # (..., N, H, C) choices the policy may take, or None (all)
         return torch.from_numpy(envs.allowed_actions(obs_t.numpy())) if masking else None
-
-    masking = config.mask_invisible and hasattr(envs, 'allowed_actions') and meta['hrl']
 
     def values_of(obs_t, state_t):   # (..., N) values of every agent, in return units
         return per_agent(config.algo, value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t))), N)
@@ -721,10 +722,6 @@ def _warm_start(path, meta: dict, actor: nn.Module, critic: nn.Module, value_nor
     if 'critic' in saved and saved['meta'].get('algo') == meta['algo']:
         critic.load_state_dict(saved['critic'])
         value_norm.load_state_dict(saved['value_norm'])
-
-
-def _usable_cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1
 
 
 def _progress_bar(total: int, done: int):
