@@ -129,6 +129,9 @@ class MultiAgentTracking(GameDescription, gym.Env):
         nc, nt, no = p.num_cameras, p.num_targets, p.num_obstacles
         self._camera_obs = np.zeros((1, nc, camera_observation_dim(nc, nt, no)))
         self._target_obs = np.zeros((1, nt, target_observation_dim(nc, nt, no)))
+        self._camera_actions, self._target_actions = np.zeros((1, nc, 2)), np.zeros((1, nt, 2))
+        self._step_world = engine.bind_step(p, self._world, self._camera_actions, self._target_actions,
+                                            self._camera_obs, self._target_obs)
         self._channel = MessageChannel(nc, nt)
         self._needs_reset = True
         self._make_spaces()
@@ -179,8 +182,8 @@ class MultiAgentTracking(GameDescription, gym.Env):
         """Advance one step with (camera_actions (Nc, 2), target_actions (Nt, 2))."""
         if self._needs_reset:
             raise RuntimeError('MultiAgentTracking: call reset() before step()')
-        camera_actions, target_actions = self._parse_action(action)
-        engine.step(self.params, self._world, camera_actions, target_actions, self._camera_obs, self._target_obs)
+        self._camera_actions[...], self._target_actions[...] = self._parse_action(action)
+        self._step_world()
         w = self._world
         target_reward = float(w.target_reward[0])
         infos = self._infos(target_reward)
@@ -228,14 +231,11 @@ class MultiAgentTracking(GameDescription, gym.Env):
                 self._team_infos(Team.TARGET, target_reward, shared))
 
     def _team_infos(self, team: Team, reward: float, shared: dict) -> list[dict]:
-        count = self._channel.num_agents(team)
-        edges = self._channel.edges(team)
-        out_edges, in_edges = edges.sum(axis=1), edges.sum(axis=0)
-        buffer = self._channel.buffer(team)
+        buffers, out_edges, in_edges = self._channel.step_summary(team)
         normalized = reward / self.params.max_target_team_episode_reward
-        return [{'raw_reward': reward, 'normalized_raw_reward': normalized, 'messages': buffer[i],
-                 'out_communication_edges': int(out_edges[i]), 'in_communication_edges': int(in_edges[i]),
-                 **shared} for i in range(count)]
+        return [{'raw_reward': reward, 'normalized_raw_reward': normalized, 'messages': messages,
+                 'out_communication_edges': out, 'in_communication_edges': into, **shared}
+                for messages, out, into in zip(buffers, out_edges, in_edges)]
 
     # ------------------------------------------------------------------ world access
     def joint_observation(self) -> tuple[np.ndarray, np.ndarray]:

@@ -106,8 +106,20 @@ class MessageChannel:
         """Per-episode edge counts of `team` up to the last `end_step`, int64 (N, N)."""
         return self._total_edges[_as_team(team)].copy()
 
+    def step_summary(self, team: Team) -> tuple[list[list[Message]], list[int], list[int]]:
+        """This step's messages delivered to each agent of `team` (fresh lists, as `buffer`) and
+        each agent's out- and in-edge counts (Python ints)."""
+        team = _as_team(team)
+        count = self._sizes[team]
+        if not self._sent_this_step:
+            return [[] for _ in range(count)], [0] * count, [0] * count
+        edges = self._edges[team]
+        return self.buffer(team), edges.sum(axis=1).tolist(), edges.sum(axis=0).tolist()
+
     def end_step(self) -> None:
         """Add this step's edges to the episode totals; clear per-step edges, buffers and queues."""
+        if not self._sent_this_step:
+            return  # nothing to add or clear
         for team, edges in self._edges.items():
             self._total_edges[team] += edges
         self._clear_step()
@@ -120,6 +132,7 @@ class MessageChannel:
 
     def _clear_step(self) -> None:
         """Fresh per-step edge matrices, buffers and queues (new lists: earlier results stay intact)."""
+        self._sent_this_step = False
         self._edges = {team: np.zeros((n, n), dtype=np.int64) for team, n in self._sizes.items()}
         self._buffers = {team: [[] for _ in range(n)] for team, n in self._sizes.items()}
         self._queues = {team: [[] for _ in range(n)] for team, n in self._sizes.items()}
@@ -150,6 +163,7 @@ class MessageChannel:
             ValueError: the messages belong to different teams, or a sender/recipient is out of range.
         """
         messages = self._validate(messages)
+        self._sent_this_step = self._sent_this_step or bool(messages)
         for message in self.route(messages):
             team = _as_team(message.team)
             self._queues[team][message.recipient].append(message)

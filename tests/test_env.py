@@ -116,6 +116,18 @@ def test_spaces_contain_the_observations(preset):
         (cam_obs, tgt_obs), *_ = env.step(_random_action(env, rng, scale=3.0))
 
 
+def test_unperceived_blocks_are_positive_zeros(env):
+    """Observations are built branch-free (values times a 0/1 flag); no -0.0 may leak out."""
+    rng = np.random.default_rng(4)
+    unseen = 0
+    for _ in range(50):
+        (cam_obs, tgt_obs), *_ = env.step(_random_action(env, rng))
+        for obs in (cam_obs, tgt_obs):
+            assert not (np.signbit(obs) & (obs == 0.0)).any()
+        unseen += int((cam_obs[:, 13 + 9 + 4::5][:, :8] == 0.0).sum())  # camera obs: target flags
+    assert unseen > 0  # some targets were out of sight, so zero blocks were written
+
+
 def test_action_space_samples_are_accepted(env):
     for _ in range(5):
         action = env.action_space.sample()

@@ -146,6 +146,21 @@ def test_end_step_clears_and_totals_accumulate():
     assert channel.total_edges(Team.CAMERA).sum() == 0
 
 
+def test_step_summary_quiet_and_busy_steps():
+    channel = MessageChannel(3, 1)
+    assert channel.step_summary(Team.CAMERA) == ([[], [], []], [0, 0, 0], [0, 0, 0])
+    channel.send([cam(0, 2), cam(1, None)])
+    buffers, out_edges, in_edges = channel.step_summary(Team.CAMERA)
+    assert [len(b) for b in buffers] == [1, 1, 2] and out_edges == [1, 3, 0] and in_edges == [1, 1, 2]
+    assert all(type(n) is int for n in out_edges + in_edges)
+    buffers[2].clear()  # fresh lists: the channel is not affected
+    assert len(channel.buffer(Team.CAMERA)[2]) == 2
+    channel.end_step()
+    channel.end_step()  # a quiet step keeps the totals and clears nothing it should keep
+    assert channel.step_summary(Team.CAMERA) == ([[], [], []], [0, 0, 0], [0, 0, 0])
+    assert channel.total_edges(Team.CAMERA).sum() == 4
+
+
 def test_reset_clears_pending_messages():
     channel = MessageChannel(2, 2)
     channel.send(cam(0, 1))
