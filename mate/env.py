@@ -46,7 +46,7 @@ from .constants import (
 from .core import engine
 from .core.params import params_from_config
 from .core.snapshot import get_snapshot, goal_bits, set_snapshot
-from .core.world import empty_world
+from .core.world import empty_world, target_headings
 from .messages import Message, MessageChannel, Team
 
 __all__ = ['MultiAgentTracking', 'GameDescription']
@@ -57,7 +57,7 @@ _ONE = np.ones(1, dtype=bool)
 _WORLD_VIEWS = {
     'tracked_steps': 'target_tracked_steps', 'target_steps': 'target_steps', 'freights': 'target_freight',
     'bounties': 'target_bounty', 'target_goals': 'target_goal', 'target_capacities': 'target_capacity',
-    'target_dones': 'target_done', 'target_orientations': 'target_heading', 'target_is_colliding': 'target_is_colliding',
+    'target_dones': 'target_done', 'target_is_colliding': 'target_is_colliding',
     'target_warehouse_distances': 'target_warehouse_distances', 'remaining_cargoes': 'remaining_cargoes',
     'awaiting_cargo_counts': 'awaiting_cargo_counts', 'camera_target_view_mask': 'camera_target_view_mask',
     'camera_obstacle_view_mask': 'camera_obstacle_view_mask', 'camera_camera_view_mask': 'camera_camera_view_mask',
@@ -130,8 +130,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
         self._camera_obs = np.zeros((1, nc, camera_observation_dim(nc, nt, no)))
         self._target_obs = np.zeros((1, nt, target_observation_dim(nc, nt, no)))
         self._camera_actions, self._target_actions = np.zeros((1, nc, 2)), np.zeros((1, nt, 2))
-        self._step_world = engine.bind_step(p, self._world, self._camera_actions, self._target_actions,
-                                            self._camera_obs, self._target_obs)
+        self._step_world = None  # the compiled step bound to these arrays, made by the first step
         self._channel = MessageChannel(nc, nt)
         self._needs_reset = True
         self._make_spaces()
@@ -175,6 +174,10 @@ class MultiAgentTracking(GameDescription, gym.Env):
         self._needs_reset = False
         return self._observations(), self._infos(0.0)
 
+    def __getstate__(self) -> dict:
+        """Copies and pickles rebind the compiled step to their own arrays on their first step."""
+        return {**self.__dict__, '_step_world': None}
+
     def _needs_seed(self) -> bool:
         return self._world.rng[0, 0] == 0 and self._world.rng[0, 1] == 0
 
@@ -183,6 +186,9 @@ class MultiAgentTracking(GameDescription, gym.Env):
         if self._needs_reset:
             raise RuntimeError('MultiAgentTracking: call reset() before step()')
         self._camera_actions[...], self._target_actions[...] = self._parse_action(action)
+        if self._step_world is None:
+            self._step_world = engine.bind_step(self.params, self._world, self._camera_actions, self._target_actions,
+                                                self._camera_obs, self._target_obs)
         self._step_world()
         w = self._world
         target_reward = float(w.target_reward[0])
@@ -381,6 +387,11 @@ class MultiAgentTracking(GameDescription, gym.Env):
         p = self.params
         return (f'<MultiAgentTracking>({count(p.num_cameras, "camera")}, {count(p.num_targets, "target")}, '
                 f'{count(p.num_obstacles, "obstacle")})')
+
+    @property
+    def target_orientations(self) -> np.ndarray:
+        """(Nt,) the direction each target faces (its last move), degrees in [-180, 180]."""
+        return target_headings(self._world, 0)
 
     # ------------------------------------------------------------------ read by mate.wrappers (begin)
     @property

@@ -128,6 +128,22 @@ def test_unperceived_blocks_are_positive_zeros(env):
     assert unseen > 0  # some targets were out of sight, so zero blocks were written
 
 
+def test_a_copied_env_steps_its_own_world(env):
+    import copy
+    import pickle
+    rng = np.random.default_rng(5)
+    env.step(_random_action(env, rng))
+    twins = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    before = env.get_world()
+    action = _random_action(env, rng)
+    results = [twin.step(action)[0] for twin in twins]
+    np.testing.assert_equal(env.get_world(), before)  # stepping the copies left the original alone
+    own = env.step(action)[0]
+    for got in results:
+        np.testing.assert_array_equal(got[0], own[0])
+        np.testing.assert_array_equal(got[1], own[1])
+
+
 def test_action_space_samples_are_accepted(env):
     for _ in range(5):
         action = env.action_space.sample()

@@ -109,4 +109,4 @@ def move_targets(p, w, b, actions):
         w.target_pos[b, t, 0], w.target_pos[b, t, 1] = nx, ny
         w.target_is_colliding[b, t] = abs(nx - wanted_x) > 1e-6 or abs(ny - wanted_y) > 1e-6
         if nx != ox or ny != oy:
-            w.target_heading[b, t] = math.degrees(math.atan2(ny - oy, nx - ox))
+            w.target_facing[b, t, 0], w.target_facing[b, t, 1] = nx - ox, ny - oy

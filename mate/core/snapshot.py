@@ -17,7 +17,7 @@ from ..constants import (
     TARGET_STATE_DIM_PRIVATE,
 )
 from .params import Params
-from .world import World
+from .world import World, target_headings
 
 INPUT_KEYS = (
     'camera_state', 'camera_orientation', 'camera_viewing_angle', 'camera_sight_range',
@@ -90,7 +90,7 @@ def get_snapshot(p: Params, w: World, b: int) -> dict:
         'num_delivered_cargoes': int(w.num_delivered_cargoes[b]),
         'episode_step': int(w.episode_step[b]),
         'target_is_colliding': w.target_is_colliding[b].copy(),
-        'target_heading': w.target_heading[b].copy(),
+        'target_heading': target_headings(w, b),
         'coverage_rate': float(w.coverage_rate[b]),
         'real_coverage_rate': float(w.real_coverage_rate[b]),
         'mean_transport_rate': float(w.mean_transport_rate[b]),

@@ -190,6 +190,7 @@ def reset_row(p, w, b):
         g = w.target_goal[b, t]
         if g >= 0:
             dx, dy = WAREHOUSES[g, 0] - w.target_pos[b, t, 0], WAREHOUSES[g, 1] - w.target_pos[b, t, 1]
-            w.target_heading[b, t] = math.degrees(math.atan2(dy, dx))
         else:
-            w.target_heading[b, t] = _sample(w.rng, b, -180.0, 180.0)
+            heading = math.radians(_sample(w.rng, b, -180.0, 180.0))
+            dx, dy = math.cos(heading), math.sin(heading)
+        w.target_facing[b, t, 0], w.target_facing[b, t, 1] = dx, dy

@@ -38,7 +38,7 @@ class World(NamedTuple):
     target_steps: np.ndarray           # (B, Nt) int64: steps since the last warehouse visit
     target_tracked_steps: np.ndarray   # (B, Nt) int64: tracked steps in that time
     target_is_colliding: np.ndarray    # (B, Nt) bool: last move altered by a disc or the border
-    target_heading: np.ndarray         # (B, Nt) degrees, for rendering
+    target_facing: np.ndarray          # (B, Nt, 2) direction the target faces (last move), for rendering
     target_done: np.ndarray            # (B, Nt) bool: delivered cargo this step
     target_warehouse_distances: np.ndarray  # (B, Nt, W) Euclidean distances to warehouse centres
     remaining_cargoes: np.ndarray      # (B, W, W) int64: units waiting at [src] for [dst]
@@ -75,7 +75,7 @@ def empty_world(params: Params, batch_size: int) -> World:
         'target_load': ((B, nt), i), 'target_empty_bits': ((B, nt, nw), z),
         'target_freight': ((B, nt), i), 'target_bounty': ((B, nt), i), 'target_steps': ((B, nt), i),
         'target_tracked_steps': ((B, nt), i), 'target_is_colliding': ((B, nt), z),
-        'target_heading': ((B, nt), f), 'target_done': ((B, nt), z),
+        'target_facing': ((B, nt, 2), f), 'target_done': ((B, nt), z),
         'target_warehouse_distances': ((B, nt, nw), f),
         'remaining_cargoes': ((B, nw, nw), i), 'awaiting_cargo_counts': ((B, nw), i),
         'num_delivered_cargoes': ((B,), i), 'episode_step': ((B,), i),
@@ -91,3 +91,10 @@ def empty_world(params: Params, batch_size: int) -> World:
     world.target_goal[:] = -1
     world.target_capacity[:] = 1
     return world
+
+
+def target_headings(world: World, b: int) -> np.ndarray:
+    """Row b's target headings in degrees, in [-180, 180]: the direction of `target_facing`
+    (stored as a vector so that the step never pays for an atan2)."""
+    facing = world.target_facing[b]
+    return np.degrees(np.arctan2(facing[:, 1], facing[:, 0]))
