@@ -126,6 +126,7 @@ def perceive(p, w, b):
         for o in range(p.num_obstacles):
             w.target_obstacle_view_mask[b, t, o] = _within(
                 tx, ty, w.obstacle_pos[b, o, 0], w.obstacle_pos[b, o, 1], p.target_sight_range + w.obstacle_radius[b, o])
-        for s in range(p.num_targets):
-            w.target_target_view_mask[b, t, s] = s == t or _within(
-                tx, ty, w.target_pos[b, s, 0], w.target_pos[b, s, 1], p.target_sight_range)
+        w.target_target_view_mask[b, t, t] = True
+        for s in range(t):  # every target has the same sight range: the mask is symmetric
+            seen = _within(tx, ty, w.target_pos[b, s, 0], w.target_pos[b, s, 1], p.target_sight_range)
+            w.target_target_view_mask[b, t, s] = w.target_target_view_mask[b, s, t] = seen
