@@ -58,7 +58,7 @@ _WORLD_VIEWS = {
     'tracked_steps': 'target_tracked_steps', 'target_steps': 'target_steps', 'freights': 'target_freight',
     'bounties': 'target_bounty', 'target_goals': 'target_goal', 'target_capacities': 'target_capacity',
     'target_dones': 'target_done', 'target_is_colliding': 'target_is_colliding',
-    'target_warehouse_distances': 'target_warehouse_distances', 'remaining_cargoes': 'remaining_cargoes',
+    'remaining_cargoes': 'remaining_cargoes',
     'awaiting_cargo_counts': 'awaiting_cargo_counts', 'camera_target_view_mask': 'camera_target_view_mask',
     'camera_obstacle_view_mask': 'camera_obstacle_view_mask', 'camera_camera_view_mask': 'camera_camera_view_mask',
     'target_camera_view_mask': 'target_camera_view_mask', 'target_obstacle_view_mask': 'target_obstacle_view_mask',
@@ -387,6 +387,11 @@ class MultiAgentTracking(GameDescription, gym.Env):
         p = self.params
         return (f'<MultiAgentTracking>({count(p.num_cameras, "camera")}, {count(p.num_targets, "target")}, '
                 f'{count(p.num_obstacles, "obstacle")})')
+
+    @property
+    def target_warehouse_distances(self) -> np.ndarray:
+        """(Nt, 4) Euclidean distances from each target to the warehouse centres (world units)."""
+        return np.linalg.norm(self._world.target_pos[0][:, None, :] - WAREHOUSES[None], axis=-1)
 
     @property
     def target_orientations(self) -> np.ndarray:

@@ -6,8 +6,6 @@ warehouse src for destination dst; `awaiting_cargo_counts[b, dst]` counts units 
 
 from __future__ import annotations
 
-import math
-
 from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
 from .jit import allocating_kernel, inline_kernel, kernel
 from .perception import is_tracked
@@ -84,10 +82,6 @@ def transport_cargoes(p, w, b):
             w.target_bounty[b, t] -= 1
         w.target_done[b, t] = False
     for t in range(p.num_targets):
-        for h in range(NUM_WAREHOUSES):
-            dx = w.target_pos[b, t, 0] - WAREHOUSES[h, 0]
-            dy = w.target_pos[b, t, 1] - WAREHOUSES[h, 1]
-            w.target_warehouse_distances[b, t, h] = math.sqrt(dx * dx + dy * dy)
         h = _warehouse_at(w, b, t)
         if h < 0:
             continue

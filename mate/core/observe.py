@@ -72,7 +72,7 @@ def _obstacle(w, b, o, out, k, f=1.0):
 # Flagged blocks: an entity's public state followed by a 1.0 flag when it is perceived, and zeros
 # in their place when it is not. The values are multiplied by the flag (`+ 0.0` turns the -0.0 of
 # a negative value times 0 into 0.0) instead of branching on the view mask: the masks are hard to
-# predict, and the branch-free version builds observations ~25% faster.
+# predict, and the branch-free version builds observations ~20% faster (docs/performance.md).
 
 @inline_kernel
 def _flagged_camera(p, w, b, c, visible, out, k):
