@@ -4,6 +4,7 @@ Ray installed) trains end to end on a local Ray instance."""
 from __future__ import annotations
 
 import importlib.util
+import sys
 
 import pytest
 
@@ -19,8 +20,12 @@ def test_the_command_parses_without_ray():
     assert args.opponent == 'greedy' and args.num_env_runners == 0
 
 
-@pytest.mark.skipif(HAS_RLLIB, reason='Ray RLlib is installed')
-def test_without_ray_the_command_explains_how_to_install_it(capsys):
+def test_without_ray_the_command_explains_how_to_install_it(capsys, monkeypatch):
+    import mate.integrations
+    for name in ['ray', *(name for name in sys.modules if name.startswith('ray.'))]:
+        monkeypatch.setitem(sys.modules, name, None)  # importing ray now fails, installed or not
+    monkeypatch.delitem(sys.modules, 'mate.integrations.rllib', raising=False)
+    monkeypatch.delattr(mate.integrations, 'rllib', raising=False)
     assert cli.main(['rllib-train', '--iterations', '1']) == 2
     assert "pip install 'mate[rllib]'" in capsys.readouterr().out.replace('\n', '')
 
