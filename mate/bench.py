@@ -76,23 +76,38 @@ def measure_batched_core(preset: str, batch_size: int, seconds: float = 2.0, dty
 
 
 def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16384), seconds: float = 2.0,
-        float32: bool = True, progress=None) -> list[dict]:
-    """Every measurement of the protocol; `progress(str)` is called before each one."""
+        float32: bool = True, progress=None, repeat: int = 1) -> list[dict]:
+    """Every measurement of the protocol; `progress(str)` is called before each one.
+
+    With `repeat` > 1 the whole plan runs that many rounds and each result keeps its best round
+    (`env_steps_per_second`, as `timeit` reports its fastest run: a shared machine's noise only
+    ever slows a run down), the median and every round (`rounds`).
+    """
+    if repeat < 1:
+        raise ValueError(f'repeat must be at least 1, got {repeat}')
     plan = []
     for preset in presets:
         plan.append(('single', preset, 1, np.float64))
         plan.extend(('batched', preset, b, np.float64) for b in batch_sizes)
         if float32:
             plan.extend(('batched', preset, b, np.float32) for b in batch_sizes if b >= 1024)
+    rounds = [[] for _ in plan]
+    for round_index in range(repeat):
+        for (kind, preset, batch_size, dtype), seen in zip(plan, rounds):
+            if progress:
+                progress(f'{preset} {kind} B={batch_size} {np.dtype(dtype).name}'
+                         + (f' (round {round_index + 1}/{repeat})' if repeat > 1 else ''))
+            if kind == 'single':
+                seen.append(measure_single_env(preset, seconds))
+            else:
+                seen.append(measure_batched_core(preset, batch_size, seconds, dtype))
     results = []
-    for kind, preset, batch_size, dtype in plan:
-        if progress:
-            progress(f'{preset} {kind} B={batch_size} {np.dtype(dtype).name}')
-        if kind == 'single':
-            result = measure_single_env(preset, seconds)
-        else:
-            result = measure_batched_core(preset, batch_size, seconds, dtype)
-        original = ORIGINAL_STEPS_PER_SECOND.get(preset)
+    for seen in rounds:
+        rates = [r['env_steps_per_second'] for r in seen]
+        result = dict(max(seen, key=lambda r: r['env_steps_per_second']))
+        if repeat > 1:
+            result.update(median_env_steps_per_second=float(np.median(rates)), rounds=rates)
+        original = ORIGINAL_STEPS_PER_SECOND.get(result['preset'])
         result['speedup_vs_original'] = result['env_steps_per_second'] / original if original else None
         results.append(result)
     return results

@@ -16,6 +16,17 @@ console = Console()
 TEAM_CHOICES = ('both', 'camera', 'target', 'none')
 
 
+def _positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
+    return value
+
+
 def _bench(args: argparse.Namespace) -> int:
     from . import bench
 
@@ -23,14 +34,17 @@ def _bench(args: argparse.Namespace) -> int:
     seconds = 0.5 if args.quick else args.seconds
     with console.status('compiling and measuring...') as status:
         results = bench.run(args.presets, batch_sizes, seconds, float32=not args.quick,
-                            progress=lambda text: status.update(f'measuring {text}'))
-    table = Table(title='mate throughput (random actions, observations built)')
-    for column in ('preset', 'what', 'B', 'obs dtype', 'env-steps/s', 'x original'):
-        table.add_column(column, justify='right' if column in ('B', 'env-steps/s', 'x original') else 'left')
+                            progress=lambda text: status.update(f'measuring {text}'), repeat=args.repeat)
+    columns = ['preset', 'what', 'B', 'obs dtype', 'env-steps/s'] + (['median'] if args.repeat > 1 else []) + ['x original']
+    rounds = f', best of {args.repeat} rounds' if args.repeat > 1 else ''
+    table = Table(title=f'mate throughput (random actions, observations built{rounds})')
+    for column in columns:
+        table.add_column(column, justify='left' if column in ('preset', 'what', 'obs dtype') else 'right')
     for r in results:
         speedup = f"{r['speedup_vs_original']:,.0f}x" if r['speedup_vs_original'] else '-'
+        median = [f"{r['median_env_steps_per_second']:,.0f}"] if args.repeat > 1 else []
         table.add_row(r['preset'], r['kind'], str(r['batch_size']), r['dtype'],
-                      f"{r['env_steps_per_second']:,.0f}", speedup)
+                      f"{r['env_steps_per_second']:,.0f}", *median, speedup)
     console.print(table)
     facts = bench.machine_facts()
     console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}")
@@ -181,6 +195,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--presets', nargs='+', default=['MATE-4v8-9', 'MATE-8v8-9'])
     bench.add_argument('--batch-sizes', nargs='+', type=int, default=[1, 64, 1024, 4096, 16384])
     bench.add_argument('--seconds', type=float, default=2.0, help='time per measurement (default 2)')
+    bench.add_argument('--repeat', type=_positive_int, default=1,
+                       help='rounds of the whole plan; report each measurement\'s best round and the median (default 1)')
     bench.add_argument('--quick', action='store_true', help='small batches, 0.5 s each, no float32 runs')
     bench.add_argument('--json', default=None, help='also write the results to this JSON file')
     bench.set_defaults(run=_bench)
