@@ -523,3 +523,21 @@ def test_read_only_views_follow_the_world(env):
     np.testing.assert_array_equal(env.bounties, world['target_bounty'])
     np.testing.assert_array_equal(env.remaining_cargoes, world['remaining_cargoes'])
     assert env.episode_step == world['episode_step'] == 1
+
+
+def test_headings_and_warehouse_distances_are_derived_when_read(env):
+    """Targets face their last move; distances to the warehouse centres follow the locations."""
+    from mate.constants import WAREHOUSES
+    before = env.get_world()['target_state'][:, :2].copy()
+    rng = np.random.default_rng(6)
+    env.step(_random_action(env, rng))
+    after = env.get_world()
+    moved = after['target_state'][:, :2] - before
+    assert (np.abs(moved).sum(axis=1) > 0).any()
+    for t in np.flatnonzero(np.abs(moved).sum(axis=1) > 0):
+        expected = np.degrees(np.arctan2(moved[t, 1], moved[t, 0]))
+        assert env.target_orientations[t] == pytest.approx(expected)
+        assert after['target_heading'][t] == pytest.approx(expected)
+    expected_distances = np.hypot(*(after['target_state'][:, None, :2] - WAREHOUSES[None]).transpose(2, 0, 1))
+    np.testing.assert_allclose(env.target_warehouse_distances, expected_distances)
+    assert env.target_warehouse_distances.shape == (env.num_targets, 4)
