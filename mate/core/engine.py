@@ -113,12 +113,17 @@ _refresh_rows = njit(cache=True, nogil=True, _nrt=False)(_refresh_rows)
 _POOL: ThreadPoolExecutor | None = None
 
 
+def _num_workers(batch_size: int) -> int:
+    """Threads a batch of `batch_size` rows is split over (1: run on the calling thread)."""
+    return min(NUM_THREADS, batch_size // PARALLEL_MIN_ROWS)
+
+
 def _run(kernel, params: Params, world: World, *row_arrays) -> None:
     """Run `kernel(params, world, *row_arrays)` over all rows, split into contiguous chunks
     on a thread pool when the batch is large (the kernels release the GIL)."""
     global _POOL
     batch_size = len(world.episode_step)
-    workers = min(NUM_THREADS, batch_size // PARALLEL_MIN_ROWS)
+    workers = _num_workers(batch_size)
     if workers <= 1:
         kernel(params, world, *row_arrays)
         return
@@ -161,7 +166,7 @@ def bind_step(params: Params, world: World, camera_actions: np.ndarray, target_a
     once here, which skips numba's per-call typing of the ~40 world arrays (about 7 of the
     10 us a B = 1 call costs). Batches large enough for the thread pool get plain `step`."""
     args = (params, world, camera_actions, target_actions, camera_obs, target_obs)
-    if min(NUM_THREADS, len(world.episode_step) // PARALLEL_MIN_ROWS) > 1:
+    if _num_workers(len(world.episode_step)) > 1:
         return functools.partial(step, *args)
     compiled = _step_rows.compile(tuple(numba.typeof(arg) for arg in args))
     return functools.partial(compiled, *args)
