@@ -33,8 +33,10 @@ from .world import World
 
 NUM_THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1)
 """Threads that share a large batch (the cores this process may use)."""
-PARALLEL_MIN_ROWS = 32
-"""Each thread gets at least this many rows; smaller batches run on the calling thread."""
+PARALLEL_MIN_ROWS = 256
+"""Each thread gets at least this many rows; smaller batches run on the calling thread. Handing
+work to the pool costs ~100-250 us per call on our VMs, about what 100-150 rows take: with 32
+rows per thread, B = 64 ran 3x slower on two threads than on one (docs/performance.md)."""
 
 
 @inline_kernel

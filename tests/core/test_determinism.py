@@ -120,12 +120,17 @@ def test_fresh_envs_without_seed_are_seeded_from_entropy():
     assert not np.array_equal(tgt_a, tgt_b)
 
 
-@pytest.mark.parametrize('rows', [5, 40, 67])
-def test_batch_equals_single_envs(rows):
+@pytest.mark.parametrize('rows, chunks', [(5, 1), (40, 1), (67, 2)])
+def test_batch_equals_single_envs(rows, chunks, monkeypatch):
     """Row i of a batch seeded [s_0 .. s_{B-1}] plays exactly like a single env reset with s_i.
 
     Small batches run on the calling thread; large ones are split into chunks that run in
-    parallel (67 rows: two uneven chunks on a 2-core machine)."""
+    parallel. The 67-row case lowers the split threshold so that it runs as two uneven chunks
+    on the thread pool."""
+    if chunks > 1:
+        monkeypatch.setattr(engine, 'NUM_THREADS', chunks)
+        monkeypatch.setattr(engine, 'PARALLEL_MIN_ROWS', rows // chunks)
+    assert max(1, engine._num_workers(rows)) == chunks
     steps = 60 if rows > 10 else STEPS
     params = params_from_config(mate.read_config(PRESET))
     counts = (params.num_cameras, params.num_targets, params.num_obstacles)
