@@ -27,13 +27,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="policy network: 'mlp' (paper) or, for cameras, 'per-target' (one shared scorer per target "
                              "slot); default per-target for cameras, mlp for targets")
     parser.add_argument('--paper', action='store_true',
-                        help="the paper's MLP actor and its schedules stretched over 10M steps (lr 5e-4 -> 1e-4 @4M -> "
-                             "5e-5 @8M; entropy 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M); explicit options still win")
+                        help="the paper's MLP actor, its adaptive KL penalty (0.2, target 0.01) and its schedules "
+                             "stretched over 10M steps (lr 5e-4 -> 1e-4 @4M -> 5e-5 @8M; entropy 0.05 -> 0.01 @2M -> "
+                             "0.001 @4M -> 0 @10M); explicit options still win")
     parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
                         help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
+    parser.add_argument('--kl-coeff', type=float, default=None,
+                        help='initial coefficient of the adaptive KL penalty (RLlib and the paper: 0.2); '
+                             'default 0: off (0.2 with --paper)')
+    parser.add_argument('--kl-target', type=float, default=0.01,
+                        help='KL per iteration the penalty adapts towards (x1.5 above twice, x0.5 below half; default 0.01)')
     parser.add_argument('--entropy-schedule', default=None, metavar='JSON',
                         help='[[step, coef], ...] piecewise linear (default 0.01 -> 0.001 @1M -> 0 @3M)')
     parser.add_argument('--lr-schedule', default=None, metavar='JSON',
@@ -79,6 +85,12 @@ def config_from_args(args: argparse.Namespace):
                 raise SystemExit(f'mate train: --{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
     if args.hrl and args.team != 'camera':
         raise SystemExit('mate train: --hrl exists for cameras only')
+    if args.kl_coeff is not None:
+        if not args.kl_coeff >= 0:
+            raise SystemExit(f'mate train: --kl-coeff must be >= 0 (0 = no KL penalty), got {args.kl_coeff}')
+        extra['kl_coeff'] = args.kl_coeff
+    if not args.kl_target > 0:
+        raise SystemExit(f'mate train: --kl-target must be > 0, got {args.kl_target}')
     if args.lstm < 0:
         raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
     if args.actor == 'per-target' and args.team != 'camera':
@@ -86,7 +98,7 @@ def config_from_args(args: argparse.Namespace):
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                      num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
-                     gae_lambda=args.gae_lambda, torch_threads=args.threads, snapshot_every=args.snapshot_every,
+                     gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads, snapshot_every=args.snapshot_every,
                      lstm=args.lstm, hrl=args.hrl, init_from=args.init_from, **_env(args.config), **extra)
 
 

@@ -15,8 +15,8 @@ piecewise functions of decision steps, as in spec training.md §1.6.
 
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
-is a flag away), no adaptive KL penalty, gradient-norm clipping at 10, horizon cuts bootstrap from the
-critic instead of counting as terminal.
+is a flag away), no adaptive KL penalty unless `kl_coeff` > 0 (`--paper` turns on RLlib's 0.2 / target
+0.01), gradient-norm clipping at 10, horizon cuts bootstrap from the critic instead of counting as terminal.
 """
 
 from __future__ import annotations
@@ -49,11 +49,13 @@ __all__ = [
     'PerTargetActor',
     'RecurrentActor',
     'action_distribution',
+    'adapt_kl_coeff',
     'compute_gae',
     'make_actor',
     'minibatch_rows',
     'piecewise',
     'ppo_policy_loss',
+    'sampled_kl',
     'train',
 ]
 
@@ -82,6 +84,8 @@ class PPOConfig:
     gae_lambda: float = 0.95
     clip: float = 0.3
     value_coef: float = 1.0
+    kl_coeff: float = 0.0                # initial coefficient of the adaptive KL penalty; 0: off (RLlib/paper: 0.2)
+    kl_target: float = 0.01              # the penalty's coefficient adapts towards this KL per iteration
     max_grad_norm: float | None = 10.0
     hidden: tuple = (256, 256)
     activation: str = 'tanh'
@@ -122,6 +126,7 @@ PAPER_HYPERPARAMETERS = dict(
     mask_invisible=False,
     lr_schedule=((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)),
     entropy_schedule=((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
+    kl_coeff=0.2,
 )
 """The paper's settings where `PPOConfig`'s defaults differ (spec training.md §1.5-1.6; `mate train --paper`).
 Our defaults are tuned for budgets of a few million decision steps (docs/training.md has the measurements):
@@ -461,6 +466,23 @@ def minibatch_rows(T: int, B: int, minibatches: int, sequences: bool, generator)
     return [(torch.arange(T)[:, None] * B + group[None, :]).reshape(-1) for group in groups]
 
 
+def sampled_kl(new_logp, old_logp) -> torch.Tensor:
+    """KL(old || new) estimated on actions drawn from the old policy: E[(r - 1) - log r], r = new/old
+    probability. Non-negative per sample, unbiased (E_old[r] = 1), and differentiable in `new_logp`."""
+    log_ratio = new_logp - old_logp
+    return (torch.exp(log_ratio) - 1.0 - log_ratio).mean()
+
+
+def adapt_kl_coeff(coeff: float, kl: float, target: float) -> float:
+    """RLlib's adaptive KL rule, applied once per iteration to the iteration's mean KL: x1.5 above twice
+    the target, x0.5 below half of it, unchanged in between."""
+    if kl > 2.0 * target:
+        return coeff * 1.5
+    if kl < 0.5 * target:
+        return coeff * 0.5
+    return coeff
+
+
 def ppo_policy_loss(new_logp, old_logp, advantages, clip: float) -> torch.Tensor:
     """Clipped surrogate objective, as a loss to minimise: -E[min(r A, clip(r, 1-e, 1+e) A)]."""
     ratio = torch.exp(new_logp - old_logp)
@@ -484,10 +506,13 @@ class Logger:
 
     def write(self, row: dict) -> None:
         if self.fields is None:
-            self.fields = list(row)
-            mode = 'a' if self.append else 'w'
-            with open(self.path, mode, newline='') as f:
-                if mode == 'w':
+            header = None
+            if self.append:   # a resumed run keeps its file's columns (a newer version's extra ones are dropped)
+                with open(self.path, newline='') as f:
+                    header = next(csv.reader(f), None)
+            self.fields = header or list(row)
+            if header is None:
+                with open(self.path, 'w', newline='') as f:
                     csv.DictWriter(f, self.fields).writeheader()
         with open(self.path, 'a', newline='') as f:
             csv.DictWriter(f, self.fields, extrasaction='ignore').writerow(row)
@@ -535,6 +560,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
     env_steps, iteration, wall_before = 0, 0, 0.0     # wall_before: training seconds of earlier sessions
+    kl_coeff = config.kl_coeff                          # adapts every iteration (`adapt_kl_coeff`)
     checkpoint_path = run_dir / 'checkpoint.pt'
     if resume and checkpoint_path.exists():
         saved = load_checkpoint(checkpoint_path, expect=dict(meta, algo=config.algo))
@@ -543,6 +569,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         value_norm.load_state_dict(saved['value_norm'])
         optimizer.load_state_dict(saved['optimizer'])
         env_steps, iteration = saved['env_steps'], saved['iteration']
+        kl_coeff = float(saved.get('kl_coeff', config.kl_coeff))
         wall_before = float(saved.get('wall_seconds', 0.0))
     elif config.init_from:
         _warm_start(config.init_from, dict(meta, algo=config.algo), actor, critic, value_norm)
@@ -552,7 +579,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         save_checkpoint(path, dict(actor=actor.state_dict(), critic=critic.state_dict(),
                                    value_norm=value_norm.state_dict(), optimizer=optimizer.state_dict(),
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
-                                   wall_seconds=wall_before + time.perf_counter() - start,
+                                   kl_coeff=kl_coeff, wall_seconds=wall_before + time.perf_counter() - start,
                                    meta=dict(meta, algo=config.algo)))
 
     def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
@@ -659,6 +686,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
                     entropy = dist.entropy().sum(-1).mean()
                     loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
+                    if kl_coeff > 0:
+                        loss = loss + kl_coeff * sampled_kl(new_logp, b_logp[idx])
                     optimizer.zero_grad()
                     loss.backward()
                     if config.max_grad_norm:
@@ -666,13 +695,16 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     optimizer.step()
                     with torch.no_grad():
                         log_ratio = new_logp - b_logp[idx]
-                        stats['approx_kl'] += float(((log_ratio.exp() - 1) - log_ratio).mean())
+                        stats['approx_kl'] += float(sampled_kl(new_logp, b_logp[idx]))
                         stats['clip_fraction'] += float(((log_ratio.exp() - 1).abs() > config.clip).float().mean())
                     stats['policy_loss'] += policy_loss.item()
                     stats['value_loss'] += value_loss.item()
                     stats['entropy'] += entropy.item()
                     updates += 1
             iteration += 1
+            row_kl_coeff = kl_coeff                     # the coefficient this iteration used
+            if kl_coeff > 0:
+                kl_coeff = adapt_kl_coeff(kl_coeff, stats['approx_kl'] / updates, config.kl_target)
 
             # ---- log
             elapsed = time.perf_counter() - start
@@ -686,7 +718,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                        episode_normalized_target_return=float(np.mean([e.get('raw_return', np.nan) for e in recent]))
                        if recent else float('nan'),
                        episodes=len(recent), lr=lr, entropy_coef=entropy_coef,
-                       **{k: v / updates for k, v in stats.items()})
+                       **{k: v / updates for k, v in stats.items()}, kl_coeff=row_kl_coeff)
             logger.write(row)
             if callback is not None:
                 callback(row)

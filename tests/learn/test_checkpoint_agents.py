@@ -1,3 +1,5 @@
+import csv
+
 import numpy as np
 import pytest
 import torch
@@ -60,7 +62,13 @@ def test_resume_continues_and_mismatch_is_refused(tmp_path):
     saved = load_checkpoint(tmp_path / 'checkpoint.pt')
     assert saved['wall_seconds'] >= rows[-1]['wall_seconds'] - 0.01
     save_checkpoint(tmp_path / 'checkpoint.pt', dict(saved, wall_seconds=1000.0))   # as if trained 1000 s before
+    log = tmp_path / 'progress.csv'   # as if written by a version that logged one column less
+    log.write_text('\n'.join(','.join(line.split(',')[:-1]) for line in log.read_text().splitlines()) + '\n')
     _, more = _tiny_camera_checkpoint(tmp_path, total=4 * 8 * 8)   # resumes at 128 steps
+    with open(log, newline='') as f:
+        logged = list(csv.DictReader(f))
+    assert len(logged) == 4 and all(None not in row for row in logged)   # no row longer than the header
+    assert [int(row['iteration']) for row in logged] == [1, 2, 3, 4]
     assert more[0]['iteration'] == 3 and more[-1]['env_steps'] == 256
     assert 1000.0 < more[0]['wall_seconds'] <= more[-1]['wall_seconds']   # wall time continues over sessions
     with pytest.raises(CheckpointError, match='algo'):
@@ -114,6 +122,14 @@ def test_cli_train_defaults_and_paper_settings():
     paper = config_from_args(parse(['train', 'mappo', '--paper']))
     assert paper.actor == 'mlp' and paper.lr_schedule == PAPER_HYPERPARAMETERS['lr_schedule']
     assert paper.entropy_schedule == PAPER_HYPERPARAMETERS['entropy_schedule']
+    assert camera.kl_coeff == 0.0 and paper.kl_coeff == 0.2 and paper.kl_target == 0.01
+    assert config_from_args(parse(['train', 'mappo', '--paper', '--kl-coeff', '0'])).kl_coeff == 0.0
+    tuned = config_from_args(parse(['train', 'mappo', '--kl-coeff', '0.5', '--kl-target', '0.02']))
+    assert (tuned.kl_coeff, tuned.kl_target) == (0.5, 0.02)
+    with pytest.raises(SystemExit, match='--kl-coeff must be >= 0'):
+        config_from_args(parse(['train', 'mappo', '--kl-coeff', '-1']))
+    with pytest.raises(SystemExit, match='--kl-target must be > 0'):
+        config_from_args(parse(['train', 'mappo', '--kl-target', '0']))
     mixed = config_from_args(parse(['train', 'mappo', '--paper', '--actor', 'per-target',
                                     '--entropy-schedule', '[[0, 0.02]]']))
     assert mixed.actor == 'per-target' and mixed.entropy_schedule == ((0, 0.02),)

@@ -6,12 +6,14 @@ from mate.learn.ppo import (
     PPOConfig,
     RecurrentActor,
     ValueNormalizer,
+    adapt_kl_coeff,
     compute_gae,
     critic_inputs,
     minibatch_rows,
     per_agent,
     piecewise,
     ppo_policy_loss,
+    sampled_kl,
     train,
 )
 
@@ -98,6 +100,48 @@ def test_tiny_run_improves_return(tmp_path, algo):
     assert first < 0.45                  # random: 0.25 of the agents match their cue
     assert last > 0.8, [round(r['rollout_coverage'], 3) for r in rows]
     assert (tmp_path / 'progress.csv').read_text().count('\n') == len(rows) + 1
+
+
+def test_sampled_kl_estimates_the_exact_kl_and_is_zero_for_the_same_policy():
+    old = torch.distributions.Categorical(logits=torch.tensor([2.0, 0.0, -1.0, 0.5]))
+    new = torch.distributions.Categorical(logits=torch.tensor([1.0, 0.5, -0.5, 0.0]))
+    actions = old.sample((200_000,), )
+    estimate = sampled_kl(new.log_prob(actions), old.log_prob(actions))
+    exact = torch.distributions.kl_divergence(old, new)
+    assert abs(float(estimate) - float(exact)) < 0.01 * float(exact) + 1e-3
+    logp = old.log_prob(actions[:10])
+    assert float(sampled_kl(logp, logp)) == 0.0
+    # differentiable in the new log-probabilities, and pushing them towards the old ones lowers it
+    new_logp = new.log_prob(actions[:1000]).clone().requires_grad_()
+    loss = sampled_kl(new_logp, old.log_prob(actions[:1000]))
+    loss.backward()
+    stepped = sampled_kl(new_logp.detach() - 0.1 * new_logp.grad / new_logp.grad.norm(), old.log_prob(actions[:1000]))
+    assert float(stepped) < loss.item()
+
+
+def test_adaptive_kl_rule():
+    assert adapt_kl_coeff(0.2, 0.03, 0.01) == pytest.approx(0.3)     # above 2 x target: x1.5
+    assert adapt_kl_coeff(0.2, 0.004, 0.01) == pytest.approx(0.1)    # below target / 2: x0.5
+    assert adapt_kl_coeff(0.2, 0.01, 0.01) == 0.2
+    assert adapt_kl_coeff(0.2, 0.02, 0.01) == 0.2 and adapt_kl_coeff(0.2, 0.005, 0.01) == 0.2
+
+
+def test_kl_penalty_adapts_during_training_and_is_logged(tmp_path):
+    """With a tiny target the measured KL stays above it, so the coefficient grows by 1.5 every
+    iteration; the row reports the coefficient the iteration used, the checkpoint the next one."""
+    rows = []
+    config = PPOConfig(actor='mlp', total_steps=8 * 8 * 4, num_envs=8, rollout_length=8, epochs=2,
+                       hidden=(16,), lr_schedule=((0, 3e-3),), kl_coeff=0.2, kl_target=1e-9, seed=0)
+    train(config, tmp_path, progress=False, callback=rows.append,
+          envs=CueMatching(num_envs=8, num_agents=2, num_actions=4))
+    assert [round(r['kl_coeff'], 6) for r in rows] == [round(0.2 * 1.5 ** i, 6) for i in range(4)]
+    assert all(r['approx_kl'] > 0 for r in rows)
+    from mate.learn import load_checkpoint
+    assert load_checkpoint(tmp_path / 'checkpoint.pt')['kl_coeff'] == pytest.approx(0.2 * 1.5 ** 4)
+    off = []
+    train(PPOConfig(actor='mlp', total_steps=8 * 8, num_envs=8, rollout_length=8, hidden=(16,), seed=0),
+          tmp_path / 'off', progress=False, callback=off.append, envs=CueMatching(num_envs=8, num_agents=2, num_actions=4))
+    assert off[0]['kl_coeff'] == 0.0
 
 
 def test_minibatch_rows_cover_the_rollout_once():
