@@ -306,6 +306,16 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return (rng.uniform(cam.low, cam.high, (B, p.num_cameras, 2)),
                 rng.uniform(tgt.low, tgt.high, (B, p.num_targets, 2)))
 
+    @property
+    def obstacle_states(self) -> np.ndarray:
+        """(B, No, 3) obstacle [x, y, r] per env and slot (a fresh array)."""
+        return np.concatenate([self._world.obstacle_pos, self._world.obstacle_radius[..., None]], axis=-1)
+
+    @property
+    def remaining_cargoes(self) -> np.ndarray:
+        """(B, 4, 4) int units waiting at warehouse `src` (rows) for destination `dst` (a copy)."""
+        return self._world.remaining_cargoes.copy()
+
     def state(self) -> np.ndarray:
         """Every env's global state vector: a fresh (B, S) array in `observation_dtype`."""
         out = np.empty(self.state_space.shape, dtype=self.observation_dtype)

@@ -6,7 +6,9 @@
 Experiments (spec training.md §0): cameras (flat and HRL) vs batched greedy targets on MATE-4v8-9 (frame
 skip 5, coverage-rate reward; curve: rollout coverage rate) and targets vs batched greedy cameras on
 MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward; curve: episode target reward normalised by the
-preset's maximum). The dashed line is the greedy agent of the trained team in the same setting (batched
+preset's maximum), and the paper's Fig. 6 observability ablation (`target-2v4-0-full-obs`: the same
+targets seeing every entity, drawn with the partial-observability runs in `targets-2v4-0-observability`).
+The dashed line is the greedy agent of the trained team in the same setting (batched
 greedy opponents, training-length episodes), measured when plotting. Runs go to OUT/runs/NAME-seedS and
 resume after an interruption (`mate train` checkpoints). `--jobs 2` runs two trainings at a time.
 """
@@ -23,20 +25,25 @@ from pathlib import Path
 import numpy as np
 
 EXPERIMENTS = {
-    # name: (mate train arguments, figure, metric column, y label)
+    # name: (mate train arguments, figure(s), metric column, y label)
     'camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9'], 'cameras-4v8-9', 'rollout_coverage',
                      'mean coverage rate'),
     # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
     'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl',
                           '--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]'], 'cameras-4v8-9',
                          'rollout_coverage', 'mean coverage rate'),
-    'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], 'targets-2v4-0',
+    'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], ('targets-2v4-0', 'targets-2v4-0-observability'),
                      'episode_normalized_target_return', 'normalised target episode reward'),
+    # the paper's Fig. 6 ablation: the same, with the targets seeing everything (EnhancedObservation)
+    'target-2v4-0-full-obs': (['--team', 'target', '--config', 'MATE-2v4-0', '--full-observability'],
+                              'targets-2v4-0-observability', 'episode_normalized_target_return',
+                              'normalised target episode reward'),
     'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], 'targets-4v8-0',
                      'episode_normalized_target_return', 'normalised target episode reward'),
 }
 FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0': ('target', 'MATE-2v4-0-v0'),
-                   'targets-4v8-0': ('target', 'MATE-4v8-0-v0')}
+                   'targets-4v8-0': ('target', 'MATE-4v8-0-v0'),
+                   'targets-2v4-0-observability': ('target', 'MATE-2v4-0-v0')}
 
 
 def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) -> float:
@@ -89,8 +96,9 @@ def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
     import matplotlib.pyplot as plt
 
     figures = {}
-    for name, (_, figure, column, label) in EXPERIMENTS.items():
-        figures.setdefault(figure, []).append((name, column, label))
+    for name, (_, names, column, label) in EXPERIMENTS.items():
+        for figure in (names,) if isinstance(names, str) else names:
+            figures.setdefault(figure, []).append((name, column, label))
     for figure, members in figures.items():
         fig, ax = plt.subplots(figsize=(6, 4))
         drawn = False
@@ -105,7 +113,8 @@ def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
                 ys = np.array([np.interp(grid, x, y) for x, y in curves])
                 mean, std = ys.mean(0), ys.std(0)
                 prefix = 'HRL-' if name.startswith('hrl') else ''
-                ax.plot(grid, mean, label=f'{prefix}{algo.upper()} ({len(ys)} seed{"s" * (len(ys) > 1)})')
+                suffix = (', full obs.' if name.endswith('full-obs') else ', partial obs.') if 'observability' in figure else ''
+                ax.plot(grid, mean, label=f'{prefix}{algo.upper()}{suffix} ({len(ys)} seed{"s" * (len(ys) > 1)})')
                 ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
                 drawn = True
         if not drawn:

@@ -2,7 +2,7 @@
 
 Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
 'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
-observation/state dims, agent and action counts, algo)}. Loaded with `weights_only=True`.
+observation/state dims, agent and action counts, algo, observability)}. Loaded with `weights_only=True`.
 """
 
 from __future__ import annotations
@@ -16,6 +16,8 @@ __all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_chec
 
 CHECKPOINT_FORMAT = 'mate.learn/1'
 REQUIRED = ('actor', 'meta', 'config')
+META_DEFAULTS = {'full_observability': False}
+"""Values of meta keys added after the first checkpoints were written (files without them have these)."""
 
 
 class CheckpointError(ValueError):
@@ -51,7 +53,7 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
         raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
     meta = data['meta']
     for key, value in (expect or {}).items():
-        if meta.get(key) != value:
+        if meta.get(key, META_DEFAULTS.get(key)) != value:
             raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: {key} is '
                                   f'{meta.get(key)!r} in the checkpoint, {value!r} here')
     return data

@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "0.001 @4M -> 0 @10M); explicit options still win")
     parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
                         help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
+    parser.add_argument('--full-observability', action='store_true',
+                        help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
+                             'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
@@ -98,8 +101,10 @@ def config_from_args(args: argparse.Namespace):
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                      num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
-                     gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads, snapshot_every=args.snapshot_every,
-                     lstm=args.lstm, hrl=args.hrl, init_from=args.init_from, **_env(args.config), **extra)
+                     gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
+                     snapshot_every=args.snapshot_every,
+                     lstm=args.lstm, hrl=args.hrl, full_observability=args.full_observability,
+                     init_from=args.init_from, **_env(args.config), **extra)
 
 
 def run(args: argparse.Namespace, console) -> int:
@@ -107,7 +112,7 @@ def run(args: argparse.Namespace, console) -> int:
     from .ppo import train
 
     config = config_from_args(args)
-    name = f'hrl-{args.algo}' if args.hrl else args.algo
+    name = (f'hrl-{args.algo}' if args.hrl else args.algo) + ('-full-obs' if args.full_observability else '')
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     resolved = config.resolved()
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({resolved.actor} actor, frame skip '

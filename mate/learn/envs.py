@@ -12,7 +12,10 @@ What a learner sees per decision step (the paper's wrapper stack, done on arrays
   unbounded counters log-compressed (`compress`);
 * episodes cut at `horizon` raw steps (the paper: 500 decisions);
 * `hrl=True` (cameras): the action is one keep/ignore bit per target slot, (B, Nc, Nt), and the rule
-  executor of `mate.learn.hrl` turns it into rotation/zoom at every raw step of the held decision.
+  executor of `mate.learn.hrl` turns it into rotation/zoom at every raw step of the held decision;
+* `full_observability=True`: the trained team's raw observations go through `enhance_observations`
+  (the `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are
+  empty), the paper's Fig. 6 ablation; the opponent keeps its partial view.
 
 Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
 ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
@@ -35,6 +38,7 @@ from ..messages import Team
 from ..spaces import observation_indices_of
 from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
+from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .hrl import executor_actions
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
@@ -92,11 +96,13 @@ class TeamVecEnv:
 
     def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
                  frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
-                 seed: int | None = 0, config=None, hrl: bool = False, **overrides) -> None:
+                 seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
+                 **overrides) -> None:
         team = as_team(team)
         if hrl and team is not Team.CAMERA:
             raise ValueError('HRL (target selection + rule executor) exists for cameras only')
         self.hrl = bool(hrl)
+        self.full_observability = bool(full_observability)
         defaults = PAPER_SETTINGS[team.name.lower()]
         self.team = team
         self.env_id = env_id or defaults['env_id']
@@ -133,6 +139,15 @@ class TeamVecEnv:
     def _own(self, observations):
         return observations[0] if self.team is Team.CAMERA else observations[1]
 
+    def _enhanced(self, observations):
+        """`observations` as the trained team sees them: unchanged, or (full observability) with every
+        record of its team filled in place (the vector env's buffers; the opponent's are untouched)."""
+        if self.full_observability:
+            camera = self.team is Team.CAMERA
+            enhance_observations(*observations, self.vec.obstacle_states, empty_warehouses(self.vec.remaining_cargoes),
+                                 *self.counts, camera=camera, target=not camera)
+        return observations
+
     def _other(self, observations):
         return observations[1] if self.team is Team.CAMERA else observations[0]
 
@@ -157,6 +172,7 @@ class TeamVecEnv:
 
     def reset(self, seed: int | None = None):
         observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
+        observations = self._enhanced(observations)
         self.opponent.reset(self._other(observations))
         self._raw = self._own(observations).copy()
         self._other_raw = self._other(observations)
@@ -190,6 +206,7 @@ class TeamVecEnv:
             other = self.opponent.act(self._other_raw)
             joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
             observations, rewards, terminated, truncated_now, infos = self.vec.step(joint)
+            observations = self._enhanced(observations)
             if restarting.any():
                 self.opponent.reset(self._other(observations), restarting)
             live = ~done & ~restarting
@@ -224,7 +241,7 @@ class TeamVecEnv:
         if restarting.any():   # ended at the last raw step: restart now so the next decision is clean
             other = self.opponent.act(self._other(observations))
             joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
-            observations, *_ = self.vec.step(joint)
+            observations = self._enhanced(self.vec.step(joint)[0])
             self.opponent.reset(self._other(observations), restarting)
         self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)

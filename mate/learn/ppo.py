@@ -73,6 +73,7 @@ class PPOConfig:
     levels: int = 5                      # discrete levels per action axis (25 actions)
     hrl: bool = False                    # cameras only: select targets (Nt bits), rule executor aims (§3)
     mask_invisible: bool = True          # HRL: a target the camera cannot see is never selected (see below)
+    full_observability: bool = False     # the trained team sees every entity (EnhancedObservation; paper Fig. 6)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
@@ -544,7 +545,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     # ---- environments
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
                       horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
-                      hrl=config.hrl)
+                      hrl=config.hrl, full_observability=config.full_observability)
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
 
@@ -553,6 +554,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     meta = dict(team=config.team, env_id=config.env_id, frame_skip=config.frame_skip, levels=config.levels,
                 obs_dim=D, state_dim=S, num_agents=N, num_actions=A, action_heads=H, action_choices=C,
                 hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
+                full_observability=bool(getattr(envs, 'full_observability', False)),
                 actor=config.actor, lstm=config.lstm)
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
@@ -739,7 +741,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     return row
 
 
-WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm')
+WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',
+                   'full_observability')
 """Metadata a warm-start file must share with the experiment (the actor's shape and meaning)."""
 
 

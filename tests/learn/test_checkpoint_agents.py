@@ -73,6 +73,13 @@ def test_resume_continues_and_mismatch_is_refused(tmp_path):
     assert 1000.0 < more[0]['wall_seconds'] <= more[-1]['wall_seconds']   # wall time continues over sessions
     with pytest.raises(CheckpointError, match='algo'):
         _tiny_camera_checkpoint(tmp_path, algo='ippo', total=6 * 8 * 8)
+    # checkpoints written before `full_observability` existed are partial-observability ones
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    del saved['meta']['full_observability']
+    save_checkpoint(tmp_path / 'checkpoint.pt', saved)
+    assert load_checkpoint(tmp_path / 'checkpoint.pt', expect={'full_observability': False})
+    with pytest.raises(CheckpointError, match='full_observability'):
+        load_checkpoint(tmp_path / 'checkpoint.pt', expect={'full_observability': True})
 
 
 def test_corrupt_and_foreign_checkpoints(tmp_path):
@@ -123,6 +130,8 @@ def test_cli_train_defaults_and_paper_settings():
     assert paper.actor == 'mlp' and paper.lr_schedule == PAPER_HYPERPARAMETERS['lr_schedule']
     assert paper.entropy_schedule == PAPER_HYPERPARAMETERS['entropy_schedule']
     assert camera.kl_coeff == 0.0 and paper.kl_coeff == 0.2 and paper.kl_target == 0.01
+    assert not camera.full_observability
+    assert config_from_args(parse(['train', 'ippo', '--team', 'target', '--full-observability'])).full_observability
     assert config_from_args(parse(['train', 'mappo', '--paper', '--kl-coeff', '0'])).kl_coeff == 0.0
     tuned = config_from_args(parse(['train', 'mappo', '--kl-coeff', '0.5', '--kl-target', '0.02']))
     assert (tuned.kl_coeff, tuned.kl_target) == (0.5, 0.02)

@@ -68,6 +68,36 @@ def test_team_vec_env_shapes_and_episode_ends(team):
     assert all(e['length'] == 30 for e in info['episodes'] or [{'length': 30}])
 
 
+@pytest.mark.parametrize('team', ['camera', 'target'])
+def test_full_observability_shows_the_trained_team_everything_and_changes_nothing_else(team):
+    """Fig. 6 ablation: the trained team's raw observations have every record flagged (targets: true
+    warehouse emptiness); the game, the rewards and the opponent's view are those of the partial env."""
+    from mate.spaces import camera_observation_slices_of, target_observation_slices_of
+    full = TeamVecEnv(team, num_envs=3, frame_skip=2, horizon=40, seed=5, full_observability=True)
+    partial = TeamVecEnv(team, num_envs=3, frame_skip=2, horizon=40, seed=5)
+    full.reset(), partial.reset()
+    slices = (camera_observation_slices_of if team == 'camera' else target_observation_slices_of)(*full.counts)
+    masks = [slices[f'{kind}_mask'] for kind in ('opponent', 'obstacle', 'teammate')]
+    rng = np.random.default_rng(0)
+    partial_masks = []
+    for _ in range(8):
+        actions = rng.integers(0, 25, (3, full.num_agents))
+        _, _, reward_full, *_ = full.step(actions)
+        _, state_p, reward_p, *_ = partial.step(actions)
+        for mask in masks:
+            assert np.all(full.raw_observations[..., mask] == 1.0)
+        partial_masks.append(np.concatenate([partial.raw_observations[..., m] for m in masks], -1).mean())
+        np.testing.assert_array_equal(reward_full, reward_p)
+        np.testing.assert_array_equal(full._other_raw, partial._other_raw)     # the opponent's view
+        np.testing.assert_array_equal(full._state(), state_p)
+    assert np.mean(partial_masks) < 1.0          # the partial env does hide something
+    if team == 'target':
+        from mate.wrappers.enhanced_observation import TARGET_EMPTY_BITS, empty_warehouses
+        truth = empty_warehouses(full.vec.remaining_cargoes)[:, None, :]
+        np.testing.assert_array_equal(full.raw_observations[..., TARGET_EMPTY_BITS],
+                                      np.broadcast_to(truth, (3, full.num_agents, 4)))
+
+
 def test_discrete_grids():
     obs = np.zeros((1, 2, 40))
     obs[..., 13 + 7], obs[..., 13 + 8] = 5.0, 2.5
