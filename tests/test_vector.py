@@ -57,6 +57,8 @@ def test_env_i_replays_the_single_env_seeded_s_plus_i_across_autoresets(num_envs
             for key, value in _single_info(single_infos).items():
                 assert infos[key][i] == value, (key, t, i)
             np.testing.assert_array_equal(envs.state()[i], single.state())
+            np.testing.assert_array_equal(envs.obstacle_states[i], single.obstacle_states)
+            np.testing.assert_array_equal(envs.remaining_cargoes[i], single.remaining_cargoes)
             single_done[i] = term or trunc
     assert resets == 2 * num_envs
 
