@@ -153,6 +153,9 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         self._world = empty_world(p, B)
         self._camera_obs = np.zeros((B, nc, self.camera_observation_space.shape[0]), dtype=dtype)
         self._target_obs = np.zeros((B, nt, self.target_observation_space.shape[0]), dtype=dtype)
+        self._camera_actions = np.zeros((B, nc, 2))  # actions are copied in: the compiled step is bound to these
+        self._target_actions = np.zeros((B, nt, 2))
+        self._step_world = None  # `engine.bind_step` on these arrays, made by the first step (and after a copy)
         self._camera_reward = np.zeros(B)
         self._target_reward = np.zeros(B)
         self._terminated = np.zeros(B, dtype=bool)
@@ -162,6 +165,9 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         self._info_mask = np.ones(B, dtype=bool)  # the `_key` masks of infos, shared and read-only
         self._info_mask.flags.writeable = False
         self._needs_reset = True
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, '_step_world': None}  # a copy binds the step to its own arrays
 
     # ------------------------------------------------------------------ episodes
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
@@ -220,7 +226,12 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         if pending is not None:
             pending = pending.copy()
             streams = world.rng[pending]  # the finished rows' streams as their episodes ended
-        engine.step(p, world, camera_actions, target_actions, self._camera_obs, self._target_obs)
+        np.copyto(self._camera_actions, camera_actions)
+        np.copyto(self._target_actions, target_actions)
+        if self._step_world is None:
+            self._step_world = engine.bind_step(p, world, self._camera_actions, self._target_actions,
+                                                self._camera_obs, self._target_obs)
+        self._step_world()
         if pending is not None:
             # The finished rows were stepped with the rest (the core steps whole batches); put their
             # streams back so that their new episodes draw exactly what a single env's reset() draws.

@@ -147,6 +147,26 @@ def test_gymnasium_vector_conventions():
     np.testing.assert_array_equal(float32_obs[0][1], single_obs[0].astype(np.float32))
 
 
+def test_a_copied_vector_env_steps_its_own_world():
+    """The compiled step is bound to the env's own arrays on its first step; copies and pickles
+    must bind to theirs (and leave the original alone)."""
+    import copy
+    import pickle
+    envs = mate.make_vec(ID, num_envs=2, copy=True)
+    envs.reset(seed=3)
+    rng = np.random.default_rng(0)
+    envs.step(envs.sample_actions(rng))
+    twins = [copy.deepcopy(envs), pickle.loads(pickle.dumps(envs))]
+    before = envs.state()
+    actions = envs.sample_actions(rng)
+    results = [twin.step(actions)[0] for twin in twins]
+    np.testing.assert_array_equal(envs.state(), before)
+    own = envs.step(actions)[0]
+    for got in results:
+        np.testing.assert_array_equal(got[0], own[0])
+        np.testing.assert_array_equal(got[1], own[1])
+
+
 def test_buffers_are_reused_unless_copy():
     envs = mate.make_vec(ID, num_envs=2)
     first, _ = envs.reset(seed=0)
