@@ -46,7 +46,7 @@ from .constants import (
 from .core import engine
 from .core.params import params_from_config
 from .core.snapshot import get_snapshot, goal_bits, set_snapshot
-from .core.world import empty_world, target_headings
+from .core.world import empty_world, obstacle_states, target_headings
 from .messages import Message, MessageChannel, Team
 
 __all__ = ['MultiAgentTracking', 'GameDescription']
@@ -349,7 +349,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
     @property
     def obstacle_states(self) -> np.ndarray:
         """(No, 3) obstacle [x, y, r] per slot."""
-        return np.concatenate([self._world.obstacle_pos[0], self._world.obstacle_radius[0][:, None]], axis=1)
+        return obstacle_states(self._world, 0)
 
     @property
     def preserved_data(self) -> np.ndarray:

@@ -70,7 +70,7 @@ from gymnasium.vector.utils import batch_space
 
 from . import registration
 from .core import engine
-from .core.world import empty_world
+from .core.world import empty_world, obstacle_states
 from .env import GameDescription, MultiAgentTracking
 
 try:
@@ -320,7 +320,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     @property
     def obstacle_states(self) -> np.ndarray:
         """(B, No, 3) obstacle [x, y, r] per env and slot (a fresh array)."""
-        return np.concatenate([self._world.obstacle_pos, self._world.obstacle_radius[..., None]], axis=-1)
+        return obstacle_states(self._world)
 
     @property
     def remaining_cargoes(self) -> np.ndarray:

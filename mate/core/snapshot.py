@@ -17,7 +17,7 @@ from ..constants import (
     TARGET_STATE_DIM_PRIVATE,
 )
 from .params import Params
-from .world import World, target_headings
+from .world import World, obstacle_states, target_headings
 
 INPUT_KEYS = (
     'camera_state', 'camera_orientation', 'camera_viewing_angle', 'camera_sight_range',
@@ -84,7 +84,7 @@ def get_snapshot(p: Params, w: World, b: int) -> dict:
         'target_bounty': w.target_bounty[b].copy(),
         'target_steps': w.target_steps[b].copy(),
         'target_tracked_steps': w.target_tracked_steps[b].copy(),
-        'obstacle_state': np.concatenate([w.obstacle_pos[b], w.obstacle_radius[b][:, None]], axis=1),
+        'obstacle_state': obstacle_states(w, b),
         'remaining_cargoes': w.remaining_cargoes[b].copy(),
         'awaiting_cargo_counts': w.awaiting_cargo_counts[b].copy(),
         'num_delivered_cargoes': int(w.num_delivered_cargoes[b]),

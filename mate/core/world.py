@@ -91,6 +91,11 @@ def empty_world(params: Params, batch_size: int) -> World:
     return world
 
 
+def obstacle_states(world: World, b: int | slice = slice(None)) -> np.ndarray:
+    """Obstacle [x, y, r] per slot of row b, (No, 3), or of every row, (B, No, 3) (a fresh array)."""
+    return np.concatenate([world.obstacle_pos[b], world.obstacle_radius[b][..., None]], axis=-1)
+
+
 def target_headings(world: World, b: int) -> np.ndarray:
     """Row b's target headings in degrees, in [-180, 180]: the direction of `target_facing`
     (stored as a vector so that the step never pays for an atan2)."""

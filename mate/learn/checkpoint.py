@@ -53,7 +53,8 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
         raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
     meta = data['meta']
     for key, value in (expect or {}).items():
-        if meta.get(key, META_DEFAULTS.get(key)) != value:
+        found = meta.get(key, META_DEFAULTS.get(key))
+        if found != value:
             raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: {key} is '
-                                  f'{meta.get(key)!r} in the checkpoint, {value!r} here')
+                                  f'{found!r} in the checkpoint, {value!r} here')
     return data

@@ -687,9 +687,10 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     predicted = per_agent(config.algo, critic(critic_inputs(config.algo, b_obs[idx], b_state[idx])), N)
                     value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
                     entropy = dist.entropy().sum(-1).mean()
+                    kl = sampled_kl(new_logp, b_logp[idx])
                     loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
                     if kl_coeff > 0:
-                        loss = loss + kl_coeff * sampled_kl(new_logp, b_logp[idx])
+                        loss = loss + kl_coeff * kl
                     optimizer.zero_grad()
                     loss.backward()
                     if config.max_grad_norm:
@@ -697,7 +698,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     optimizer.step()
                     with torch.no_grad():
                         log_ratio = new_logp - b_logp[idx]
-                        stats['approx_kl'] += float(sampled_kl(new_logp, b_logp[idx]))
+                        stats['approx_kl'] += kl.item()
                         stats['clip_fraction'] += float(((log_ratio.exp() - 1).abs() > config.clip).float().mean())
                     stats['policy_loss'] += policy_loss.item()
                     stats['value_loss'] += value_loss.item()
