@@ -8,6 +8,12 @@ rescaling to [-1, 1]), picks one of the `levels**2` discrete actions, maps it on
 HRL camera policies (`meta['hrl']`) instead hold a target selection (one bit per target slot) for
 `frame_skip` steps and let the rule executor of `mate.learn.hrl` aim at every step.
 
+Camera policies trained with the team's sighting memory (`meta['memory']`, `mate train --memory`) keep
+that memory as agents: each camera broadcasts the targets it sees in the first communication round of
+every step (`{'sightings': [(slot, x, y), ...]}`) and records its teammates' sightings, so every camera
+of the team holds the memory the learner had (`mate.group_step` drives the rounds; an agent whose
+`observe` was skipped updates its memory from `act`'s observation, without its teammates' news).
+
 The network is shared, read-only, by every agent cloned from one prototype (`spawn`).
 """
 
@@ -24,6 +30,7 @@ from ..messages import Team
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import as_team, discrete_to_continuous, preprocess_observation
 from .hrl import executor_actions
+from .memory import SightingMemory, camera_sightings
 from .ppo import Actor, make_actor
 
 __all__ = [
@@ -127,12 +134,54 @@ class _PolicyAgentMixin:
                              f'{tuple(self.policy.meta["counts"])}; this environment has {counts}')
         self._held, self._countdown = None, 0
         self._memory = self.policy.initial_memory(1)
+        period = int(self.policy.meta.get('memory', 0))
+        self._sightings = SightingMemory(1, counts, period) if period else None
+        self._seen_now = []
+        if self._sightings is not None:
+            self._remember(np.asarray(observation, dtype=np.float64), tick=False)
+
+    def _remember(self, observation, tick: bool = True) -> None:
+        """Own sightings of this step into the team memory (after one step of forgetting); kept for broadcast."""
+        if tick:
+            self._sightings.tick()
+        _, seen, location = camera_sightings(observation[None, None], *self._sightings.counts)
+        self._sightings.see(seen[:, 0], location[:, 0])
+        self._seen_now = [(int(t), float(location[0, 0, t, 0]), float(location[0, 0, t, 1]))
+                          for t in np.flatnonzero(seen[0, 0])]
+        self._observed = True
+
+    def observe(self, observation, info=None) -> None:
+        super().observe(observation, info)
+        if self._sightings is not None:
+            self._remember(self._accept(observation))
+
+    def send_requests(self):
+        if self._sightings is None or not self._seen_now:
+            return ()
+        return [self.pack_message({'sightings': list(self._seen_now)})]
+
+    def receive_requests(self, messages) -> None:
+        super().receive_requests(messages)
+        if self._sightings is None:
+            return
+        seen = np.zeros((1, self.num_targets), dtype=bool)
+        location = np.zeros((1, self.num_targets, 2))
+        for message in messages:
+            for t, x, y in message.content.get('sightings', ()) if isinstance(message.content, dict) else ():
+                if 0 <= t < self.num_targets:
+                    seen[0, t], location[0, t] = True, (x, y)
+        self._sightings.see(seen, location)
 
     def act(self, observation, info=None, deterministic=None):
         observation = self._accept(observation)
+        if self._sightings is not None and not self._observed:
+            self._remember(observation)
+        self._observed = False
         if self._countdown <= 0 or self._held is None:
             processed = preprocess_observation(observation, self.TEAM, self.num_cameras, self.num_targets,
                                                self.num_obstacles)
+            if self._sightings is not None:
+                processed = np.concatenate([processed, self._sightings.features(observation[None, None])[0, 0]])
             meta = self.policy.meta
             heads = meta.get('action_heads', 1)
             if self.policy.recurrent:

@@ -35,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
+    parser.add_argument('--memory', type=int, default=0, metavar='STEPS',
+                        help="cameras only: the team's shared memory of target sightings (every camera tells its "
+                             "teammates what it sees; a sighting is kept STEPS env steps, the greedy cameras' 25), "
+                             "appended to each camera's observation; default 0: none")
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
@@ -96,6 +100,10 @@ def config_from_args(args: argparse.Namespace):
         raise SystemExit(f'mate train: --kl-target must be > 0, got {args.kl_target}')
     if args.lstm < 0:
         raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
+    if args.memory < 0:
+        raise SystemExit(f'mate train: --memory must be >= 0 steps (0 = no memory), got {args.memory}')
+    if args.memory and args.team != 'camera':
+        raise SystemExit('mate train: --memory (shared sightings of targets) exists for cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
         raise SystemExit("mate train: --actor per-target reads a camera's target slots; it needs --team camera")
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
@@ -103,7 +111,7 @@ def config_from_args(args: argparse.Namespace):
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
-                     lstm=args.lstm, hrl=args.hrl, full_observability=args.full_observability,
+                     lstm=args.lstm, hrl=args.hrl, full_observability=args.full_observability, memory=args.memory,
                      init_from=args.init_from, **_env(args.config), **extra)
 
 

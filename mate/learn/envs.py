@@ -15,7 +15,9 @@ What a learner sees per decision step (the paper's wrapper stack, done on arrays
   executor of `mate.learn.hrl` turns it into rotation/zoom at every raw step of the held decision;
 * `full_observability=True`: the trained team's raw observations go through `enhance_observations`
   (the `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are
-  empty), the paper's Fig. 6 ablation; the opponent keeps its partial view.
+  empty), the paper's Fig. 6 ablation; the opponent keeps its partial view;
+* `memory=PERIOD` (cameras): the team's shared memory of target sightings (`mate.learn.memory`), updated
+  at every raw step, appended to each camera's processed observation (4 columns per target slot).
 
 Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
 ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
@@ -40,6 +42,7 @@ from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .hrl import executor_actions
+from .memory import MEMORY_FEATURES, SightingMemory
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
 __all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'discrete_to_continuous', 'preprocess_observation']
@@ -97,10 +100,14 @@ class TeamVecEnv:
     def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
                  frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
                  seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
-                 **overrides) -> None:
+                 memory: int = 0, **overrides) -> None:
         team = as_team(team)
         if hrl and team is not Team.CAMERA:
             raise ValueError('HRL (target selection + rule executor) exists for cameras only')
+        if memory and team is not Team.CAMERA:
+            raise ValueError('the sighting memory exists for cameras only')
+        if memory < 0:
+            raise ValueError(f'memory must be a period of at least 1 step, or 0 for none; got {memory}')
         self.hrl = bool(hrl)
         self.full_observability = bool(full_observability)
         defaults = PAPER_SETTINGS[team.name.lower()]
@@ -121,6 +128,9 @@ class TeamVecEnv:
         self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, levels ** 2)
         self.num_actions = self.action_heads * self.action_choices     # logits per agent
         self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
+        self.memory = SightingMemory(num_envs, self.counts, memory) if memory else None
+        if self.memory is not None:
+            self.obs_dim += MEMORY_FEATURES * nt
         self._target_records = int(observation_indices_of(team, nc, nt, no)[2])   # camera obs: target slots
         self.state_dim = self.vec.single_state_space.shape[0]
         if team is Team.CAMERA:
@@ -151,8 +161,21 @@ class TeamVecEnv:
     def _other(self, observations):
         return observations[1] if self.team is Team.CAMERA else observations[0]
 
-    def _process(self, raw):
-        return preprocess_observation(raw, self.team, *self.counts)
+    def _process(self, raw, rows=None):
+        processed = preprocess_observation(raw, self.team, *self.counts)
+        if self.memory is None:
+            return processed
+        return np.concatenate([processed, self.memory.features(raw, rows)], axis=-1)
+
+    def _remember(self, observations, restarting=None) -> None:
+        """One raw step of the sighting memory: rows that start an episode forget, then every camera's
+        sightings enter the team's memory."""
+        if self.memory is None:
+            return
+        if restarting is not None and restarting.any():
+            self.memory.forget(restarting)
+        self.memory.tick()
+        self.memory.observe_team(self._own(observations))
 
     def _state(self):
         return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
@@ -177,6 +200,9 @@ class TeamVecEnv:
         self._raw = self._own(observations).copy()
         self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)
+        if self.memory is not None:
+            self.memory.forget()
+        self._remember(observations)
         self._return[:] = 0.0
         self._raw_return[:] = 0.0
         self._coverage_sum[:] = 0.0
@@ -209,6 +235,7 @@ class TeamVecEnv:
             observations = self._enhanced(observations)
             if restarting.any():
                 self.opponent.reset(self._other(observations), restarting)
+            self._remember(observations, restarting)
             live = ~done & ~restarting
             r = rewards[0] if self.team is Team.CAMERA else rewards[1]
             if self.team is Team.CAMERA:
@@ -224,7 +251,7 @@ class TeamVecEnv:
             restarting = ended.copy()
             if ended.any():
                 rows = np.flatnonzero(ended)
-                final_obs[rows] = self._process(self._own(observations)[rows])
+                final_obs[rows] = self._process(self._own(observations)[rows], rows)
                 final_state[rows] = self._state()[rows]
                 truncated[rows] = truncated_now[rows] & ~terminated[rows]
                 done |= ended
@@ -243,6 +270,7 @@ class TeamVecEnv:
             joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
             observations = self._enhanced(self.vec.step(joint)[0])
             self.opponent.reset(self._other(observations), restarting)
+            self._remember(observations, restarting)
         self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)
         self._raw = self._own(observations).copy()

@@ -74,6 +74,7 @@ class PPOConfig:
     hrl: bool = False                    # cameras only: select targets (Nt bits), rule executor aims (§3)
     mask_invisible: bool = True          # HRL: a target the camera cannot see is never selected (see below)
     full_observability: bool = False     # the trained team sees every entity (EnhancedObservation; paper Fig. 6)
+    memory: int = 0                      # cameras: steps the team's shared sighting memory keeps a target (0: none)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
@@ -212,16 +213,29 @@ class PerTargetActor(nn.Module):
     softmax attention over the visible slots).
     Input: camera observations processed as in training (relative coordinates, rescaled to [-1, 1]) of a
     game with `counts` = (Nc, Nt, No) entities.
+
+    With `memory` (the team's sighting memory of `mate.learn.memory` appended to the observation, 4
+    columns per slot), a slot is *present* when this camera sees the target or the team remembers it
+    within this camera's maximum sight range (a target out of reach cannot be aimed at): the geometric
+    features are computed at the remembered location, two more features give the memory's freshness and
+    whether a teammate sees the target now (15 in all, zero for absent slots), and pooling and attention
+    run over the present slots.
     """
 
     SLOT_FEATURES = 13
 
     def __init__(self, obs_dim: int, counts: tuple[int, int, int], hidden=(256, 256), activation: str = 'tanh',
-                 head_width: int = 64, num_actions: int | None = None, context_extra: int = 0) -> None:
+                 head_width: int = 64, num_actions: int | None = None, context_extra: int = 0,
+                 memory: bool = False) -> None:
         super().__init__()
         nc, nt, no = (int(n) for n in counts)
         starts = observation_indices_of(Team.CAMERA, nc, nt, no)
         self.own, self.begin, self.teammates = int(starts[1]), int(starts[2]), int(starts[4])
+        self.memory = int(starts[-1]) if memory else None       # first memory column
+        if memory and obs_dim != int(starts[-1]) + 4 * nt:
+            raise ValueError(f'a camera observation with sighting memory has {int(starts[-1]) + 4 * nt} columns, '
+                             f'got obs_dim {obs_dim}')
+        self.slot_features_dim = self.SLOT_FEATURES + (2 if memory else 0)
         self.num_cameras, self.num_targets = nc, nt
         space = observation_space_of(Team.CAMERA, nc, nt, no)
         # rescaled viewing angles v in [-1, 1] -> degrees: low + (v + 1) (high - low) / 2 (own state: index 5)
@@ -233,8 +247,8 @@ class PerTargetActor(nn.Module):
         width = self.width + context_extra
         act, gain = ACTIVATIONS[activation]
         # the scorer's first layer on [slot features, context], split so that the context part runs once per agent
-        joint = linear(width + self.SLOT_FEATURES, head_width, 1.0, gain)
-        self.slot_in = nn.Linear(self.SLOT_FEATURES, head_width)
+        joint = linear(width + self.slot_features_dim, head_width, 1.0, gain)
+        self.slot_in = nn.Linear(self.slot_features_dim, head_width)
         self.context_in = nn.Linear(width, head_width, bias=False)
         with torch.no_grad():
             self.slot_in.weight.copy_(joint.weight[:, width:])
@@ -254,10 +268,20 @@ class PerTargetActor(nn.Module):
         return torch.cos(torch.deg2rad(0.5 * degrees))
 
     def slot_features(self, obs: torch.Tensor) -> torch.Tensor:
-        """(..., D) processed observations -> (..., Nt, 13) slot features (see the class docstring)."""
+        """(..., D) processed observations -> (..., Nt, F) slot features (F = 13, or 15 with memory;
+        see the class docstring). Column 4 is the visibility flag, the last but one the memory's freshness."""
         lead, nt, nc = obs.shape[:-1], self.num_targets, self.num_cameras
         records = obs[..., self.begin:self.begin + 5 * nt].reshape(*lead, nt, 5)
-        dx, dy, visible = records[..., 0], records[..., 1], records[..., 4]
+        if self.memory is None:
+            dx, dy, visible = records[..., 0], records[..., 1], records[..., 4]
+        else:
+            remembered = obs[..., self.memory:self.memory + 4 * nt].reshape(*lead, nt, 4)
+            dx, dy = remembered[..., 0], remembered[..., 1]
+            # present: seen now, or remembered within this camera's reach (max sight range, own state index 6,
+            # rescaled from [0, 2000] to [-1, 1]; offsets are rescaled by 2000)
+            max_reach = 0.5 * (obs[..., self.own + 6:self.own + 7] + 1.0)
+            within = (dx * dx + dy * dy <= max_reach * max_reach) & (remembered[..., 2] > 0)
+            visible = (within | (records[..., 4] > 0.5)).to(obs.dtype)
         sight = obs[..., self.own + 3:self.own + 5]                       # own (R cos phi, R sin phi)
         reach = sight.norm(dim=-1, keepdim=True).clamp_min(1e-6)
         ux, uy = sight[..., 0:1] / reach, sight[..., 1:2] / reach
@@ -269,7 +293,7 @@ class PerTargetActor(nn.Module):
         # teammates this camera sees (flag 1, not itself: its own record sits at offset 0)
         mates = obs[..., self.teammates:self.teammates + 7 * nc].reshape(*lead, nc, 7)
         seen = (mates[..., 6] > 0.5) & (mates[..., :2].abs().sum(-1) > 1e-9)                  # (..., Nc)
-        to_target = records[..., None, :, :2] - mates[..., :, None, :2]                        # (..., Nc, Nt, 2)
+        to_target = torch.stack([dx, dy], dim=-1)[..., None, :, :] - mates[..., :, None, :2]    # (..., Nc, Nt, 2)
         gap = to_target.norm(dim=-1)
         mate_reach = mates[..., 3:5].norm(dim=-1, keepdim=True)                                # (..., Nc, 1)
         mate_cos = (to_target * mates[..., None, 3:5]).sum(-1) / (gap * mate_reach).clamp_min(1e-9)
@@ -277,7 +301,15 @@ class PerTargetActor(nn.Module):
         covered = (inside & seen[..., None]).any(dim=-2).to(obs.dtype)
         ego = torch.stack([along, across, distance, cos_bearing, across / distance, angle_margin, range_margin,
                            covered], dim=-1)
-        return torch.cat([records, ego * visible[..., None]], dim=-1)
+        features = [records, ego * visible[..., None]]
+        if self.memory is not None:
+            features.append(remembered[..., 2:4] * visible[..., None])     # freshness > 0: a present slot
+        return torch.cat(features, dim=-1)
+
+    def present(self, slots: torch.Tensor) -> torch.Tensor:
+        """(..., Nt, 1) 1.0 for the slots pooling and attention run over: seen, or with memory remembered
+        within reach (their freshness column is then > 0)."""
+        return slots[..., 4:5] if self.memory is None else (slots[..., -2:-1] > 0).to(slots.dtype)
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         return self.logits_from(obs, self.body(obs))
@@ -287,7 +319,7 @@ class PerTargetActor(nn.Module):
         embedded = self.activation(self.slot_in(slots) + self.context_in(context).unsqueeze(-2))
         if self.hrl:
             return self.head(embedded).reshape(*obs.shape[:-1], 2 * self.num_targets)
-        visible = slots[..., 4:5]
+        visible = self.present(slots)
         mean = (embedded * visible).sum(-2) / visible.sum(-2).clamp_min(1.0)
         largest = torch.where(visible > 0.5, embedded, torch.full_like(embedded, -1.0)).amax(-2)
         pooled = self.head(torch.cat([context, mean, largest], dim=-1))
@@ -366,7 +398,7 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
         if meta.get('team') != 'camera':
             raise ValueError("actor 'per-target' reads a camera's target slots: it needs team 'camera'")
         actor = PerTargetActor(obs_dim, tuple(meta['counts']), hidden, activation, num_actions=num_actions,
-                               context_extra=lstm)
+                               context_extra=lstm, memory=bool(meta.get('memory', 0)))
     else:
         raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target'")
     return RecurrentActor(actor, lstm) if lstm else actor
@@ -545,7 +577,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     # ---- environments
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
                       horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
-                      hrl=config.hrl, full_observability=config.full_observability)
+                      hrl=config.hrl, full_observability=config.full_observability, memory=config.memory)
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
 
@@ -555,6 +587,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 obs_dim=D, state_dim=S, num_agents=N, num_actions=A, action_heads=H, action_choices=C,
                 hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
                 full_observability=bool(getattr(envs, 'full_observability', False)),
+                memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
                 actor=config.actor, lstm=config.lstm)
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
@@ -743,7 +776,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
 
 WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',
-                   'full_observability')
+                   'full_observability', 'memory')
 """Metadata a warm-start file must share with the experiment (the actor's shape and meaning)."""
 
 

@@ -1,0 +1,101 @@
+"""The camera team's shared memory of target sightings (`--memory PERIOD`), for learners and their agents.
+
+The greedy cameras do two things a memoryless policy cannot: they remember where each target was last
+seen (for 25 steps), and they tell their teammates what they see. This module gives a learned camera
+the same information as extra observation columns (what it did to learning: docs/training.md).
+
+What a camera knows about target slot t (one memory per team: every camera broadcasts its sightings
+every step, as a `Message` between agents, so all teammates hold the same memory):
+
+* where the target was when a camera of the team last saw it, and how many env steps ago (`age`);
+  after `period` steps without a sighting it is forgotten.
+
+Features per camera and target slot, appended to the processed observation (4 per slot, slot-major):
+`[dx, dy, freshness, seen_by_teammate]` with `(dx, dy)` the remembered location relative to the
+camera, scaled like the observation's target records (divided by `scale`), `freshness = 1 - age /
+period` (1: seen this step, 0: unknown; dx, dy are 0 then too), and `seen_by_teammate` 1 when some
+camera sees the target now but this one does not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..constants import PRESERVED_DIM
+from ..messages import Team
+from ..spaces import observation_indices_of, observation_space_of
+
+__all__ = ['MEMORY_FEATURES', 'SightingMemory', 'camera_sightings']
+
+MEMORY_FEATURES = 4
+"""Columns per target slot: dx, dy, freshness, seen_by_teammate."""
+
+
+def camera_sightings(observation: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int):
+    """From raw camera observations (..., N, D): each camera's location (..., N, 2), which target
+    slots it sees (..., N, Nt) bool, and their locations (..., N, Nt, 2)."""
+    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
+    records = np.asarray(observation[..., begin:begin + 5 * num_targets], dtype=np.float64)
+    records = records.reshape(*records.shape[:-1], num_targets, 5)
+    own = np.asarray(observation[..., PRESERVED_DIM:PRESERVED_DIM + 2], dtype=np.float64)
+    return own, records[..., 4] > 0.5, records[..., :2]
+
+
+class SightingMemory:
+    """Last sighting of every target for B camera teams (or B = 1 for one agent's copy).
+
+    Args:
+        num_envs: B.
+        counts: (Nc, Nt, No) of the game.
+        period: env steps a sighting is remembered (the greedy cameras: 25).
+    """
+
+    def __init__(self, num_envs: int, counts, period: int = 25) -> None:
+        if period < 1:
+            raise ValueError(f'memory period must be at least 1 step, got {period}')
+        self.counts = tuple(int(n) for n in counts)
+        nt = self.counts[1]
+        self.period = int(period)
+        self.location = np.zeros((num_envs, nt, 2))
+        self.age = np.full((num_envs, nt), self.period, dtype=np.int64)
+        space = observation_space_of(Team.CAMERA, *self.counts)
+        begin = int(observation_indices_of(Team.CAMERA, *self.counts)[2])
+        self.scale = float(space.high[begin])          # the rescaling of the target records' coordinates
+
+    def forget(self, mask=None) -> None:
+        """Forget everything in the rows `mask` (all rows if None): a new episode."""
+        self.age[slice(None) if mask is None else mask] = self.period
+
+    def tick(self) -> None:
+        """One env step has passed."""
+        np.minimum(self.age + 1, self.period, out=self.age)
+
+    def see(self, seen: np.ndarray, location: np.ndarray, rows=None) -> None:
+        """Record sightings: `seen` (R, Nt) bool and `location` (R, Nt, 2) for the rows `rows` (all if None)."""
+        rows = slice(None) if rows is None else rows
+        age, remembered = self.age[rows], self.location[rows]
+        age[seen] = 0
+        remembered[seen] = location[seen]
+        self.age[rows], self.location[rows] = age, remembered
+
+    def observe_team(self, observation: np.ndarray, rows=None) -> None:
+        """Record what every camera of the rows sees in raw observations (R, Nc, D) (the team's broadcast)."""
+        _, seen, location = camera_sightings(observation, *self.counts)
+        first = np.argmax(seen, axis=-2)                                                # a camera that sees it
+        location = np.take_along_axis(location, first[..., None, :, None], axis=-3)[..., 0, :, :]
+        self.see(seen.any(axis=-2), location, rows)
+
+    def features(self, observation: np.ndarray, rows=None) -> np.ndarray:
+        """(R, N, Nt * 4) float32 memory features for raw camera observations (R, N, D) of the rows
+        `rows` (all if None)."""
+        rows = slice(None) if rows is None else rows
+        age, location = self.age[rows], self.location[rows]
+        own, visible, _ = camera_sightings(observation, *self.counts)
+        known = age < self.period                                                      # (R, Nt)
+        freshness = np.where(known, 1.0 - age / self.period, 0.0)
+        offset = (location[:, None] - own[..., None, :]) / self.scale * known[:, None, :, None]
+        teammate = (age == 0)[:, None] & ~visible
+        nb, n, nt = visible.shape
+        columns = np.concatenate([offset, np.broadcast_to(freshness[:, None, :, None], (nb, n, nt, 1)),
+                                  teammate[..., None]], axis=-1)
+        return columns.reshape(nb, n, nt * MEMORY_FEATURES).astype(np.float32)
