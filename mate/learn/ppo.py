@@ -39,6 +39,7 @@ from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
+from .memory import MEMORY_FEATURES
 
 __all__ = [
     'Actor',
@@ -232,14 +233,18 @@ class PerTargetActor(nn.Module):
         starts = observation_indices_of(Team.CAMERA, nc, nt, no)
         self.own, self.begin, self.teammates = int(starts[1]), int(starts[2]), int(starts[4])
         self.memory = int(starts[-1]) if memory else None       # first memory column
-        if memory and obs_dim != int(starts[-1]) + 4 * nt:
-            raise ValueError(f'a camera observation with sighting memory has {int(starts[-1]) + 4 * nt} columns, '
-                             f'got obs_dim {obs_dim}')
+        if memory and obs_dim != int(starts[-1]) + MEMORY_FEATURES * nt:
+            raise ValueError(f'a camera observation with sighting memory has '
+                             f'{int(starts[-1]) + MEMORY_FEATURES * nt} columns, got obs_dim {obs_dim}')
         self.slot_features_dim = self.SLOT_FEATURES + (2 if memory else 0)
         self.num_cameras, self.num_targets = nc, nt
         space = observation_space_of(Team.CAMERA, nc, nt, no)
         # rescaled viewing angles v in [-1, 1] -> degrees: low + (v + 1) (high - low) / 2 (own state: index 5)
         self.angle_low, self.angle_span = float(space.low[self.own + 5]), float(space.high[self.own + 5] - space.low[self.own + 5])
+        # rescaled maximum sight range (own state index 6) -> the rescaled offsets' units (divided by the offset scale)
+        scale = float(space.high[self.begin])
+        self.reach_low = float(space.low[self.own + 6]) / scale
+        self.reach_span = float(space.high[self.own + 6] - space.low[self.own + 6]) / scale
         # offsets and sight vectors share one scale, so the geometry below works on rescaled values
         assert space.high[self.begin] == space.high[self.own + 3] == space.high[self.teammates + 3]
         self.hrl = num_actions is None or num_actions == 2 * nt
@@ -275,11 +280,10 @@ class PerTargetActor(nn.Module):
         if self.memory is None:
             dx, dy, visible = records[..., 0], records[..., 1], records[..., 4]
         else:
-            remembered = obs[..., self.memory:self.memory + 4 * nt].reshape(*lead, nt, 4)
+            remembered = obs[..., self.memory:self.memory + MEMORY_FEATURES * nt].reshape(*lead, nt, MEMORY_FEATURES)
             dx, dy = remembered[..., 0], remembered[..., 1]
-            # present: seen now, or remembered within this camera's reach (max sight range, own state index 6,
-            # rescaled from [0, 2000] to [-1, 1]; offsets are rescaled by 2000)
-            max_reach = 0.5 * (obs[..., self.own + 6:self.own + 7] + 1.0)
+            # present: seen now, or remembered within this camera's maximum sight range
+            max_reach = self.reach_low + (obs[..., self.own + 6:self.own + 7] + 1.0) * 0.5 * self.reach_span
             within = (dx * dx + dy * dy <= max_reach * max_reach) & (remembered[..., 2] > 0)
             visible = (within | (records[..., 4] > 0.5)).to(obs.dtype)
         sight = obs[..., self.own + 3:self.own + 5]                       # own (R cos phi, R sin phi)
