@@ -1,9 +1,10 @@
-"""Throughput benchmark: env-steps per second of the single env and of the batched core.
+"""Throughput benchmark: env-steps per second of the single env, the batched core and the vector env.
 
 Protocol: random actions, uniform over the action boxes, drawn before timing (a bank of 16
 joint actions cycled through), observations built every step. The single env is the
 Gymnasium-style `MultiAgentTracking` (infos, copies and all); the batched core is
-`mate.core.engine.step` on B rows writing into preallocated observation buffers. Each
+`mate.core.engine.step` on B rows writing into preallocated observation buffers; the vector env
+is `mate.make_vec` drawing fresh random actions every step (the draw is timed too). Each
 measurement runs for about `seconds` after one warm-up step (compilation is excluded).
 """
 
@@ -75,6 +76,29 @@ def measure_batched_core(preset: str, batch_size: int, seconds: float = 2.0, dty
             'env_steps_per_second': calls * batch_size / elapsed}
 
 
+def measure_vector_env(preset: str, batch_size: int, seconds: float = 2.0, dtype=np.float64,
+                       seed: int = 0) -> dict:
+    """Env-steps/s of `mate.make_vec` with fresh random actions drawn every step (`sample_actions`,
+    timed), rewards, flags, infos and autoresets included."""
+    from .vector import make_vec
+
+    envs = make_vec(f'{preset}-v0', num_envs=batch_size, observation_dtype=dtype)
+    envs.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    envs.step(envs.sample_actions(rng))
+    calls, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        envs.step(envs.sample_actions(rng))
+        calls += 1
+    return {'kind': 'vector env', 'preset': preset, 'batch_size': batch_size,
+            'dtype': np.dtype(dtype).name, 'steps': calls * batch_size, 'seconds': elapsed,
+            'env_steps_per_second': calls * batch_size / elapsed}
+
+
+_MEASURE = {'single': lambda preset, b, seconds, dtype: measure_single_env(preset, seconds),
+            'batched': measure_batched_core, 'vector': measure_vector_env}
+
+
 def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16384), seconds: float = 2.0,
         float32: bool = True, progress=None, repeat: int = 1) -> list[dict]:
     """Every measurement of the protocol; `progress(str)` is called before each one.
@@ -89,18 +113,18 @@ def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16
     for preset in presets:
         plan.append(('single', preset, 1, np.float64))
         plan.extend(('batched', preset, b, np.float64) for b in batch_sizes)
+        large = [b for b in batch_sizes if b >= 1024]
         if float32:
-            plan.extend(('batched', preset, b, np.float32) for b in batch_sizes if b >= 1024)
+            plan.extend(('batched', preset, b, np.float32) for b in large)
+        plan.extend(('vector', preset, b, dtype) for b in large
+                    for dtype in ((np.float64, np.float32) if float32 else (np.float64,)))
     rounds = [[] for _ in plan]
     for round_index in range(repeat):
         for (kind, preset, batch_size, dtype), seen in zip(plan, rounds):
             if progress:
                 progress(f'{preset} {kind} B={batch_size} {np.dtype(dtype).name}'
                          + (f' (round {round_index + 1}/{repeat})' if repeat > 1 else ''))
-            if kind == 'single':
-                seen.append(measure_single_env(preset, seconds))
-            else:
-                seen.append(measure_batched_core(preset, batch_size, seconds, dtype))
+            seen.append(_MEASURE[kind](preset, batch_size, seconds, dtype))
     results = []
     for seen in rounds:
         rates = [r['env_steps_per_second'] for r in seen]
@@ -113,11 +137,23 @@ def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16
     return results
 
 
+def cpu_model() -> str:
+    """The CPU's model name as the OS reports it (Linux: /proc/cpuinfo), else platform's guess."""
+    try:
+        with open('/proc/cpuinfo') as info:
+            fields = {key.strip(): value.strip() for key, value in
+                      (line.split(':', 1) for line in info if ':' in line)}
+    except OSError:
+        return platform.processor() or platform.machine()
+    name = fields.get('model name') or platform.machine()
+    family, model = fields.get('cpu family'), fields.get('model')
+    return f'{name} (family {family}, model {model})' if family else name
+
+
 def machine_facts() -> dict:
     """Where the numbers were measured."""
     return {'python': platform.python_version(), 'machine': platform.machine(), 'cpus': engine.NUM_THREADS,
-            'processor': platform.processor() or platform.machine(), 'numpy': np.__version__,
-            'numba': __import__('numba').__version__}
+            'processor': cpu_model(), 'numpy': np.__version__, 'numba': __import__('numba').__version__}
 
 
 def write_json(results: list[dict], path: str | Path) -> Path:

@@ -313,9 +313,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         elif not isinstance(rng, np.random.Generator):
             rng = np.random.default_rng(rng)
         B, p = self.num_envs, self.params
-        cam, tgt = self.camera_action_space, self.target_action_space
-        return (rng.uniform(cam.low, cam.high, (B, p.num_cameras, 2)),
-                rng.uniform(tgt.low, tgt.high, (B, p.num_targets, 2)))
+        return (_uniform(rng, self.camera_action_space, (B, p.num_cameras, 2)),
+                _uniform(rng, self.target_action_space, (B, p.num_targets, 2)))
 
     @property
     def obstacle_states(self) -> np.ndarray:
@@ -336,6 +335,21 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def __repr__(self) -> str:
         return (f'MultiAgentTrackingVectorEnv({self.name}, num_envs={self.num_envs}, '
                 f'observation_dtype={self.observation_dtype.name}, autoreset_mode={self.autoreset_mode.name})')
+
+
+def _uniform(rng: np.random.Generator, box: spaces.Box, shape: tuple[int, ...]) -> np.ndarray:
+    """Uniform draws over `box` (bounds of the last axes) in a fresh float64 array of `shape`.
+
+    The same numbers as `rng.uniform(box.low, box.high, shape)`, drawn and then scaled in place
+    over rows of all the agents' values (numpy's inner loops are slow over a last axis of 2):
+    0.2 against 0.66 ms for a (4096, 12, 2) joint action.
+    """
+    out = rng.random(shape)
+    rows = out.reshape(shape[0], -1)
+    repeats = rows.shape[1] // box.low.size
+    rows *= np.tile(box.high - box.low, repeats)
+    rows += np.tile(box.low, repeats)
+    return out
 
 
 def _listing(indices: np.ndarray, limit: int = 10) -> str:

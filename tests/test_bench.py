@@ -9,11 +9,12 @@ import pytest
 from mate import bench, cli
 
 
-def test_plan_covers_single_env_batches_and_float32():
+def test_plan_covers_single_env_batches_float32_and_the_vector_env():
     results = bench.run(['MATE-2v4-9'], batch_sizes=(1, 1024), seconds=0.05)
     kinds = [(r['kind'], r['batch_size'], r['dtype']) for r in results]
     assert kinds == [('single env', 1, 'float64'), ('batched core', 1, 'float64'),
-                     ('batched core', 1024, 'float64'), ('batched core', 1024, 'float32')]
+                     ('batched core', 1024, 'float64'), ('batched core', 1024, 'float32'),
+                     ('vector env', 1024, 'float64'), ('vector env', 1024, 'float32')]
     for r in results:
         assert r['steps'] > 0 and r['env_steps_per_second'] == pytest.approx(r['steps'] / r['seconds'])
         assert r['speedup_vs_original'] is None  # no recorded speed of the original for this preset
@@ -41,4 +42,5 @@ def test_the_command_writes_json(tmp_path, capsys):
                      '--repeat', '2', '--json', str(out)]) == 0
     data = json.loads(out.read_text())
     assert data['machine']['cpus'] >= 1 and len(data['results']) == 2
+    assert data['machine']['processor']  # the CPU's model, so that runs on other machines are told apart
     assert 'best of 2 rounds' in capsys.readouterr().out

@@ -147,6 +147,18 @@ def test_gymnasium_vector_conventions():
     np.testing.assert_array_equal(float32_obs[0][1], single_obs[0].astype(np.float32))
 
 
+@pytest.mark.parametrize('preset', ['MATE-4v8-9-v0', 'MATE-2v4-0-v0'])
+def test_sample_actions_draws_what_rng_uniform_draws(preset):
+    envs = mate.make_vec(preset, num_envs=5)
+    camera, target = envs.sample_actions(7)
+    rng = np.random.default_rng(7)
+    cam_box, tgt_box = envs.camera_action_space, envs.target_action_space
+    np.testing.assert_array_equal(camera, rng.uniform(cam_box.low, cam_box.high, (5, envs.num_cameras, 2)))
+    np.testing.assert_array_equal(target, rng.uniform(tgt_box.low, tgt_box.high, (5, envs.num_targets, 2)))
+    again = envs.sample_actions(7)  # fresh arrays every call
+    assert not np.shares_memory(camera, again[0]) and not np.shares_memory(target, again[1])
+
+
 def test_a_copied_vector_env_steps_its_own_world():
     """The compiled step is bound to the env's own arrays on its first step; copies and pickles
     must bind to theirs (and leave the original alone)."""
