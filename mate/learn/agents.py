@@ -14,6 +14,10 @@ every step (`{'sightings': [(slot, x, y), ...]}`) and records its teammates' sig
 of the team holds the memory the learner had (`mate.group_step` drives the rounds; an agent whose
 `observe` was skipped updates its memory from `act`'s observation, without its teammates' news).
 
+Camera policies trained with target velocities (`meta['velocity']`, `mate train --velocity`) keep their
+previous observation and compute the same displacement columns as the training env (over the training
+frame skip, whatever the agent's own hold).
+
 The network is shared, read-only, by every agent cloned from one prototype (`spawn`).
 """
 
@@ -32,6 +36,7 @@ from .envs import as_team, discrete_to_continuous, preprocess_observation
 from .hrl import executor_actions
 from .memory import SightingMemory, camera_sightings
 from .ppo import Actor, make_actor
+from .velocity import target_displacements
 
 __all__ = [
     'PRETRAINED_DIR',
@@ -137,6 +142,7 @@ class _PolicyAgentMixin:
         period = int(self.policy.meta.get('memory', 0))
         self._sightings = SightingMemory(1, counts, period) if period else None
         self._seen_now = []
+        self._previous = np.array(observation, dtype=np.float64)     # velocity: the last step's observation
         if self._sightings is not None:
             self._remember(np.asarray(observation, dtype=np.float64), tick=False)
 
@@ -183,6 +189,9 @@ class _PolicyAgentMixin:
             if self._sightings is not None:
                 processed = np.concatenate([processed, self._sightings.features(observation[None, None])[0, 0]])
             meta = self.policy.meta
+            if meta.get('velocity'):
+                moved = target_displacements(observation, self._previous, meta['counts'], meta['frame_skip'])
+                processed = np.concatenate([processed, moved])
             heads = meta.get('action_heads', 1)
             if self.policy.recurrent:
                 logits, self._memory = self.policy.logits(processed[None], self._memory)
@@ -200,6 +209,7 @@ class _PolicyAgentMixin:
             self._held = choice
             self._countdown = self.frame_skip
         self._countdown -= 1
+        self._previous = np.array(observation, dtype=np.float64)
         if self.policy.meta.get('hrl'):   # target selection held; the executor re-aims every step
             return executor_actions(observation, self._held, self.num_cameras, self.num_targets,
                                     self.num_obstacles)

@@ -17,7 +17,10 @@ What a learner sees per decision step (the paper's wrapper stack, done on arrays
   (the `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are
   empty), the paper's Fig. 6 ablation; the opponent keeps its partial view;
 * `memory=PERIOD` (cameras): the team's shared memory of target sightings (`mate.learn.memory`), updated
-  at every raw step, appended to each camera's processed observation (4 columns per target slot).
+  at every raw step, appended to each camera's processed observation (4 columns per target slot);
+* `velocity=True` (cameras): each seen target's displacement over one held decision at its current
+  velocity (`mate.learn.velocity`, from the camera's observations at the last two raw steps), appended
+  after the memory columns (2 per target slot).
 
 Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
 ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
@@ -43,6 +46,7 @@ from ..wrappers.discrete_target import disk_grid
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .hrl import executor_actions
 from .memory import MEMORY_FEATURES, SightingMemory
+from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
 __all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'discrete_to_continuous', 'preprocess_observation']
@@ -100,12 +104,14 @@ class TeamVecEnv:
     def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
                  frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
                  seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
-                 memory: int = 0, **overrides) -> None:
+                 memory: int = 0, velocity: bool = False, **overrides) -> None:
         team = as_team(team)
         if hrl and team is not Team.CAMERA:
             raise ValueError('HRL (target selection + rule executor) exists for cameras only')
         if memory and team is not Team.CAMERA:
             raise ValueError('the sighting memory exists for cameras only')
+        if velocity and team is not Team.CAMERA:
+            raise ValueError('the target velocity features exist for cameras only')
         if memory < 0:
             raise ValueError(f'memory must be a period of at least 1 step, or 0 for none; got {memory}')
         self.hrl = bool(hrl)
@@ -131,6 +137,10 @@ class TeamVecEnv:
         self.memory = SightingMemory(num_envs, self.counts, memory) if memory else None
         if self.memory is not None:
             self.obs_dim += MEMORY_FEATURES * nt
+        self.velocity = bool(velocity)
+        if self.velocity:
+            self.obs_dim += VELOCITY_FEATURES * nt
+        self._before = None    # velocity: the trained team's raw observations one raw step earlier
         self._target_records = int(observation_indices_of(team, nc, nt, no)[2])   # camera obs: target slots
         self.state_dim = self.vec.single_state_space.shape[0]
         if team is Team.CAMERA:
@@ -163,9 +173,25 @@ class TeamVecEnv:
 
     def _process(self, raw, rows=None):
         processed = preprocess_observation(raw, self.team, *self.counts)
-        if self.memory is None:
-            return processed
-        return np.concatenate([processed, self.memory.features(raw, rows)], axis=-1)
+        columns = [processed]
+        if self.memory is not None:
+            columns.append(self.memory.features(raw, rows))
+        if self.velocity:
+            before = self._before if rows is None else self._before[rows]
+            columns.append(target_displacements(raw, before, self.counts, self.frame_skip))
+        return columns[0] if len(columns) == 1 else np.concatenate(columns, axis=-1)
+
+    def _step_vec(self, joint, restarting):
+        """One raw step of the vector env; keeps (velocity) the trained team's previous raw observations,
+        which for rows starting an episode at this step are their first ones (no motion yet)."""
+        before = self._own_raw.copy() if self.velocity else None
+        result = self.vec.step(joint)
+        observations = self._enhanced(result[0])
+        if self.velocity:
+            own = self._own(observations)
+            before[restarting] = own[restarting]
+            self._before = before
+        return (observations, *result[1:])
 
     def _remember(self, observations, restarting=None) -> None:
         """One raw step of the sighting memory: rows that start an episode forget, then every camera's
@@ -198,6 +224,7 @@ class TeamVecEnv:
         observations = self._enhanced(observations)
         self.opponent.reset(self._other(observations))
         self._raw = self._own(observations).copy()
+        self._before = self._raw.copy()
         self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)
         if self.memory is not None:
@@ -231,8 +258,7 @@ class TeamVecEnv:
                 own_actions = executor_actions(self._own_raw, selection, *self.counts)
             other = self.opponent.act(self._other_raw)
             joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
-            observations, rewards, terminated, truncated_now, infos = self.vec.step(joint)
-            observations = self._enhanced(observations)
+            observations, rewards, terminated, truncated_now, infos = self._step_vec(joint, restarting)
             if restarting.any():
                 self.opponent.reset(self._other(observations), restarting)
             self._remember(observations, restarting)
@@ -268,7 +294,7 @@ class TeamVecEnv:
         if restarting.any():   # ended at the last raw step: restart now so the next decision is clean
             other = self.opponent.act(self._other(observations))
             joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
-            observations = self._enhanced(self.vec.step(joint)[0])
+            observations = self._step_vec(joint, restarting)[0]
             self.opponent.reset(self._other(observations), restarting)
             self._remember(observations, restarting)
         self._other_raw = self._other(observations)

@@ -40,6 +40,7 @@ from ..spaces import observation_indices_of, observation_space_of
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .memory import MEMORY_FEATURES
+from .velocity import VELOCITY_FEATURES
 
 __all__ = [
     'Actor',
@@ -76,6 +77,7 @@ class PPOConfig:
     mask_invisible: bool = True          # HRL: a target the camera cannot see is never selected (see below)
     full_observability: bool = False     # the trained team sees every entity (EnhancedObservation; paper Fig. 6)
     memory: int = 0                      # cameras: steps the team's shared sighting memory keeps a target (0: none)
+    velocity: bool = False               # cameras: each seen target's motion over one held decision (velocity.py)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
@@ -221,22 +223,34 @@ class PerTargetActor(nn.Module):
     features are computed at the remembered location, two more features give the memory's freshness and
     whether a teammate sees the target now (15 in all, zero for absent slots), and pooling and attention
     run over the present slots.
+
+    With `velocity` (each seen target's displacement over one held decision, `mate.learn.velocity`, 2
+    columns per slot after the memory's), 4 more features: the displacement along and across the line
+    of sight divided by the distance (the change of range and of bearing in radians over the hold,
+    clipped to [-2, 2]), and the cosine and sine of the bearing of the predicted position (offset plus
+    displacement) relative to the heading.
     """
 
     SLOT_FEATURES = 13
+    VELOCITY_SLOT_FEATURES = 4
 
     def __init__(self, obs_dim: int, counts: tuple[int, int, int], hidden=(256, 256), activation: str = 'tanh',
                  head_width: int = 64, num_actions: int | None = None, context_extra: int = 0,
-                 memory: bool = False) -> None:
+                 memory: bool = False, velocity: bool = False) -> None:
         super().__init__()
         nc, nt, no = (int(n) for n in counts)
         starts = observation_indices_of(Team.CAMERA, nc, nt, no)
         self.own, self.begin, self.teammates = int(starts[1]), int(starts[2]), int(starts[4])
         self.memory = int(starts[-1]) if memory else None       # first memory column
-        if memory and obs_dim != int(starts[-1]) + MEMORY_FEATURES * nt:
-            raise ValueError(f'a camera observation with sighting memory has '
-                             f'{int(starts[-1]) + MEMORY_FEATURES * nt} columns, got obs_dim {obs_dim}')
-        self.slot_features_dim = self.SLOT_FEATURES + (2 if memory else 0)
+        first_velocity = int(starts[-1]) + (MEMORY_FEATURES * nt if memory else 0)
+        self.velocity = first_velocity if velocity else None     # first velocity column
+        expected = first_velocity + (VELOCITY_FEATURES * nt if velocity else 0)
+        if obs_dim != expected:
+            extras = ' with sighting memory' * bool(memory) + ' with target velocities' * bool(velocity)
+            raise ValueError(f'a camera observation{extras} of a game with counts {tuple(counts)} has '
+                             f'{expected} columns, got obs_dim {obs_dim}')
+        self.slot_features_dim = (self.SLOT_FEATURES + (2 if memory else 0)
+                                  + (self.VELOCITY_SLOT_FEATURES if velocity else 0))
         self.num_cameras, self.num_targets = nc, nt
         space = observation_space_of(Team.CAMERA, nc, nt, no)
         # rescaled viewing angles v in [-1, 1] -> degrees: low + (v + 1) (high - low) / 2 (own state: index 5)
@@ -273,8 +287,9 @@ class PerTargetActor(nn.Module):
         return torch.cos(torch.deg2rad(0.5 * degrees))
 
     def slot_features(self, obs: torch.Tensor) -> torch.Tensor:
-        """(..., D) processed observations -> (..., Nt, F) slot features (F = 13, or 15 with memory;
-        see the class docstring). Column 4 is the visibility flag, the last but one the memory's freshness."""
+        """(..., D) processed observations -> (..., Nt, F) slot features (F = 13, + 4 with velocity, + 2
+        with memory; see the class docstring). Column 4 is the visibility flag; with memory, the last but
+        one is the memory's freshness."""
         lead, nt, nc = obs.shape[:-1], self.num_targets, self.num_cameras
         records = obs[..., self.begin:self.begin + 5 * nt].reshape(*lead, nt, 5)
         if self.memory is None:
@@ -306,6 +321,15 @@ class PerTargetActor(nn.Module):
         ego = torch.stack([along, across, distance, cos_bearing, across / distance, angle_margin, range_margin,
                            covered], dim=-1)
         features = [records, ego * visible[..., None]]
+        if self.velocity is not None:
+            moved = obs[..., self.velocity:self.velocity + VELOCITY_FEATURES * nt].reshape(*lead, nt, VELOCITY_FEATURES)
+            moved_along = moved[..., 0] * ux + moved[..., 1] * uy
+            moved_across = moved[..., 1] * ux - moved[..., 0] * uy
+            ahead_along, ahead_across = along + moved_along, across + moved_across
+            ahead = torch.sqrt(ahead_along * ahead_along + ahead_across * ahead_across + 1e-12)
+            motion = torch.stack([(moved_along / distance).clamp(-2.0, 2.0), (moved_across / distance).clamp(-2.0, 2.0),
+                                  ahead_along / ahead, ahead_across / ahead], dim=-1)
+            features.append(motion * visible[..., None])
         if self.memory is not None:
             features.append(remembered[..., 2:4] * visible[..., None])     # freshness > 0: a present slot
         return torch.cat(features, dim=-1)
@@ -402,7 +426,8 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
         if meta.get('team') != 'camera':
             raise ValueError("actor 'per-target' reads a camera's target slots: it needs team 'camera'")
         actor = PerTargetActor(obs_dim, tuple(meta['counts']), hidden, activation, num_actions=num_actions,
-                               context_extra=lstm, memory=bool(meta.get('memory', 0)))
+                               context_extra=lstm, memory=bool(meta.get('memory', 0)),
+                               velocity=bool(meta.get('velocity', False)))
     else:
         raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target'")
     return RecurrentActor(actor, lstm) if lstm else actor
@@ -581,7 +606,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     # ---- environments
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
                       horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
-                      hrl=config.hrl, full_observability=config.full_observability, memory=config.memory)
+                      hrl=config.hrl, full_observability=config.full_observability, memory=config.memory,
+                      velocity=config.velocity)
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
 
@@ -592,6 +618,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
                 full_observability=bool(getattr(envs, 'full_observability', False)),
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
+                velocity=bool(getattr(envs, 'velocity', False)),
                 actor=config.actor, lstm=config.lstm)
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
@@ -780,7 +807,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
 
 WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',
-                   'full_observability', 'memory')
+                   'full_observability', 'memory', 'velocity')
 """Metadata a warm-start file must share with the experiment (the actor's shape and meaning)."""
 
 
