@@ -342,7 +342,7 @@ def _uniform(rng: np.random.Generator, box: spaces.Box, shape: tuple[int, ...]) 
 
     The same numbers as `rng.uniform(box.low, box.high, shape)`, drawn and then scaled in place
     over rows of all the agents' values (numpy's inner loops are slow over a last axis of 2):
-    0.2 against 0.66 ms for a (4096, 12, 2) joint action.
+    0.26 against 0.66 ms for a (4096, 12, 2) joint action.
     """
     out = rng.random(shape)
     rows = out.reshape(shape[0], -1)
