@@ -25,7 +25,7 @@ from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
 
-__all__ = ['MEMORY_FEATURES', 'SightingMemory', 'camera_sightings']
+__all__ = ['MEMORY_FEATURES', 'SightingMemory', 'camera_sightings', 'target_record_scale']
 
 MEMORY_FEATURES = 4
 """Columns per target slot: dx, dy, freshness, seen_by_teammate."""
@@ -39,6 +39,12 @@ def camera_sightings(observation: np.ndarray, num_cameras: int, num_targets: int
     records = records.reshape(*records.shape[:-1], num_targets, 5)
     own = np.asarray(observation[..., PRESERVED_DIM:PRESERVED_DIM + 2], dtype=np.float64)
     return own, records[..., 4] > 0.5, records[..., :2]
+
+
+def target_record_scale(num_cameras: int, num_targets: int, num_obstacles: int) -> float:
+    """What the rescaling of a camera observation divides the target records' coordinates by."""
+    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
+    return float(observation_space_of(Team.CAMERA, num_cameras, num_targets, num_obstacles).high[begin])
 
 
 class SightingMemory:
@@ -58,9 +64,7 @@ class SightingMemory:
         self.period = int(period)
         self.location = np.zeros((num_envs, nt, 2))
         self.age = np.full((num_envs, nt), self.period, dtype=np.int64)
-        space = observation_space_of(Team.CAMERA, *self.counts)
-        begin = int(observation_indices_of(Team.CAMERA, *self.counts)[2])
-        self.scale = float(space.high[begin])          # the rescaling of the target records' coordinates
+        self.scale = target_record_scale(*self.counts)
 
     def forget(self, mask=None) -> None:
         """Forget everything in the rows `mask` (all rows if None): a new episode."""

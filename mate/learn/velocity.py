@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..messages import Team
-from ..spaces import observation_indices_of, observation_space_of
-from .memory import camera_sightings
+from .memory import camera_sightings, target_record_scale
 
 __all__ = ['VELOCITY_FEATURES', 'target_displacements']
 
@@ -31,8 +29,7 @@ def target_displacements(current: np.ndarray, previous: np.ndarray, counts, step
     (both (..., N, D)) of a game with `counts` = (Nc, Nt, No): each seen target's displacement over
     `steps` env steps at its current velocity, rescaled like the target records; 0 where not seen twice."""
     counts = tuple(int(n) for n in counts)
-    begin = int(observation_indices_of(Team.CAMERA, *counts)[2])
-    scale = float(observation_space_of(Team.CAMERA, *counts).high[begin])
+    scale = target_record_scale(*counts)
     _, seen_now, where_now = camera_sightings(current, *counts)
     _, seen_before, where_before = camera_sightings(previous, *counts)
     both = (seen_now & seen_before)[..., None]
