@@ -42,6 +42,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--velocity', action='store_true',
                         help="cameras only: append each seen target's displacement over one held decision at its "
                              "current velocity (so that a policy holding its decision can aim ahead)")
+    parser.add_argument('--credit', choices=('team', 'difference'), default='team',
+                        help="cameras only: 'team' (default): every camera is rewarded with the team's coverage rate; "
+                             "'difference': each camera with its own marginal contribution to it (the share of the "
+                             "targets only it tracks), with one critic value per camera")
     parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
     parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
     parser.add_argument('--gae-lambda', type=float, default=0.95)
@@ -109,6 +113,9 @@ def config_from_args(args: argparse.Namespace):
         raise SystemExit('mate train: --memory (shared sightings of targets) exists for cameras only')
     if args.velocity and args.team != 'camera':
         raise SystemExit('mate train: --velocity (motion of the seen targets) exists for cameras only')
+    if args.credit != 'team' and args.team != 'camera':
+        raise SystemExit(f'mate train: --credit {args.credit} (each camera\'s own share of the coverage) exists for '
+                         'cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
         raise SystemExit("mate train: --actor per-target reads a camera's target slots; it needs --team camera")
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
@@ -117,7 +124,7 @@ def config_from_args(args: argparse.Namespace):
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
                      lstm=args.lstm, hrl=args.hrl, full_observability=args.full_observability, memory=args.memory,
-                     velocity=args.velocity, init_from=args.init_from, **_env(args.config), **extra)
+                     velocity=args.velocity, credit=args.credit, init_from=args.init_from, **_env(args.config), **extra)
 
 
 def run(args: argparse.Namespace, console) -> int:

@@ -20,7 +20,9 @@ What a learner sees per decision step (the paper's wrapper stack, done on arrays
   at every raw step, appended to each camera's processed observation (4 columns per target slot);
 * `velocity=True` (cameras): each seen target's displacement over one held decision at its current
   velocity (`mate.learn.velocity`, from the camera's observations at the last two raw steps), appended
-  after the memory columns (2 per target slot).
+  after the memory columns (2 per target slot);
+* `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the
+  coverage rate (`difference_rewards`) instead of the team's coverage rate; rewards are then (B, N).
 
 Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
 ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
@@ -49,7 +51,11 @@ from .memory import MEMORY_FEATURES, SightingMemory
 from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
-__all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'discrete_to_continuous', 'preprocess_observation']
+__all__ = ['CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'difference_rewards', 'discrete_to_continuous',
+           'preprocess_observation']
+
+CREDITS = ('team', 'difference')
+"""How a camera's reward is assigned: the team's coverage rate, or its own marginal contribution to it."""
 
 PAPER_SETTINGS = {
     'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5, horizon=2500),
@@ -82,6 +88,20 @@ def discrete_to_continuous(indices, observation, team, levels: int = 5) -> np.nd
     return disk_grid(levels)[indices] * step
 
 
+def difference_rewards(sees: np.ndarray) -> np.ndarray:
+    """Each camera's marginal contribution to the coverage rate (the *difference reward*).
+
+    `sees` (..., Nc, Nt) bool: camera c tracks target t (the flags of the cameras' raw observations).
+    Returns (..., Nc) float64: the coverage rate minus the coverage rate the other cameras would give
+    without camera c, i.e. the share of the Nt targets that camera c alone tracks. A camera changes
+    its own difference reward exactly as much as it changes the team's coverage rate, while the other
+    cameras' sightings, which it does not control, no longer enter its reward.
+    """
+    sees = np.asarray(sees, dtype=bool)
+    watchers = sees.sum(axis=-2, keepdims=True)                       # (..., 1, Nt) cameras tracking each target
+    return (sees & (watchers == 1)).sum(axis=-1) / sees.shape[-1]
+
+
 def compress(x: np.ndarray) -> np.ndarray:
     """float32 x, with the entries beyond [-1, 1] (unbounded counters: bounties, freights, cargo counts up
     to 200) squashed logarithmically, sign(x) (1 + log|x|), so that they do not saturate the critic."""
@@ -93,7 +113,8 @@ class TeamVecEnv:
     """B games, one trained team (`'camera'` or `'target'`), the other team a batched greedy opponent.
 
     `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
-    `step(actions (B, N) int)` -> (obs, state, reward (B,), done (B,), truncated (B,), info) where done
+    `step(actions (B, N) int)` -> (obs, state, reward, done (B,), truncated (B,), info): reward (B,) the
+    team's, or (B, N) per camera with `credit='difference'`; done
     covers both ends of an episode, `truncated` the horizon/time-limit ones, and info holds
     `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean raw-step coverage of the
     decision, and `episodes`: a list of finished-episode dicts (`coverage`: step-mean coverage rate,
@@ -104,8 +125,13 @@ class TeamVecEnv:
     def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
                  frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
                  seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
-                 memory: int = 0, velocity: bool = False, **overrides) -> None:
+                 memory: int = 0, velocity: bool = False, credit: str = 'team', **overrides) -> None:
         team = as_team(team)
+        if credit not in CREDITS:
+            raise ValueError(f'credit must be one of {CREDITS}, got {credit!r}')
+        if credit == 'difference' and team is not Team.CAMERA:
+            raise ValueError("credit 'difference' (each camera's own share of the coverage) exists for cameras only")
+        self.credit = credit
         if hrl and team is not Team.CAMERA:
             raise ValueError('HRL (target selection + rule executor) exists for cameras only')
         if memory and team is not Team.CAMERA:
@@ -186,6 +212,9 @@ class TeamVecEnv:
         which for rows starting an episode at this step are their first ones (no motion yet)."""
         before = self._own_raw.copy() if self.velocity else None
         result = self.vec.step(joint)
+        if self.credit == 'difference':   # before full observability fills in every flag
+            begin, nt = self._target_records, self.counts[1]
+            self._sees = result[0][0][..., begin + 4:begin + 5 * nt:5] > 0.5
         observations = self._enhanced(result[0])
         if self.velocity:
             own = self._own(observations)
@@ -244,7 +273,7 @@ class TeamVecEnv:
         else:
             own_actions = discrete_to_continuous(actions.reshape(B, self.num_agents), self._raw, self.team,
                                                  self.levels)
-        reward = np.zeros(B)
+        reward = np.zeros((B, self.num_agents) if self.credit == 'difference' else B)
         coverage = np.zeros(B)
         counted = np.zeros(B)
         done = np.zeros(B, dtype=bool)
@@ -266,7 +295,10 @@ class TeamVecEnv:
             r = rewards[0] if self.team is Team.CAMERA else rewards[1]
             if self.team is Team.CAMERA:
                 r = infos['coverage_rate']
-            reward += np.where(live, r, 0.0)
+            if self.credit == 'difference':
+                reward += np.where(live[:, None], difference_rewards(self._sees), 0.0)
+            else:
+                reward += np.where(live, r, 0.0)
             coverage += np.where(live, infos['coverage_rate'], 0.0)
             counted += live
             self._return += np.where(live, r, 0.0)

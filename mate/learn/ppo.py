@@ -37,7 +37,7 @@ from torch import nn
 from ..core.engine import NUM_THREADS
 from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
-from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
@@ -78,6 +78,7 @@ class PPOConfig:
     full_observability: bool = False     # the trained team sees every entity (EnhancedObservation; paper Fig. 6)
     memory: int = 0                      # cameras: steps the team's shared sighting memory keeps a target (0: none)
     velocity: bool = False               # cameras: each seen target's motion over one held decision (velocity.py)
+    credit: str = 'team'                 # cameras: 'team' coverage reward, or 'difference' (each camera's own share)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
@@ -434,15 +435,19 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
 
 
 class Critic(nn.Module):
-    """Value in normalised units of the global state (MAPPO) or of a local observation (IPPO)."""
+    """Value in normalised units of the global state (MAPPO) or of a local observation (IPPO):
+    (..., input_dim) -> (...,), or (..., outputs) with `outputs` > 1 (MAPPO with per-agent rewards:
+    one value per agent, in the agents' order in the state)."""
 
-    def __init__(self, input_dim: int, hidden=(256, 256), activation: str = 'tanh') -> None:
+    def __init__(self, input_dim: int, hidden=(256, 256), activation: str = 'tanh', outputs: int = 1) -> None:
         super().__init__()
         self.body, width = mlp(input_dim, hidden, activation)
-        self.head = linear(width, 1, 1.0, 1.0)
+        self.head = linear(width, outputs, 1.0, 1.0)
+        self.outputs = outputs
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.head(self.body(x)).squeeze(-1)
+        values = self.head(self.body(x))
+        return values.squeeze(-1) if self.outputs == 1 else values
 
 
 def action_distribution(logits: torch.Tensor, heads: int, choices: int, allowed: torch.Tensor | None = None):
@@ -467,9 +472,10 @@ def critic_input_dim(algo: str, obs_dim: int, state_dim: int) -> int:
     return obs_dim if algo == 'ippo' else state_dim
 
 
-def per_agent(algo: str, values: torch.Tensor, num_agents: int) -> torch.Tensor:
-    """Critic outputs, (...,) per env (MAPPO) or (..., N) per agent (IPPO) -> (..., N)."""
-    return values if algo == 'ippo' else values.unsqueeze(-1).expand(*values.shape, num_agents)
+def per_agent(algo: str, values: torch.Tensor, num_agents: int, shared: bool = True) -> torch.Tensor:
+    """Critic outputs -> (..., N): (...,) per env (MAPPO, `shared` team value) repeated to every agent;
+    (..., N) per agent (IPPO, or MAPPO's per-agent heads when `shared` is false) unchanged."""
+    return values if algo == 'ippo' or not shared else values.unsqueeze(-1).expand(*values.shape, num_agents)
 
 
 class ValueNormalizer(nn.Module):
@@ -607,7 +613,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     envs = envs or TeamVecEnv(config.team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
                       horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
                       hrl=config.hrl, full_observability=config.full_observability, memory=config.memory,
-                      velocity=config.velocity)
+                      velocity=config.velocity, credit=config.credit)
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
 
@@ -618,11 +624,13 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 hrl=bool(getattr(envs, 'hrl', False)), counts=list(getattr(envs, 'counts', ())),
                 full_observability=bool(getattr(envs, 'full_observability', False)),
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
-                velocity=bool(getattr(envs, 'velocity', False)),
+                velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
                 actor=config.actor, lstm=config.lstm)
+    per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
-    critic = Critic(critic_input_dim(config.algo, D, S), config.hidden, config.activation)
+    critic = Critic(critic_input_dim(config.algo, D, S), config.hidden, config.activation,
+                    outputs=N if per_agent_rewards and config.algo == 'mappo' else 1)
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
     env_steps, iteration, wall_before = 0, 0, 0.0     # wall_before: training seconds of earlier sessions
@@ -658,7 +666,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         return torch.from_numpy(envs.allowed_actions(obs_t.numpy())) if masking else None
 
     def values_of(obs_t, state_t):   # (..., N) values of every agent, in return units
-        return per_agent(config.algo, value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t))), N)
+        return per_agent(config.algo, value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t))), N,
+                         shared=not per_agent_rewards)
 
     # ---- rollout storage: T decisions x B envs x N agents
     T = config.rollout_length
@@ -667,7 +676,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     action_buf = torch.zeros(T, B, N, H, dtype=torch.long)
     logp_buf = torch.zeros(T, B, N)
     value_buf = torch.zeros(T, B, N)
-    reward_buf = torch.zeros(T, B)
+    reward_buf = torch.zeros(T, B, N)
     done_buf = torch.zeros(T, B)
     start_buf = torch.zeros(T, B, dtype=torch.bool)      # an episode begins at this decision (recurrent actor)
     memory = actor.initial_state(B, N) if recurrent else None
@@ -703,10 +712,12 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     value = values_of(obs, state)
                 next_obs, next_state, reward, done, truncated, info = envs.step(action.numpy()[..., 0] if H == 1 else action.numpy())
                 reward = torch.from_numpy(reward).float()
+                reward = reward if per_agent_rewards else reward[:, None].expand(B, N)     # (B, N)
                 if truncated.any():   # horizon cut: bootstrap from the critic's value of the last observation
                     with torch.no_grad():
                         final = values_of(torch.from_numpy(info['final_obs']), torch.from_numpy(info['final_state']))
-                    reward = reward + config.gamma * torch.from_numpy(truncated).float() * final.mean(-1)
+                    final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # team: one value per env
+                    reward = reward + config.gamma * torch.from_numpy(truncated).float()[:, None] * final
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
                 reward_buf[t], done_buf[t] = reward, torch.from_numpy(done).float()
@@ -717,12 +728,11 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             env_steps += T * B
             collect_seconds = time.perf_counter() - t_collect
 
-            # ---- advantages (team reward repeated to every agent)
+            # ---- advantages (per agent: the team reward repeated, or each agent's own)
             with torch.no_grad():
                 last_values = values_of(obs, state)
-            rewards = reward_buf.unsqueeze(-1).expand(T, B, N)
             dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(rewards, value_buf, dones, last_values, config.gamma,
+            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
                                               config.gae_lambda)
             value_norm.update(returns)
 
@@ -748,7 +758,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     dist = action_distribution(logits_of(idx), H, C, allowed_of(b_obs[idx]))
                     new_logp = dist.log_prob(b_action[idx]).sum(-1)
                     policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
-                    predicted = per_agent(config.algo, critic(critic_inputs(config.algo, b_obs[idx], b_state[idx])), N)
+                    predicted = per_agent(config.algo, critic(critic_inputs(config.algo, b_obs[idx], b_state[idx])), N,
+                                          shared=not per_agent_rewards)
                     value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
                     entropy = dist.entropy().sum(-1).mean()
                     kl = sampled_kl(new_logp, b_logp[idx])
@@ -813,13 +824,14 @@ WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', '
 
 def _warm_start(path, meta: dict, actor: nn.Module, critic: nn.Module, value_norm: ValueNormalizer) -> None:
     """Load the actor of `path` (a checkpoint or an exported policy) and, from a full checkpoint of the
-    same algorithm, the critic and value normaliser too; CheckpointError if the actor does not fit."""
+    same algorithm and credit, the critic and value normaliser too; CheckpointError if the actor does not fit."""
     saved = load_checkpoint(path, expect={key: meta[key] for key in WARM_START_KEYS})
     try:
         actor.load_state_dict(saved['actor'])
     except RuntimeError as exc:
         raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: {str(exc).splitlines()[0]}') from None
-    if 'critic' in saved and saved['meta'].get('algo') == meta['algo']:
+    same_critic = all(saved['meta'].get(k, META_DEFAULTS.get(k)) == meta[k] for k in ('algo', 'credit'))
+    if 'critic' in saved and same_critic:   # the critic's inputs and outputs depend on both
         critic.load_state_dict(saved['critic'])
         value_norm.load_state_dict(saved['value_norm'])
 

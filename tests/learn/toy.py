@@ -58,3 +58,16 @@ class CueRecall(CueMatching):
         if self.t % self.length == 0:
             self.cue = self.rng.integers(self.num_actions, size=(self.num_envs, self.num_agents))
         return self._show(self.t % self.length == 0)
+
+
+
+class OwnCueMatching(CueMatching):
+    """CueMatching with each agent paid for its own match only: rewards (B, N), as `TeamVecEnv` gives
+    them with `credit='difference'`."""
+
+    credit = 'difference'
+
+    def step(self, actions):
+        own = (np.asarray(actions) == self.cue).astype(np.float64)      # before the next cue is drawn
+        obs, state, _, done, truncated, info = super().step(actions)
+        return obs, state, own, done, truncated, info
