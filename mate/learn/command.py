@@ -16,6 +16,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='preset name (e.g. MATE-4v8-9) or YAML/JSON path; default: the paper preset of the team '
                              '(cameras MATE-4v8-9, targets MATE-2v4-0)')
     parser.add_argument('--steps', type=float, default=2e6, help='decision steps in total (default 2e6)')
+    parser.add_argument('--minutes', type=float, default=0.0,
+                        help='also stop after this many minutes of training wall time (resumed sessions included); '
+                             'default 0: no time limit')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--num-envs', type=int, default=64, help='batched games (default 64)')
     parser.add_argument('--rollout-length', type=int, default=25, help='decisions per env per iteration (default 25)')
@@ -105,6 +108,8 @@ def config_from_args(args: argparse.Namespace):
         extra['kl_coeff'] = args.kl_coeff
     if not args.kl_target > 0:
         raise SystemExit(f'mate train: --kl-target must be > 0, got {args.kl_target}')
+    if not args.minutes >= 0:
+        raise SystemExit(f'mate train: --minutes must be >= 0 (0 = no time limit), got {args.minutes}')
     if args.lstm < 0:
         raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
     if args.memory < 0:
@@ -119,6 +124,7 @@ def config_from_args(args: argparse.Namespace):
     if args.actor == 'per-target' and args.team != 'camera':
         raise SystemExit("mate train: --actor per-target reads a camera's target slots; it needs --team camera")
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
+                     time_limit=60.0 * args.minutes,
                      num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,

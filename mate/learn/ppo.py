@@ -82,6 +82,7 @@ class PPOConfig:
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
+    time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
     num_envs: int = 64
     rollout_length: int = 25             # decisions per env per iteration (paper: 25-step fragments)
     epochs: int = 4
@@ -688,8 +689,12 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     logger = Logger(run_dir, resume=env_steps > 0)
     start, start_steps, row = time.perf_counter(), env_steps, {}
     bar = _progress_bar(config.total_steps, env_steps) if progress else None
+
+    def out_of_time() -> bool:   # the wall-time budget (`time_limit`) is spent
+        return config.time_limit > 0 and wall_before + time.perf_counter() - start >= config.time_limit
+
     try:
-        while env_steps < config.total_steps:
+        while env_steps < config.total_steps and not out_of_time():
             lr = piecewise(config.lr_schedule, env_steps, interpolate=False)
             entropy_coef = piecewise(config.entropy_schedule, env_steps, interpolate=True)
             for group in optimizer.param_groups:

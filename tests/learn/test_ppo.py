@@ -203,3 +203,14 @@ def test_only_a_recurrent_actor_solves_cue_recall(tmp_path, lstm):
         assert best > 0.6, [round(r['rollout_coverage'], 3) for r in rows]
     else:
         assert best < memoryless_bound + 0.08, [round(r['rollout_coverage'], 3) for r in rows]
+
+
+def test_time_limit_stops_training_early(tmp_path):
+    rows = []
+    config = PPOConfig(algo='mappo', actor='mlp', total_steps=10 ** 9, num_envs=4, rollout_length=4, epochs=1,
+                       hidden=(8,), time_limit=0.5, seed=0)
+    row = train(config, tmp_path, progress=False, callback=rows.append, envs=CueMatching(num_envs=4))
+    assert 0.5 <= row['wall_seconds'] < 30 and row['env_steps'] < config.total_steps
+    assert rows[-2]['wall_seconds'] <= 0.51         # the budget is checked before every iteration (logged to 0.01 s)
+    # resuming a run whose budget is spent trains no further
+    assert train(config, tmp_path, progress=False, envs=CueMatching(num_envs=4)) == {}
