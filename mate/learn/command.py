@@ -152,6 +152,8 @@ def run(args: argparse.Namespace, console) -> int:
     except KeyboardInterrupt:
         console.print(f'interrupted; run the same command again to resume from {run_dir / "checkpoint.pt"}')
         return 130
+    if config.time_limit and row.get('env_steps', config.total_steps) < config.total_steps:
+        console.print(f'stopped at the time limit of {args.minutes:g} minutes')
     console.print(f"done: {row.get('env_steps', 0):,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
                   f"episode return {row.get('episode_return', float('nan')):.1f}; final policy {run_dir / 'final.pt'}")
     return 0

@@ -9,7 +9,8 @@ One policy is shared by every agent of the trained team (full parameter sharing,
 Its action is one or more independent categorical choices (`action_distribution`): one of 25 grid
 moves for the flat learners, or one keep/ignore bit per target slot for HRL cameras (`hrl=True`,
 spec training.md §3), whose rule executor runs inside `TeamVecEnv`.
-Rewards are team rewards, repeated to every agent. Values are learned on normalised returns
+Rewards are team rewards, repeated to every agent, or, for cameras with `credit='difference'`, each
+camera's own share of the coverage (MAPPO's critic then gives one value per agent). Values are learned on normalised returns
 (running mean/std, "value normalisation"). Schedules (learning rate, entropy coefficient) are
 piecewise functions of decision steps, as in spec training.md §1.6.
 
