@@ -20,23 +20,20 @@ import torch
 from mate.constants import PRESERVED_DIM
 from mate.learn.agents import load_policy
 from mate.learn.envs import TeamVecEnv
+from mate.learn.memory import camera_sightings
 from mate.learn.opponents import VecGreedyCamera
-from mate.messages import Team
-from mate.spaces import observation_indices_of
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 
 
 def record(env: TeamVecEnv) -> dict:
     """Wrap `env.vec.step` so that every raw step's camera statistics are appended to the returned lists."""
-    nc, nt, no = env.counts
-    begin = int(observation_indices_of(Team.CAMERA, nc, nt, no)[2])
     stats = {'coverage': [], 'seeing nothing': [], 'seen twice or more': [], 'viewing angle': [], 'targets per camera': []}
     step = env.vec.step
 
     def recording(actions):
         result = step(actions)
         raw = result[0][0]
-        sees = raw[..., begin + 4:begin + 5 * nt:5] > 0.5                     # (B, Nc, Nt)
+        sees = camera_sightings(raw, *env.counts)[1]                          # (B, Nc, Nt)
         stats['coverage'].append(result[4]['coverage_rate'].mean())
         stats['seeing nothing'].append((sees.sum(-1) == 0).mean())
         stats['seen twice or more'].append((sees.sum(1) >= 2).mean())

@@ -47,7 +47,7 @@ from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .hrl import executor_actions
-from .memory import MEMORY_FEATURES, SightingMemory
+from .memory import MEMORY_FEATURES, SightingMemory, camera_sightings
 from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
@@ -213,8 +213,7 @@ class TeamVecEnv:
         before = self._own_raw.copy() if self.velocity else None
         result = self.vec.step(joint)
         if self.credit == 'difference':   # before full observability fills in every flag
-            begin, nt = self._target_records, self.counts[1]
-            self._sees = result[0][0][..., begin + 4:begin + 5 * nt:5] > 0.5
+            self._sees = camera_sightings(result[0][0], *self.counts)[1]
         observations = self._enhanced(result[0])
         if self.velocity:
             own = self._own(observations)
