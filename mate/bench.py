@@ -2,7 +2,8 @@
 
 Protocol: random actions, uniform over the action boxes, drawn before timing (a bank of 16
 joint actions cycled through), observations built every step. The single env is the
-Gymnasium-style `MultiAgentTracking` (infos, copies and all); the batched core is
+Gymnasium-style `MultiAgentTracking` (infos, copies and all); the README loop is the same env
+drawing `env.action_space.sample()` every step (the draw timed too); the batched core is
 `mate.core.engine.step` on B rows writing into preallocated observation buffers; the vector env
 is `mate.make_vec` drawing fresh random actions every step (the draw is timed too). Each
 measurement runs for about `seconds` after one warm-up step (compilation is excluded).
@@ -54,6 +55,24 @@ def measure_single_env(preset: str, seconds: float = 2.0, seed: int = 0) -> dict
             'steps': steps, 'seconds': elapsed, 'env_steps_per_second': steps / elapsed}
 
 
+def measure_readme_loop(preset: str, seconds: float = 2.0, seed: int = 0) -> dict:
+    """Steps/s of the README's loop: one env stepped with `env.action_space.sample()` drawn every step
+    (the draw timed too; resets included)."""
+    env = MultiAgentTracking(preset)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    env.step(env.action_space.sample())
+    steps, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        for _ in range(100):
+            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+    return {'kind': 'README loop', 'preset': preset, 'batch_size': 1, 'dtype': 'float64',
+            'steps': steps, 'seconds': elapsed, 'env_steps_per_second': steps / elapsed}
+
+
 def measure_batched_core(preset: str, batch_size: int, seconds: float = 2.0, dtype=np.float64,
                          seed: int = 0) -> dict:
     """Env-steps/s of the batched core at `batch_size` rows with random actions."""
@@ -96,6 +115,7 @@ def measure_vector_env(preset: str, batch_size: int, seconds: float = 2.0, dtype
 
 
 _MEASURE = {'single': lambda preset, b, seconds, dtype: measure_single_env(preset, seconds),
+            'readme': lambda preset, b, seconds, dtype: measure_readme_loop(preset, seconds),
             'batched': measure_batched_core, 'vector': measure_vector_env}
 
 
@@ -112,6 +132,7 @@ def run(presets=('MATE-4v8-9', 'MATE-8v8-9'), batch_sizes=(1, 64, 1024, 4096, 16
     plan = []
     for preset in presets:
         plan.append(('single', preset, 1, np.float64))
+        plan.append(('readme', preset, 1, np.float64))
         plan.extend(('batched', preset, b, np.float64) for b in batch_sizes)
         large = [b for b in batch_sizes if b >= 1024]
         if float32:

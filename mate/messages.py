@@ -17,7 +17,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 
-__all__ = ['Team', 'Message', 'MessageChannel']
+__all__ = ['Team', 'Message', 'MessageChannel', 'values_equal']
 
 
 class Team(enum.IntEnum):
@@ -25,6 +25,25 @@ class Team(enum.IntEnum):
 
     CAMERA = 0
     TARGET = 1
+
+
+def values_equal(a: Any, b: Any) -> bool:
+    """Whether two message contents hold the same values: dicts by keys and values, lists and tuples
+    item by item (a list never equals a tuple), arrays by shape and elements, anything else by `==`
+    (agent state views compare their vectors). Never raises on arrays, unlike a plain `==`."""
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.shape == b.shape
+                and bool(np.array_equal(a, b)))
+    if isinstance(a, dict):
+        return (isinstance(b, dict) and a.keys() == b.keys()
+                and all(values_equal(value, b[key]) for key, value in a.items()))
+    if isinstance(a, (list, tuple)):
+        return (type(a) is type(b) and len(a) == len(b)
+                and all(values_equal(x, y) for x, y in zip(a, b)))
+    equal = a == b
+    return bool(np.all(equal)) if isinstance(equal, np.ndarray) else bool(equal)
 
 
 @dataclasses.dataclass
@@ -40,6 +59,16 @@ class Message:
     content: Any
     team: Team
     broadcasting: bool = False
+
+    def __eq__(self, other: Any) -> bool:
+        """Equal when every field is; the content by value (`values_equal`), so that two runs of a
+        seeded episode deliver equal messages even when their contents hold arrays or state views."""
+        if not isinstance(other, Message):
+            return NotImplemented
+        return (self.sender == other.sender and self.recipient == other.recipient and self.team == other.team
+                and self.broadcasting == other.broadcasting and values_equal(self.content, other.content))
+
+    __hash__ = None
 
     def __contains__(self, key: Any) -> bool:
         return key in self.content

@@ -189,3 +189,75 @@ def test_empty_teams():
     assert len(range(190)[sl['teammate_mask']]) == 0
     assert S.camera_coordinate_mask_of(0, 0, 0).sum() == 8
     assert S.target_observation_space_of(0, 0, 0).shape == (27,)
+
+
+# ---------------------------------------------------------------------------- team (joint) spaces
+
+def _box():
+    return gym_spaces.Box(np.array([-5.0, -2.0]), np.array([5.0, 2.0]), dtype=np.float64)
+
+
+def _same(a, b) -> bool:
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_team_space_samples_every_agent_within_bounds_in_one_draw():
+    space = S.TeamSpace(_box(), 6)
+    space.seed(0)
+    samples = np.array([np.stack(space.sample()) for _ in range(2000)])     # (2000, 6, 2)
+    assert samples.shape == (2000, 6, 2) and samples.dtype == np.float64
+    assert all(space.sample() in space for _ in range(10))
+    assert samples[..., 0].min() < -4.9 and samples[..., 0].max() > 4.9       # uniform over the box,
+    assert samples[..., 1].min() < -1.95 and samples[..., 1].max() > 1.95     # each axis its own bounds
+    assert np.all(np.abs(samples[..., 0]) <= 5) and np.all(np.abs(samples[..., 1]) <= 2)
+    assert not np.array_equal(samples[:, 0], samples[:, 1])                  # agents drawn independently
+
+
+def test_team_space_seeding_follows_gymnasium():
+    space = S.TeamSpace(_box(), 4)
+    space.seed(3)
+    first = [space.sample() for _ in range(3)]
+    space.seed(3)
+    assert all(_same(a, b) for a, b in zip(first, [space.sample() for _ in range(3)]))
+    space.seed(4)
+    assert not _same(first[0], space.sample())
+    space.seed([1, 2, 3, 4])
+    listed = space.sample()
+    space.seed([1, 2, 3, 4])
+    assert _same(listed, space.sample())
+    space.seed(None)
+    assert space.sample() in space
+    joint = gym_spaces.Tuple((S.TeamSpace(_box(), 4), S.TeamSpace(_box(), 8)))    # as env.action_space
+    joint.seed(1)
+    a = joint.sample()
+    joint.seed(1)
+    b = joint.sample()
+    assert _same(a[0], b[0]) and _same(a[1], b[1]) and len(a[1]) == 8
+
+
+def test_team_space_is_a_tuple_of_the_agent_space():
+    box = _box()
+    space = S.TeamSpace(box, 3)
+    assert isinstance(space, gym_spaces.Tuple) and space.spaces == (box,) * 3 and space == gym_spaces.Tuple((box,) * 3)
+    mask_space = S.TeamSpace(gym_spaces.Discrete(5), 3)
+    mask_space.seed(0)
+    assert all(0 <= a < 5 for a in mask_space.sample()) and mask_space.sample() in mask_space
+    masked = mask_space.sample(mask=tuple(np.array([0, 0, 1, 0, 0], dtype=np.int8) for _ in range(3)))
+    assert masked == (2, 2, 2)                                                 # masks fall back to Tuple.sample
+    assert S.TeamSpace(box, 0).sample() == ()
+
+
+def test_env_action_space_samples_reproducibly():
+    import mate
+    env = mate.make('MATE-4v8-9-v0')
+    assert isinstance(env.camera_joint_action_space, S.TeamSpace)
+    env.action_space.seed(7)
+    a = env.action_space.sample()
+    env.action_space.seed(7)
+    b = env.action_space.sample()
+    assert _same(a[0], b[0]) and _same(a[1], b[1]) and a in env.action_space
+    discrete = mate.make('MATE-4v8-9-v0', wrappers=[mate.DiscreteCamera, mate.DiscreteTarget])
+    discrete.action_space.seed(7)
+    c = discrete.action_space.sample()
+    discrete.action_space.seed(7)
+    assert c == discrete.action_space.sample() and c in discrete.action_space

@@ -16,8 +16,10 @@ the two calls after the previous `act` (an agent driven by `act` alone counts to
 override `observe` and `act` freely; the counting wraps them automatically.
 
 Seeding: `np_random` is the agent's own numpy Generator; `action_space` has its own generator,
-seeded from the agent's at every `reset`. `clone()` deep-copies an agent and reseeds the copy
-with a seed drawn from the prototype, so `Cls(seed=s).spawn(n)` gives n reproducible teammates.
+seeded from the agent's at every `reset`. `seed(s)` draws nothing, so after `seed(s)` and
+`reset(observation)` an agent behaves as a new agent built with seed s would: a reused agent replays
+a seeded episode. `clone()` deep-copies an agent and reseeds the copy with a seed drawn from the
+prototype, so `Cls(seed=s).spawn(n)` gives n reproducible teammates.
 """
 
 from __future__ import annotations
@@ -151,19 +153,26 @@ class AgentBase(abc.ABC):
         return self._np_random
 
     def seed(self, seed: int | None = None) -> list[int]:
-        """Reseed the agent's generator (and, after the first reset, its action space from it).
+        """Reseed the agent's generator (and, after the first reset, its action space).
 
-        Returns the seeds used: `[seed]`, plus the action space's child seed when there is one.
+        Reseeding draws nothing from the new generator, so what an agent does after `seed(s)` and
+        `reset(observation)` depends on `s` and the observations alone, not on the episodes it played
+        before. An action space that already exists (a reseed between two resets or mid-episode) gets a
+        seed derived from `seed` itself; the next `reset` reseeds it from the agent's generator anyway.
+
+        Returns the seeds used: `[seed]`, plus the action space's seed when there is one.
         """
         self._np_random, used = seeding.np_random(seed)
         self._draw = UniformDraws(self._np_random)
         seeds = [used]
         if self.action_space is not None:
-            seeds.append(self._seed_action_space())
+            derived = np.random.SeedSequence(used).generate_state(1, np.uint64)[0]
+            seeds.append(self._seed_action_space(int(derived >> np.uint64(1))))
         return seeds
 
-    def _seed_action_space(self) -> int:
-        seed = child_seed(self._np_random)
+    def _seed_action_space(self, seed: int | None = None) -> int:
+        """Seed the action space (default: a child seed drawn from the agent's generator); returns the seed."""
+        seed = child_seed(self._np_random) if seed is None else seed
         self.action_space.seed(seed)
         self._space_draw = UniformDraws(self.action_space.np_random, block=64)
         return seed

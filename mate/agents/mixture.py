@@ -44,16 +44,22 @@ class _MixturePolicy:
         self.seed_mixture(mixture_seed)
 
     def seed(self, seed: int | None = None) -> list[int]:
-        """Reseed the agent's generator, then every candidate from it; returns all seeds used."""
+        """Reseed the agent's generator, then every candidate from it, and restart the generator that
+        picks the candidate from its mixture seed (so a reseeded mixture replays its choices); returns
+        all seeds used."""
         seeds = super().seed(seed)
         for candidate in self.candidates:
             seeds.append(child_seed(self.np_random))
             candidate.seed(seeds[-1])
+        if hasattr(self, 'mixture_seed'):   # not yet during __init__, which seeds the mixture next
+            self.seed_mixture(self.mixture_seed)
         return seeds
 
     def seed_mixture(self, mixture_seed: int | None = None) -> list[int]:
-        """Reseed the generator that picks the candidate at each reset."""
+        """Reseed the generator that picks the candidate at each reset (None: fresh entropy, kept as
+        `mixture_seed` so that `seed` can restart the same sequence of choices)."""
         self.np_random_mixture, used = seeding.np_random(mixture_seed)
+        self.mixture_seed = used
         return [used]
 
     def clone(self):

@@ -193,6 +193,14 @@ class StateBase:
     def __len__(self) -> int:
         return self.DIM
 
+    def __eq__(self, other) -> bool:
+        """Views are equal when they are of one class, of the same entity index and hold the same vector."""
+        if not isinstance(other, StateBase):
+            return NotImplemented
+        return type(self) is type(other) and self._index == other._index and self.values == other.values
+
+    __hash__ = None
+
     def __repr__(self) -> str:
         return f'{type(self).__name__}({self.values}, index={self._index})'
 

@@ -35,7 +35,7 @@ from .restricted_communication_range import RestrictedCommunicationRange
 from .shared_field_of_view import SharedFieldOfView
 from .single_camera import SingleCamera
 from .single_target import SingleTarget
-from .single_team import SingleTeamHelper, SingleTeamMultiAgent, SingleTeamSingleAgent
+from .single_team import SingleTeamHelper, SingleTeamMultiAgent, SingleTeamSingleAgent, TeamInfos
 
 __all__ = [
     'AuxiliaryCameraRewards',
@@ -62,6 +62,7 @@ __all__ = [
     'SingleTeamHelper',
     'SingleTeamMultiAgent',
     'SingleTeamSingleAgent',
+    'TeamInfos',
     'WrapperOrderError',
     'assert_base_environment',
     'assert_mate_environment',

@@ -14,6 +14,8 @@ import operator
 import numpy as np
 from gymnasium import spaces
 
+from mate.spaces import TeamSpace
+
 from .base import MateWrapper, assert_base_environment, forbid_twice
 
 __all__ = [
@@ -107,7 +109,7 @@ class DiscreteCamera(MateWrapper):
         self.levels = levels
         self.num_cameras = base.num_cameras
         self.camera_action_space = spaces.Discrete(levels ** 2)
-        self.camera_joint_action_space = spaces.Tuple((self.camera_action_space,) * self.num_cameras)
+        self.camera_joint_action_space = TeamSpace(self.camera_action_space, self.num_cameras)
         self.action_space = spaces.Tuple((self.camera_joint_action_space, env.target_joint_action_space))
         self.action_high = np.array([base.camera_rotation_step, base.camera_zooming_step], dtype=np.float64)
         self.action_high.flags.writeable = False

@@ -13,6 +13,8 @@ import functools
 import numpy as np
 from gymnasium import spaces
 
+from mate.spaces import TeamSpace
+
 from .base import MateWrapper, assert_base_environment, forbid_twice
 from .discrete_camera import (
     check_levels,
@@ -59,7 +61,7 @@ class DiscreteTarget(MateWrapper):
         self.levels = levels
         self.num_targets = base.num_targets
         self.target_action_space = spaces.Discrete(levels ** 2)
-        self.target_joint_action_space = spaces.Tuple((self.target_action_space,) * self.num_targets)
+        self.target_joint_action_space = TeamSpace(self.target_action_space, self.num_targets)
         self.action_space = spaces.Tuple((env.camera_joint_action_space, self.target_joint_action_space))
         self.grid = disk_grid(levels)
 

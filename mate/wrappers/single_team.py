@@ -25,9 +25,49 @@ from mate.messages import Message, Team
 
 from .base import MateWrapper, assert_base_environment, has_wrapper
 
-__all__ = ['SingleTeamHelper', 'SingleTeamMultiAgent', 'SingleTeamSingleAgent']
+__all__ = ['SingleTeamHelper', 'SingleTeamMultiAgent', 'SingleTeamSingleAgent', 'TeamInfos']
 
 _AGENT_BASES = {Team.CAMERA: CameraAgentBase, Team.TARGET: TargetAgentBase}
+
+
+class TeamInfos(dict):
+    """The info dicts of a team's N agents, returned by MultiCamera and MultiTarget.
+
+    A `dict` keyed by agent index 0..N-1, so that Gymnasium (which wants one dict of infos) accepts
+    the env, that also reads as the list of per-agent dicts of the two-team env: iterating, unpacking
+    and `zip` give the dicts in index order (not the keys), `infos[-1]` is the last agent's, a slice
+    gives a list, and it equals the list of the same dicts. `keys()`, `items()` and `values()` are
+    those of the dict.
+    """
+
+    def __init__(self, infos: Iterable[dict] = ()) -> None:
+        super().__init__(enumerate(infos))
+
+    def __iter__(self):
+        return iter(self.values())
+
+    def __reversed__(self):
+        return reversed(list(self.values()))
+
+    def __getitem__(self, key):
+        if isinstance(key, slice):
+            return list(self.values())[key]
+        if isinstance(key, int) and not isinstance(key, bool) and -len(self) <= key < 0:
+            key += len(self)
+        return super().__getitem__(key)
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, list):
+            return list(self.values()) == other
+        return super().__eq__(other)
+
+    def __ne__(self, other) -> bool:
+        return not self == other
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return f'{type(self).__name__}({list(self.values())!r})'
 
 
 def _agent_name(agent: Any) -> str:
@@ -145,14 +185,14 @@ class SingleTeamMultiAgent(SingleTeamHelper):
         self.opponent_agents = self._shuffled(self.opponent_agents_ordered)
         self.opponent_observation, self.opponent_infos = self.opponent(observation), None
         group_reset(self.opponent_agents, self.opponent_observation)
-        return self.own(observation), self.own(infos)
+        return self.own(observation), TeamInfos(self.own(infos))
 
     def step(self, action):
         opponent_action = group_step(self.env, self.opponent_agents, self.opponent_observation, self.opponent_infos)
         observation, reward, terminated, truncated, infos = self.env.step(self.joint(action, opponent_action))
         self.opponent_observation, self.opponent_infos = self.opponent(observation), self.opponent(infos)
         return (self.own(observation), self.own(reward), self._own_flag(terminated), self._own_flag(truncated),
-                self.own(infos))
+                TeamInfos(self.own(infos)))
 
     def send_messages(self, messages) -> None:
         """Send own-team messages through the inner env (ValueError for another team's message)."""
