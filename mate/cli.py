@@ -1,30 +1,91 @@
-"""The `mate` command line: `mate evaluate`, `mate bench`, `mate generate-config`, `mate presets`.
+"""The `mate` command line: `mate evaluate`, `mate train`, `mate bench`, `mate generate-config`, ...
 
 Each sub-command lives in a small function that parses nothing itself: `main` builds the
 argument parser, and the sub-command receives the parsed namespace.
+
+Errors: a mistake in the arguments (a number out of range, an unknown preset or agent, a bad
+checkpoint, a missing file) prints one line, `mate COMMAND: error: MESSAGE`, and exits with
+status 2; `mate --debug ...` (or the environment variable MATE_DEBUG=1) prints the traceback too.
+Any other exception is a bug and shows its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
+import traceback
+from contextlib import contextmanager
+from typing import Callable
 
 from rich.console import Console
 from rich.table import Table
 
 console = Console()
 TEAM_CHOICES = ('both', 'camera', 'target', 'none')
+USER_OS_ERRORS = (FileNotFoundError, FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError)
+"""Errors about the user's paths, reported in one line like argument mistakes."""
+DEBUG_HELP = 'on an error, also print the traceback (or set the environment variable MATE_DEBUG=1)'
 
 
-def _positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
+class CommandError(SystemExit):
+    """A mistake in a command's arguments: `main` prints `mate COMMAND: error: MESSAGE` and returns 2.
+
+    A SystemExit (carrying the message), so that code running a sub-command without `main` stops
+    with the message too, as it does on argparse's errors."""
+
+
+@contextmanager
+def resolving_arguments():
+    """Report the ValueError / TypeError of turning arguments into objects (agent names, keyword
+    arguments, configs, checkpoints) as a CommandError with the same message."""
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {value}')
-    return value
+        yield
+    except (ValueError, TypeError) as exc:
+        raise CommandError(str(exc)) from exc
+
+
+def number(kind: type = int, minimum: float | None = None, above: float | None = None) -> Callable[[str], float]:
+    """argparse type: a finite `kind` (int or float) that is >= `minimum` and/or > `above`."""
+    bounds = [f'{relation} {bound:g}' for relation, bound in (('>=', minimum), ('>', above)) if bound is not None]
+    expected = f"{'an integer' if kind is int else 'a number'}{' ' if bounds else ''}{' and '.join(bounds)}"
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or (minimum is not None and value < minimum) or (above is not None and value <= above):
+            raise argparse.ArgumentTypeError(f'expected {expected}, got {text!r}')
+        return value
+
+    return parse
+
+
+positive_int, non_negative_int = number(int, minimum=1), number(int, minimum=0)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser whose errors are two short lines (the message, then where to find the
+    options) instead of the long usage text."""
+
+    def error(self, message: str):
+        self.exit(2, f'{self.prog}: error: {message}\n(see {self.prog} -h)\n')
+
+
+def _debugging(args: argparse.Namespace) -> bool:
+    return getattr(args, 'debug', False) or os.environ.get('MATE_DEBUG', '').strip() not in ('', '0')
+
+
+def _is_user_error(exc: BaseException) -> bool:
+    """Whether `exc` reports a mistake in the command's input rather than a bug."""
+    from .config import ConfigError
+
+    if isinstance(exc, (CommandError, ConfigError, *USER_OS_ERRORS)):
+        return True
+    checkpoint = sys.modules.get('mate.learn.checkpoint')   # imported if it raised (importing it needs torch)
+    return checkpoint is not None and isinstance(exc, checkpoint.CheckpointError)
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -54,31 +115,33 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
     from . import evaluate as ev
     from .messages import Team
+    from .progress import progress_bar
     from .registration import make
 
-    if args.episodes < 1:
-        raise SystemExit('mate evaluate: --episodes must be at least 1')
-    camera_cls = ev.resolve_agent(args.camera_agent, Team.CAMERA)
-    target_cls = ev.resolve_agent(args.target_agent, Team.TARGET)
-    camera_kwargs, target_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs'), _json_kwargs(
-        args.target_kwargs, '--target-kwargs')
-    env = make('MultiAgentTracking-v0', config=args.config, wrappers=_evaluation_wrappers(args))
-    camera_factory = lambda seed: camera_cls(**{**camera_kwargs, 'seed': seed})  # noqa: E731
-    target_factory = lambda seed: target_cls(**{**target_kwargs, 'seed': seed})  # noqa: E731
+    if args.batched:
+        return _evaluate_batched(args)
+    with resolving_arguments():
+        camera_cls = ev.resolve_agent(args.camera_agent, Team.CAMERA)
+        target_cls = ev.resolve_agent(args.target_agent, Team.TARGET)
+        camera_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs')
+        target_kwargs = _json_kwargs(args.target_kwargs, '--target-kwargs')
+        env = make('MultiAgentTracking-v0', config=args.config, wrappers=_evaluation_wrappers(args))
+        camera_factory = lambda seed: camera_cls(**{**camera_kwargs, 'seed': seed})  # noqa: E731
+        target_factory = lambda seed: target_cls(**{**target_kwargs, 'seed': seed})  # noqa: E731
+    for flag, factory in (('--camera-kwargs', camera_factory), ('--target-kwargs', target_factory)):
+        try:
+            factory(seed=args.seed)      # an agent now, so that bad keyword arguments fail before any episode
+        except (TypeError, ValueError) as exc:
+            raise CommandError(f'{flag}: {exc}') from exc
     console.print(f'environment: {env}')
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
 
     recorder = None if args.no_render or not (args.save_gif or args.save_video) else ev.FrameRecorder(
-        args.frame_size, args.frame_every)
+        args.frame_size, args.frame_every, hud=not args.no_hud, max_episode_steps=args.max_episode_steps)
     results = []
-    columns = (TextColumn('[progress.description]{task.description}'), BarColumn(), MofNCompleteColumn(),
-               TimeRemainingColumn(), TextColumn('{task.fields[status]}'))
-    with Progress(*columns, console=console, transient=True) as progress:
+    with progress_bar(console=console, transient=True) as progress:
         task = progress.add_task('evaluating', total=args.episodes, status='')
         for episode in range(args.episodes):
             result = ev.play_episode(env, camera_factory, target_factory, args.seed + episode,
@@ -97,14 +160,49 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _evaluate_batched(args: argparse.Namespace) -> int:
+    from . import evaluate as ev
+    from .progress import progress_bar
+    from .registration import make
+
+    wrappers = [f'--{flag.replace("_", "-")}' for flag in ('enhanced_observation', 'shared_field_of_view',
+                                                            'no_communication') if getattr(args, flag) != 'none']
+    if args.render_communication:
+        wrappers.append('--render-communication')
+    if wrappers:
+        raise CommandError(f'--batched plays the game without wrappers; drop {", ".join(wrappers)} or --batched')
+    with resolving_arguments():
+        camera_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs')
+        target_kwargs = _json_kwargs(args.target_kwargs, '--target-kwargs')
+        env = make('MultiAgentTracking-v0', config=args.config)
+        cameras, targets = ev.batched_teams(args.config, args.camera_agent, args.target_agent, args.episodes,
+                                            args.seed, camera_kwargs, target_kwargs)
+    console.print(f'environment: {env} (batched: {args.episodes} games at once)')
+    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+    if not args.no_render:
+        console.print('--batched records no GIF or video (run without it to record the first episode)')
+    with progress_bar(console=console, transient=True) as progress:
+        task = progress.add_task('evaluating', total=args.episodes, status='')
+        results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
+                                  progress=lambda done, total: progress.update(task, completed=done))
+    summary = ev.summarise(results)
+    _print_summary(env, args, summary)
+    console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
+                  'env-steps/s (whole batch)')
+    if args.json:
+        settings = {k: v for k, v in vars(args).items() if k != 'run'}
+        console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}')
+    return 0
+
+
 def _json_kwargs(text: str, flag: str) -> dict:
     import json
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise SystemExit(f'mate evaluate: {flag} is not valid JSON ({exc}): {text!r}') from None
+        raise CommandError(f'{flag} is not valid JSON ({exc}): {text!r}') from None
     if not isinstance(value, dict):
-        raise SystemExit(f'mate evaluate: {flag} must be a JSON object, got {text!r}')
+        raise CommandError(f'{flag} must be a JSON object, got {text!r}')
     return value
 
 
@@ -144,18 +242,23 @@ def _save_frames(frames: list, args: argparse.Namespace) -> None:
 
 
 def _generate_config(args: argparse.Namespace) -> int:
-    from .generator import generate_config, plot_config, write_config
+    from .generator import check_config_path, generate_config, plot_config, write_config
 
-    with console.status('placing cameras (Adam over a 101 x 101 mesh)...'):
-        config = generate_config(args.num_cameras, args.num_targets, args.num_obstacles,
-                                 args.num_cargoes_per_target, args.obstacle_transmittance, args.seed)
+    with resolving_arguments():
+        check_config_path(args.path)
+        with console.status('placing cameras (Adam over a 101 x 101 mesh)...'):
+            config = generate_config(args.num_cameras, args.num_targets, args.num_obstacles,
+                                     args.num_cargoes_per_target, args.obstacle_transmittance, args.seed)
     path = write_config(config, args.path)
     console.print(f"wrote {path}: {config['name']}")
     if 'camera' in config:
         console.print(f"camera max_sight_range {config['camera']['max_sight_range']:.1f}, "
                       f"radius {config['camera']['radius']:.1f}")
     if args.plot:
-        console.print(f'plot written to {plot_config(config, args.plot)}')
+        try:
+            console.print(f'plot written to {plot_config(config, args.plot)}')
+        except ImportError as exc:   # matplotlib missing
+            raise CommandError(str(exc)) from exc
     return 0
 
 
@@ -188,20 +291,28 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='mate', description='MATE: the Multi-Agent Tracking Environment')
-    commands = parser.add_subparsers(dest='command', required=True)
+    debug = argparse.ArgumentParser(add_help=False)   # --debug before or after the command name
+    debug.add_argument('--debug', action='store_true', default=argparse.SUPPRESS, help=DEBUG_HELP)
+    parser = ArgumentParser(
+        prog='mate', description='MATE: the Multi-Agent Tracking Environment', parents=[debug],
+        epilog='A mistake in the arguments prints one line and exits with status 2; add --debug (mate --debug '
+               'COMMAND ...) or set MATE_DEBUG=1 to see the traceback too.')
+    commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
-    bench = commands.add_parser('bench', help='measure env-steps/s of the single env and the batched core')
+    def command(name: str, **kwargs) -> argparse.ArgumentParser:
+        return commands.add_parser(name, parents=[debug], **kwargs)
+
+    bench = command('bench', help='measure env-steps/s of the single env and the batched core')
     bench.add_argument('--presets', nargs='+', default=['MATE-4v8-9', 'MATE-8v8-9'])
-    bench.add_argument('--batch-sizes', nargs='+', type=int, default=[1, 64, 1024, 4096, 16384])
-    bench.add_argument('--seconds', type=float, default=2.0, help='time per measurement (default 2)')
-    bench.add_argument('--repeat', type=_positive_int, default=1,
+    bench.add_argument('--batch-sizes', nargs='+', type=positive_int, default=[1, 64, 1024, 4096, 16384])
+    bench.add_argument('--seconds', type=number(float, above=0), default=2.0, help='time per measurement (default 2)')
+    bench.add_argument('--repeat', type=positive_int, default=1,
                        help='rounds of the whole plan; report each measurement\'s best round and the median (default 1)')
     bench.add_argument('--quick', action='store_true', help='small batches, 0.5 s each, no float32 runs')
     bench.add_argument('--json', default=None, help='also write the results to this JSON file')
     bench.set_defaults(run=_bench)
 
-    evaluate = commands.add_parser(
+    evaluate = command(
         'evaluate', help='play camera agents against target agents and summarise the episodes',
         description='Play episodes (episode i: a fresh env reset with seed + i, agents seeded alike) and print '
                     'mean and std of coverage, transport and returns per team. By default greedy cameras play '
@@ -212,52 +323,70 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument('--target-agent', default='greedy', help='as --camera-agent')
     evaluate.add_argument('--camera-kwargs', default='{}', help='JSON keyword arguments of the camera agent')
     evaluate.add_argument('--target-kwargs', default='{}', help='JSON keyword arguments of the target agent')
-    evaluate.add_argument('--episodes', type=int, default=20)
-    evaluate.add_argument('--seed', type=int, default=0, help='episode i uses seed + i (agents too)')
-    evaluate.add_argument('--max-episode-steps', type=int, default=2000, help='step cap per episode (default 2000)')
+    evaluate.add_argument('--episodes', type=positive_int, default=20, help='episodes to play (default 20)')
+    evaluate.add_argument('--seed', type=non_negative_int, default=0, help='episode i uses seed + i (agents too)')
+    evaluate.add_argument('--max-episode-steps', type=positive_int, default=2000, help='step cap per episode (default 2000)')
     for flag in ('enhanced-observation', 'shared-field-of-view', 'no-communication'):
         evaluate.add_argument(f'--{flag}', nargs='?', const='both', default='none', choices=TEAM_CHOICES,
                               metavar='TEAM', help=f'add the {flag.replace("-", " ")} wrapper for TEAM (bare flag: both)')
-    evaluate.add_argument('--render-communication', nargs='?', type=int, const=20, default=None, metavar='DURATION',
-                          help='draw message arrows in the recorded frames (bare flag: 20 steps)')
+    evaluate.add_argument('--render-communication', nargs='?', type=positive_int, const=20, default=None,
+                          metavar='DURATION', help='draw message arrows in the recorded frames (bare flag: 20 steps)')
     evaluate.add_argument('--no-render', action='store_true', help='record nothing (no GIF, no video)')
     evaluate.add_argument('--save-gif', default='mate-evaluate.gif', metavar='PATH',
                           help='GIF of the first episode (default mate-evaluate.gif; empty string: none)')
     evaluate.add_argument('--save-video', default=None, metavar='PATH', help='MP4 of the first episode')
-    evaluate.add_argument('--frame-size', type=int, default=400, help='recorded frame size in pixels (default 400)')
-    evaluate.add_argument('--frame-every', type=int, default=4, help='record every N-th step (default 4)')
+    evaluate.add_argument('--frame-size', type=number(int, minimum=16), default=600,
+                          help='recorded frame size in pixels, at least 16 (default 600)')
+    evaluate.add_argument('--no-hud', action='store_true',
+                          help='no heads-up line (step, coverage, delivered cargo) in the recorded frames')
+    evaluate.add_argument('--frame-every', type=positive_int, default=4, help='record every N-th step (default 4)')
     evaluate.add_argument('--json', default=None, metavar='PATH', help='write per-episode results and the summary')
+    evaluate.add_argument('--batched', action='store_true',
+                          help='play every episode at once in one vector env with batched agents (random, greedy, '
+                               'checkpoint:PATH, pretrained:NAME; tens of times faster for learned policies); off by '
+                               'default. The batched greedy cameras share sightings at once, so greedy scores differ a '
+                               'little from the Python agents\'; agents draw from other random streams; no wrappers, '
+                               'no GIF')
     evaluate.set_defaults(run=_evaluate)
 
-    generate = commands.add_parser('generate-config', help='write a config with camera placement covering the terrain')
+    generate = command('generate-config', help='write a config with camera placement covering the terrain')
     generate.add_argument('--path', default='config.yaml', help='output YAML file (default config.yaml)')
-    generate.add_argument('--num-cameras', type=int, default=4)
-    generate.add_argument('--num-targets', type=int, default=8)
-    generate.add_argument('--num-obstacles', type=int, default=0)
-    generate.add_argument('--num-cargoes-per-target', type=int, default=8, help='at least 4')
-    generate.add_argument('--obstacle-transmittance', type=float, default=0.1, help='clipped to [0, 1]')
-    generate.add_argument('--seed', type=int, default=0)
+    generate.add_argument('--num-cameras', type=non_negative_int, default=4, help='default 4')
+    generate.add_argument('--num-targets', type=positive_int, default=8, help='default 8')
+    generate.add_argument('--num-obstacles', type=non_negative_int, default=0, help='default 0')
+    generate.add_argument('--num-cargoes-per-target', type=number(int, minimum=4), default=8, help='at least 4 (default 8)')
+    generate.add_argument('--obstacle-transmittance', type=number(float), default=0.1, help='clipped to [0, 1]')
+    generate.add_argument('--seed', type=non_negative_int, default=0)
     generate.add_argument('--plot', default=None, metavar='PNG', help='also save a picture of the placement')
     generate.set_defaults(run=_generate_config)
 
-    presets = commands.add_parser('presets', help='list the shipped configuration presets')
+    presets = command('presets', help='list the shipped configuration presets')
     presets.set_defaults(run=_presets)
 
     from .integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
-    rllib_train = commands.add_parser('rllib-train', help='train PPO cameras against rule-based targets (Ray RLlib)')
+    rllib_train = command('rllib-train', help='train PPO cameras against rule-based targets (Ray RLlib)')
     add_rllib_train_arguments(rllib_train)
     rllib_train.set_defaults(run=_rllib_train)
 
     from .learn.command import add_arguments as add_train_arguments  # imports no torch
-    train = commands.add_parser('train', help='train MAPPO/IPPO cameras or targets against greedy opponents (PyTorch)')
+    train = command('train', help='train MAPPO/IPPO cameras or targets against greedy opponents (PyTorch)')
     add_train_arguments(train)
     train.set_defaults(run=_train)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run `mate ARGS`; returns the exit status (argparse's own errors exit with status 2)."""
     args = build_parser().parse_args(argv)
-    return args.run(args)
+    try:
+        return args.run(args)
+    except BaseException as exc:
+        if not _is_user_error(exc):
+            raise
+        if _debugging(args):
+            traceback.print_exc()
+        print(f'mate {args.command}: error: {exc}', file=sys.stderr)
+        return 2
 
 
 if __name__ == '__main__':

@@ -4,7 +4,8 @@ Cameras (fixed, rotating, zooming) try to keep targets in view; targets carry ca
 the four corner warehouses. Both teams act every step.
 
 Spaces
-    action_space: Tuple(Tuple(Box(2) x Nc), Tuple(Box(2) x Nt)). A camera acts with
+    action_space: Tuple(TeamSpace(Box(2) x Nc), TeamSpace(Box(2) x Nt)), a TeamSpace being a Tuple
+    of one agent's space per agent that samples the whole team at once. A camera acts with
     (rotation, zoom) in degrees, each within +-rotation_step / +-zooming_step; a target with a
     displacement (dx, dy) whose norm is clipped to its speed (step_size / capacity).
     observation_space: Tuple of per-agent Boxes; observations come as 2-D arrays
@@ -121,6 +122,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
                              f"{' or '.join(map(repr, self.metadata['render_modes']))}")
         self.render_mode = render_mode
         self.render_fps = self.metadata['render_fps']  # 'human' windows refresh at most this often
+        self.render_hud = True  # frames show the heads-up line (step, coverage, cargo); see mate.render
         self.render_callbacks: dict = {}
         self.viewer = None
         self.config = read_config(config, **overrides)
@@ -143,8 +145,8 @@ class MultiAgentTracking(GameDescription, gym.Env):
         self.camera_action_space = spaces.Box(np.array([-rot, -zoom]), np.array([rot, zoom]), dtype=np.float64)
         s = p.target_step_size
         self.target_action_space = spaces.Box(np.array([-s, -s]), np.array([s, s]), dtype=np.float64)
-        self.camera_joint_action_space = spaces.Tuple((self.camera_action_space,) * p.num_cameras)
-        self.target_joint_action_space = spaces.Tuple((self.target_action_space,) * p.num_targets)
+        self.camera_joint_action_space = mate_spaces.TeamSpace(self.camera_action_space, p.num_cameras)
+        self.target_joint_action_space = mate_spaces.TeamSpace(self.target_action_space, p.num_targets)
         self.action_space = spaces.Tuple((self.camera_joint_action_space, self.target_joint_action_space))
         self.camera_observation_space = mate_spaces.camera_observation_space_of(*counts)
         self.target_observation_space = mate_spaces.target_observation_space_of(*counts)
@@ -281,7 +283,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
         if self.viewer is None:
             from .render import Renderer
             self.viewer = Renderer(self.render_mode, fps=self.render_fps)
-        self.viewer.fps = self.render_fps
+        self.viewer.fps, self.viewer.hud = self.render_fps, self.render_hud
         return self.viewer.render(self, onetime_callbacks)
 
     def add_render_callback(self, name: str, callback) -> None:

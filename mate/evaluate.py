@@ -90,16 +90,23 @@ class EpisodeResult:
 
 
 class FrameRecorder:
-    """Renders every `every`-th step of an episode into frames of `size` x `size` pixels."""
+    """Renders every `every`-th step of an episode into frames of `size` x `size` pixels (at most
+    `max_frames`), with the heads-up line (step, coverage, delivered cargo) unless `hud` is False;
+    `max_episode_steps`: the episode's step cap, when below the env's own (shown in the HUD)."""
 
-    def __init__(self, size: int = 400, every: int = 4, max_frames: int = 300) -> None:
+    def __init__(self, size: int = 600, every: int = 4, max_frames: int = 300, hud: bool = True,
+                 max_episode_steps: int | None = None) -> None:
         from .render import Renderer
-        self.renderer = Renderer('rgb_array', window_size=size)
+        self.renderer = Renderer('rgb_array', window_size=size, hud=hud)
         self.every, self.max_frames, self.frames = every, max_frames, []
+        self.max_episode_steps = max_episode_steps
 
     def __call__(self, env, step: int, joint_action=None) -> None:
         if step % self.every == 0 and len(self.frames) < self.max_frames:
-            self.frames.append(self.renderer.render(env.unwrapped))
+            env = env.unwrapped
+            cap = env.max_episode_steps if self.max_episode_steps is None else min(
+                env.max_episode_steps, self.max_episode_steps)
+            self.frames.append(self.renderer.render(env, max_episode_steps=cap))
 
     def close(self) -> None:
         self.renderer.close()
@@ -111,8 +118,10 @@ def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
 
     `on_step(env, step, joint_action)` is called after reset (step 0, joint_action None) and
     after every step with the (camera_action, target_action) just played (e.g. a
-    `FrameRecorder`); its time is left out of the episode's steps/s.
+    `FrameRecorder`); its time is left out of the episode's steps/s. ValueError if `max_steps` < 1.
     """
+    if max_steps < 1:
+        raise ValueError(f'max_steps must be at least 1, got {max_steps}')
     (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=seed)
     cameras = camera_factory(seed=seed).spawn(env.num_cameras)
     targets = target_factory(seed=seed).spawn(env.num_targets)
@@ -161,6 +170,41 @@ SUMMARY_ROWS = (
     ('episode', 'length (steps)', 'episode_length'),
     ('episode', 'speed (steps/s)', 'steps_per_second'),
 )
+
+
+def batched_teams(config, camera_agent: str, target_agent: str, episodes: int, seed: int,
+                  camera_kwargs: dict | None = None, target_kwargs: dict | None = None) -> tuple:
+    """The batched agents of `mate.learn.evaluate` for `mate evaluate --batched` (random, greedy,
+    checkpoint:PATH, pretrained:NAME; kwargs: `frame_skip`, and `deterministic` for policies), the camera
+    team seeded with `seed` and the target team with `seed + 1`. ValueError for an unknown agent or one
+    without a batched version."""
+    try:
+        from .learn.evaluate import make_team
+    except ImportError as exc:
+        raise ValueError(f"--batched needs the training extra (pip install 'mate[train]'): {exc}") from None
+    for spec, team in ((camera_agent, Team.CAMERA), (target_agent, Team.TARGET)):
+        resolve_agent(spec, team)                       # unknown names: the usual message
+    counts = _counts(config)
+    return (make_team(camera_agent, Team.CAMERA, episodes, counts, seed=seed, **(camera_kwargs or {})),
+            make_team(target_agent, Team.TARGET, episodes, counts, seed=seed + 1, **(target_kwargs or {})))
+
+
+def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: int,
+                 progress: Callable[[int, int], None] | None = None) -> list[EpisodeResult]:
+    """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
+    (`batched_teams`); each result's `steps_per_second` is the whole batch's."""
+    from .learn.evaluate import play_batch
+    if max_steps < 1:
+        raise ValueError(f'max_steps must be at least 1, got {max_steps}')
+    batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress)
+    return [EpisodeResult(**asdict(episode), steps_per_second=timing['env_steps_per_second']) for episode in batch]
+
+
+def _counts(config) -> tuple[int, int, int]:
+    from .core.params import params_from_config
+    from .config import read_config
+    params = params_from_config(read_config(config))
+    return params.num_cameras, params.num_targets, params.num_obstacles
 
 
 def summarise(results: list[EpisodeResult]) -> list[dict]:

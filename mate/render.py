@@ -13,7 +13,20 @@ Drawing order (spec §8):
         per camera: full field-of-view sector (cyan), visible region clipped by occlusion
         (green if the camera tracks a target, olive otherwise),
         camera bodies, yellow discs under tracked targets, targets,
-        primitives queued with layer='above' (the default).
+        primitives queued with layer='above' (the default),
+        the heads-up line (HUD, unless `renderer.hud` is False): a translucent band across the top
+        rows (`renderer.hud_height` pixels) with the env's name, episode step, coverage rate and
+        delivered / total cargo.
+
+Small canvases: targets are drawn at least `MIN_TARGET_PIXELS` long and camera bodies at least
+`MIN_CAMERA_PIXELS` in radius, so that frames below the default size stay readable (at the
+default 800 pixels both minimums are below the true sizes and change nothing).
+
+'human' mode needs a display. On Linux and other X11/Wayland systems, when SDL_VIDEODRIVER is
+not set, the window is opened with the driver the environment points to (x11 if DISPLAY is set,
+wayland if WAYLAND_DISPLAY is); without either, or when SDL cannot open the window, rendering
+raises a one-line RuntimeError suggesting render_mode='rgb_array' (or SDL_VIDEODRIVER=dummy for
+an invisible window), instead of silently drawing into SDL's offscreen driver.
 
 Render callbacks registered with `env.add_render_callback(name, callback)` are called as
 `callback(env, renderer)` at every render; they draw with the renderer's primitives
@@ -25,9 +38,11 @@ pygame is imported only when a `Renderer` is created, never by `import mate`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -36,8 +51,8 @@ import numpy as np
 from .constants import TERRAIN_SIZE, WAREHOUSE_RADIUS, WAREHOUSES
 
 __all__ = [
-    'TARGET_RENDER_SIZE', 'WAREHOUSE_COLORS', 'WINDOW_SIZE', 'WORLD_BOUND', 'Renderer', 'sector_polygon',
-    'visible_region',
+    'MIN_CAMERA_PIXELS', 'MIN_TARGET_PIXELS', 'TARGET_RENDER_SIZE', 'WAREHOUSE_COLORS', 'WINDOW_SIZE',
+    'WORLD_BOUND', 'Renderer', 'hud_line', 'sector_polygon', 'visible_region',
 ]
 
 WINDOW_SIZE = 800
@@ -45,7 +60,11 @@ WINDOW_SIZE = 800
 WORLD_BOUND = 1050.0
 """The canvas shows world coordinates [-1050, 1050] on both axes (5% margin around the terrain)."""
 TARGET_RENDER_SIZE = 27.5
-"""Scale of the target shapes (world units)."""
+"""Scale of the target shapes (world units); a target is 1.8 x this long, nose to tail."""
+MIN_TARGET_PIXELS = 16.0
+"""Smallest drawn target length, nose to tail (pixels); applies below ~680-pixel canvases."""
+MIN_CAMERA_PIXELS = 7.0
+"""Smallest drawn camera body radius (pixels)."""
 ANGLE_STEP = 0.5
 """Angular spacing of the rays sampling sectors and occlusion profiles (degrees)."""
 
@@ -61,8 +80,13 @@ LENS_COLOR = (0.1, 0.1, 0.1)
 TRACKED_MARKER_COLOR = (1.0, 1.0, 0.0)
 UNLOADED_TARGET_COLOR = (0.2, 0.6, 0.2)
 ICON_COLOR = (0.15, 0.15, 0.15)
+HUD_TEXT_COLOR, HUD_BACKGROUND_ALPHA = ICON_COLOR, 0.8
+HUD_MIN_FONT_SIZE = 10
+"""HUD font size (pixels) on canvases below 660 pixels; it grows as window_size // 60 above."""
+HUD_PADDING = 2
+"""Pixels of band above and below the HUD text (twice that left of it)."""
 
-# Target outlines in units of TARGET_RENDER_SIZE, heading along +x.
+# Target outlines in units of the target size (TARGET_RENDER_SIZE or more), heading along +x.
 TARGET_SHAPES = {
     1: np.array([[1.0, 0.0], [-0.2, 0.6], [-0.8, 0.6], [-0.4, 0.0], [-0.8, -0.6], [-0.2, -0.6]]),
     2: np.array([[1.0, 0.0], [0.3, 0.6], [-0.8, 0.6], [-0.8, -0.6], [0.3, -0.6]]),
@@ -77,9 +101,28 @@ def _pygame():
     try:
         import pygame
         import pygame.gfxdraw
+        import pygame.freetype
     except ImportError as exc:
         raise ImportError("rendering needs pygame: pip install 'mate[render]' (or pip install pygame)") from exc
     return pygame
+
+
+def hud_line(world: dict, name: str | None = None, max_episode_steps: int | None = None) -> str:
+    """The heads-up line of a world dict (as from `env.get_world()`), e.g.
+    'MultiAgentTracking(4v8, 9) | step 120/2000 | coverage 0.62 | delivered 12/64'.
+
+    coverage: share of targets seen by some camera at this step; delivered: cargo units delivered
+    so far / all units (delivered + waiting in warehouses + carried by targets).
+    """
+    step = int(world['episode_step'])
+    delivered = int(world['num_delivered_cargoes'])
+    carried = np.asarray(world['target_state'], dtype=np.float64).reshape(-1, 14)[:, 6:10].sum()
+    total = delivered + int(np.sum(world['remaining_cargoes'])) + int(round(carried))
+    parts = [] if name is None else [str(name)]
+    parts.append(f'step {step}' if max_episode_steps is None else f'step {step}/{int(max_episode_steps)}')
+    parts.append(f"coverage {float(world['coverage_rate']):.2f}")
+    parts.append(f'delivered {delivered}/{total}')
+    return ' | '.join(parts)
 
 
 def _rotation(degrees: float) -> np.ndarray:
@@ -179,10 +222,12 @@ class Renderer:
 
     mode: 'rgb_array' (frames returned as (H, W, 3) uint8 arrays, top row first) or 'human'
     (a pygame window, refreshed at most `fps` times per second; None = unthrottled).
+    hud: draw the heads-up line (`hud_line`) across the top of every frame; the attribute
+    `renderer.hud` can be switched at any time (`env.render_hud` sets it for `env.render()`).
     """
 
     def __init__(self, mode: str = 'rgb_array', window_size: int = WINDOW_SIZE, fps: float | None = None,
-                 caption: str = 'MATE: Multi-Agent Tracking Environment') -> None:
+                 caption: str = 'MATE: Multi-Agent Tracking Environment', hud: bool = True) -> None:
         if mode not in ('human', 'rgb_array'):
             raise ValueError(f"Renderer mode must be 'human' or 'rgb_array', got {mode!r}")
         window_size = int(window_size)
@@ -193,7 +238,11 @@ class Renderer:
         self.window_size = window_size
         self.fps = fps
         self.caption = caption
+        self.hud = bool(hud)
         self.scale = window_size / (2.0 * WORLD_BOUND)
+        # scale of the drawn target shapes (world units): TARGET_RENDER_SIZE, or more on small canvases
+        self.target_size = max(TARGET_RENDER_SIZE, MIN_TARGET_PIXELS / (1.8 * self.scale))
+        self._font = None
         self.canvas = self._surface()
         self.window = None
         self.clock = None
@@ -205,7 +254,7 @@ class Renderer:
 
     def __reduce__(self):
         # pickling / deep-copying gives a fresh renderer (no window, empty queues, no cache)
-        return (type(self), (self.mode, self.window_size, self.fps, self.caption))
+        return (type(self), (self.mode, self.window_size, self.fps, self.caption, self.hud))
 
     # ------------------------------------------------------------------ coordinates
     def to_pixels(self, points) -> np.ndarray:
@@ -225,16 +274,19 @@ class Renderer:
         return out
 
     # ------------------------------------------------------------------ public entry points
-    def render(self, env, onetime_callbacks: Iterable[Callable] = ()) -> np.ndarray | None:
+    def render(self, env, onetime_callbacks: Iterable[Callable] = (),
+               max_episode_steps: int | None = None) -> np.ndarray | None:
         """Draw `env`'s current world; run its render callbacks and `onetime_callbacks` (each
-        `callback(env, renderer)`). Returns the frame in 'rgb_array' mode, None in 'human'."""
+        `callback(env, renderer)`). Returns the frame in 'rgb_array' mode, None in 'human'.
+        max_episode_steps: the step limit shown in the HUD (default `env.max_episode_steps`)."""
         self.env = env
         self.world = world = env.get_world()
         callbacks = list(getattr(env, 'render_callbacks', {}).values()) + list(onetime_callbacks)
         try:
             for callback in callbacks:
                 callback(env, self)
-            self.draw(world, transmittance=float(env.params.transmittance))
+            self.draw(world, transmittance=float(env.params.transmittance), name=env.name,
+                      max_episode_steps=env.max_episode_steps if max_episode_steps is None else max_episode_steps)
         except BaseException:
             self._queue = {layer: [] for layer in LAYERS}  # a failed frame leaves nothing behind
             raise
@@ -243,9 +295,11 @@ class Renderer:
             self.world = None
         return self._present()
 
-    def frame(self, world: dict, transmittance: float = 0.0) -> np.ndarray:
-        """Draw a world dict (as from `env.get_world()`) and return the (H, W, 3) uint8 frame."""
-        self.draw(world, transmittance)
+    def frame(self, world: dict, transmittance: float = 0.0, name: str | None = None,
+              max_episode_steps: int | None = None) -> np.ndarray:
+        """Draw a world dict (as from `env.get_world()`) and return the (H, W, 3) uint8 frame;
+        `name` and `max_episode_steps` go into the HUD (see `hud_line`)."""
+        self.draw(world, transmittance, name, max_episode_steps)
         return self.array()
 
     def _surface(self):
@@ -412,8 +466,11 @@ class Renderer:
         self.canvas.blit(layer, tuple(low))
 
     # ------------------------------------------------------------------ scene
-    def draw(self, world: dict, transmittance: float = 0.0) -> None:
-        """Draw a world dict onto the canvas (queued primitives are drawn and cleared)."""
+    def draw(self, world: dict, transmittance: float = 0.0, name: str | None = None,
+             max_episode_steps: int | None = None) -> None:
+        """Draw a world dict onto the canvas (queued primitives are drawn and cleared), then the
+        HUD if `self.hud`: `hud_line(world, name, max_episode_steps)`, without the name if the
+        line would not fit in the frame."""
         self.canvas.blit(self._persistent_layer(world), (0, 0))
         queue, self._queue = self._queue, {layer: [] for layer in LAYERS}
         for command in queue['below']:
@@ -422,6 +479,37 @@ class Renderer:
         self._draw_targets(world)
         for command in queue['above']:
             command()
+        if self.hud:
+            self._draw_hud(world, name, max_episode_steps)
+
+    # ------------------------------------------------------------------ heads-up line
+    @property
+    def font(self):
+        """The HUD's `pygame.freetype` font: pygame's bundled default font (no system fonts needed),
+        `max(HUD_MIN_FONT_SIZE, window_size // 60)` pixels, not antialiased, placed by its baseline."""
+        if self._font is None:
+            freetype = self._pg.freetype
+            freetype.init()
+            self._font = freetype.Font(None, max(HUD_MIN_FONT_SIZE, self.window_size // 60))
+            self._font.origin = True
+            self._font.antialiased = False  # crisp, and few colours: GIF palettes stay exact and small
+        return self._font
+
+    @property
+    def hud_height(self) -> int:
+        """Rows (pixels) of the HUD band at the top of the frame; 0 when the HUD is off."""
+        return self.font.get_sized_height() + 2 * HUD_PADDING if self.hud else 0
+
+    def _draw_hud(self, world: dict, name: str | None, max_episode_steps: int | None) -> None:
+        """A translucent white band over the top `hud_height` rows, the HUD line left-aligned in it."""
+        text = hud_line(world, name, max_episode_steps)
+        if name is not None and self.font.get_rect(text).width > self.window_size - 2 * HUD_PADDING:
+            text = hud_line(world, None, max_episode_steps)
+        band = self._pg.Surface((self.window_size, self.hud_height), self._pg.SRCALPHA, 32)
+        band.fill(self._rgba(WHITE, HUD_BACKGROUND_ALPHA))
+        baseline = HUD_PADDING + self.font.get_sized_ascender()
+        self.font.render_to(band, (2 * HUD_PADDING, baseline), text, self._rgba(HUD_TEXT_COLOR))
+        self.canvas.blit(band, (0, 0))
 
     def _persistent_layer(self, world: dict):
         remaining = np.asarray(world['remaining_cargoes'])
@@ -484,6 +572,7 @@ class Renderer:
         body_white, lens = self._rgba(WHITE, 0.75), self._rgba(LENS_COLOR, 0.75)
         for c, (x, y, r_c) in enumerate(cameras[:, :3]):
             center = np.array([x, y])
+            r_c = max(r_c, MIN_CAMERA_PIXELS / self.scale)
             rotation = _rotation(orientation[c])
             body_color = SPOTTED_CAMERA_COLOR if spotted[c] else CAMERA_COLOR
             self._fill(self.to_pixels(self._disc(center, r_c)), self._rgba(body_color))
@@ -507,11 +596,11 @@ class Renderer:
         heading = np.asarray(world['target_heading'], dtype=np.float64)
         marker = self._rgba(TRACKED_MARKER_COLOR)
         for t in np.flatnonzero(tracked):
-            self._fill(self.to_pixels(self._disc(targets[t, :2], 1.2 * TARGET_RENDER_SIZE)), marker)
+            self._fill(self.to_pixels(self._disc(targets[t, :2], 1.2 * self.target_size)), marker)
         badge = self._rgba(WHITE, 0.66)
         for t, state in enumerate(targets):
             center = state[:2]
-            shape = TARGET_SHAPES[2 if state[5] >= 2 else 1] * TARGET_RENDER_SIZE @ _rotation(heading[t])
+            shape = TARGET_SHAPES[2 if state[5] >= 2 else 1] * self.target_size @ _rotation(heading[t])
             loaded = goals[t] >= 0
             color = WAREHOUSE_COLORS[goals[t]] if loaded else UNLOADED_TARGET_COLOR
             self._fill(self.to_pixels(center + shape), self._rgba(color))
@@ -524,10 +613,7 @@ class Renderer:
             return self.array()
         pg = self._pg
         if self.window is None:
-            pg.display.init()
-            pg.display.set_caption(self.caption)
-            self.window = pg.display.set_mode((self.window_size, self.window_size))
-            self.clock = pg.time.Clock()
+            self._open_window()
         for event in pg.event.get():
             if event.type == pg.QUIT:
                 self.close()
@@ -537,3 +623,70 @@ class Renderer:
         if self.fps:
             self.clock.tick(self.fps)
         return None
+
+    def _open_window(self) -> None:
+        """Open the 'human' window, or raise a one-line RuntimeError when no display can show it."""
+        pg = self._pg
+        driver = _display_driver()
+        saved = os.environ.get('SDL_VIDEODRIVER')
+        if driver is not None:
+            os.environ['SDL_VIDEODRIVER'] = driver  # try only the display the environment names
+        native_output: list[str] = []
+        try:
+            with _native_stderr(native_output):
+                pg.display.init()
+                if saved is None and pg.display.get_driver() in ('offscreen', 'dummy'):
+                    raise pg.error(f'SDL fell back to its invisible {pg.display.get_driver()!r} driver')
+                pg.display.set_caption(self.caption)
+                self.window = pg.display.set_mode((self.window_size, self.window_size))
+        except pg.error as exc:
+            pg.display.quit()
+            raise RuntimeError(f"render_mode='human' could not open a window ({exc}); {_HEADLESS_HINT}") from None
+        finally:
+            if driver is not None:
+                os.environ.pop('SDL_VIDEODRIVER', None)
+            # pass on what SDL printed, except libwayland's complaint about XDG_RUNTIME_DIR
+            for line in native_output:
+                if 'XDG_RUNTIME_DIR' not in line:
+                    print(line, file=sys.stderr)
+        self.clock = pg.time.Clock()
+
+
+@contextlib.contextmanager
+def _native_stderr(lines: list[str]):
+    """Send what native code (SDL, libwayland) writes to file descriptor 2 meanwhile into `lines`
+    instead (appended on exit); a no-op where descriptor 2 cannot be duplicated."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode(errors='replace').splitlines())
+
+
+_HEADLESS_HINT = ("use render_mode='rgb_array' (frames as arrays, e.g. for mate.video.save_gif) "
+                  'or set SDL_VIDEODRIVER=dummy to draw into an invisible window')
+
+
+def _display_driver() -> str | None:
+    """The SDL video driver to pin for a 'human' window: None when SDL_VIDEODRIVER is set or the
+    platform has its own (Windows, macOS) or both DISPLAY and WAYLAND_DISPLAY are set; 'x11' or
+    'wayland' when only one is. Raises RuntimeError when neither is set (no display: trying
+    would only print SDL's XDG_RUNTIME_DIR noise and fall back to an invisible window)."""
+    if os.environ.get('SDL_VIDEODRIVER') or sys.platform in ('win32', 'cygwin', 'darwin'):
+        return None
+    drivers = [name for name, variable in (('x11', 'DISPLAY'), ('wayland', 'WAYLAND_DISPLAY'))
+               if os.environ.get(variable)]
+    if not drivers:
+        raise RuntimeError(f"render_mode='human' needs a display, but neither DISPLAY nor WAYLAND_DISPLAY "
+                           f'is set; {_HEADLESS_HINT}')
+    return drivers[0] if len(drivers) == 1 else None

@@ -96,8 +96,9 @@ def save_gif(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float =
         raise ImportError("save_gif needs Pillow: pip install 'mate[render]' (or pip install pillow)") from exc
     images = [Image.fromarray(frame) for frame in _frames(frames)]
     duration = max(10, round(100.0 / fps) * 10)  # milliseconds, a multiple of 10
+    # optimize: each palette cut to the colours used (fewer bits per pixel): rendered frames give GIFs half as big
     images[0].save(path, format='GIF', save_all=True, append_images=images[1:], duration=duration, loop=loop,
-                   optimize=False, disposal=1)
+                   optimize=True, disposal=1)
     return path
 
 

@@ -1,22 +1,30 @@
 """Learning curves of the paper's cooperative settings, 3 seeds each, as PNG (mean ± std over seeds).
 
-    python scripts/paper_curves.py --steps 2e6 --out results/       # trains, then plots
-    python scripts/paper_curves.py --plot-only --out results/        # plots existing runs
+    python scripts/paper_curves.py                                 # redraw the figures from the shipped logs
+    python scripts/paper_curves.py plot --logs DIR --out FIGURES   # draw from other logs
+    python scripts/paper_curves.py train --steps 2e6 --out results # train every run (hours), then draw
+
+`plot` (the default) reads, for each experiment, algorithm and seed, LOGS/ALGO-NAME-seedS.csv (the thinned
+logs shipped in scripts/results/) or LOGS/runs/ALGO-NAME-seedS/progress.csv (what `train` writes; preferred
+when both exist), and writes FIGURES/FIGURE.png (default: into LOGS); it exits with status 1 if it finds no
+log to draw. `train` runs `mate train` for every (experiment, algorithm, seed) into OUT/runs/ALGO-NAME-seedS
+(runs resume after an interruption: `mate train` checkpoints; `--jobs 2` runs two at a time), then draws
+from OUT into OUT.
 
 Experiments (spec training.md §0): cameras (flat and HRL) vs batched greedy targets on MATE-4v8-9 (frame
 skip 5, coverage-rate reward; curve: rollout coverage rate) and targets vs batched greedy cameras on
 MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward; curve: episode target reward normalised by the
 preset's maximum), and the paper's Fig. 6 observability ablation (`target-2v4-0-full-obs`: the same
 targets seeing every entity, drawn with the partial-observability runs in `targets-2v4-0-observability`).
-The dashed line is the greedy agent of the trained team in the same setting (batched
-greedy opponents, training-length episodes), measured when plotting. Runs go to OUT/runs/NAME-seedS and
-resume after an interruption (`mate train` checkpoints). `--jobs 2` runs two trainings at a time.
+The dashed line is the greedy agent of the trained team in the same setting (batched greedy opponents,
+training-length episodes), measured when plotting (a few seconds each).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -46,6 +54,7 @@ FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0'
                    'targets-2v4-0-observability': ('target', 'MATE-2v4-0-v0')}
 
 
+@functools.lru_cache(maxsize=None)
 def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) -> float:
     """The greedy agent of `team` in the learner's setting: batched greedy cameras vs batched greedy targets,
     one training episode per env (the 500-decision horizon in raw steps), scored with the curve's metric:
@@ -83,6 +92,7 @@ def run_one(out: Path, name: str, algo: str, seed: int, steps: float, extra: lis
 
 
 def read_curve(path: Path, column: str):
+    """(decision steps, `column`) of a progress CSV, as float arrays (NaN where the log has none)."""
     with open(path, newline='') as f:
         rows = list(csv.DictReader(f))
     x = np.array([float(r['env_steps']) for r in rows])
@@ -90,22 +100,34 @@ def read_curve(path: Path, column: str):
     return x, y
 
 
-def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
+def find_log(logs: Path, run: str) -> Path | None:
+    """The progress CSV of `run` (ALGO-NAME-seedS) under `logs`: a `train` run directory's, else a thinned copy."""
+    for path in (logs / 'runs' / run / 'progress.csv', logs / f'{run}.csv'):
+        if path.is_file():
+            return path
+    return None
+
+
+def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments: list[str]) -> list[Path]:
+    """Draw every figure with at least one curve of `experiments` from the logs under `logs` into `out`;
+    returns the PNGs written."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     figures = {}
-    for name, (_, names, column, label) in EXPERIMENTS.items():
+    for name in experiments:
+        _, names, column, label = EXPERIMENTS[name]
         for figure in (names,) if isinstance(names, str) else names:
             figures.setdefault(figure, []).append((name, column, label))
+    written = []
     for figure, members in figures.items():
         fig, ax = plt.subplots(figsize=(6, 4))
         drawn = False
         for name, column, label in members:
             for algo in algos:
-                curves = [read_curve(p, column) for seed in seeds
-                          if (p := out / 'runs' / f'{algo}-{name}-seed{seed}' / 'progress.csv').exists()]
+                paths = [find_log(logs, f'{algo}-{name}-seed{seed}') for seed in seeds]
+                curves = [read_curve(path, column) for path in paths if path is not None]
                 curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
                 if not curves:
                     continue
@@ -128,31 +150,62 @@ def plot(out: Path, algos: list[str], seeds: list[int]) -> None:
         ax.set_title(figure)
         ax.legend()
         fig.tight_layout()
+        out.mkdir(parents=True, exist_ok=True)
         fig.savefig(out / f'{figure}.png', dpi=120)
         plt.close(fig)
+        written.append(out / f'{figure}.png')
         print(f'wrote {out / f"{figure}.png"}')
+    return written
 
 
-def main() -> None:
+SHIPPED_LOGS = Path(__file__).resolve().parent / 'results'
+COMMANDS = ('plot', 'train')
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--out', default='results', type=Path)
-    parser.add_argument('--steps', type=float, default=2e6)
-    parser.add_argument('--algos', nargs='+', default=['mappo', 'ippo'])
-    parser.add_argument('--seeds', nargs='+', type=int, default=[0, 1, 2])
-    parser.add_argument('--experiments', nargs='+', default=list(EXPERIMENTS), choices=list(EXPERIMENTS))
-    parser.add_argument('--jobs', type=int, default=1)
-    parser.add_argument('--plot-only', action='store_true')
-    parser.add_argument('--train-args', default='', help='extra `mate train` arguments, one string')
-    args = parser.parse_args()
-    args.out.mkdir(parents=True, exist_ok=True)
-    if not args.plot_only:
+    commands = parser.add_subparsers(dest='command', required=True, metavar='{plot,train}')
+    selection = argparse.ArgumentParser(add_help=False)
+    selection.add_argument('--algos', nargs='+', default=['mappo', 'ippo'], choices=['mappo', 'ippo'])
+    selection.add_argument('--seeds', nargs='+', type=int, default=[0, 1, 2])
+    selection.add_argument('--experiments', nargs='+', default=list(EXPERIMENTS), choices=list(EXPERIMENTS))
+
+    draw = commands.add_parser('plot', parents=[selection], help='draw the figures from existing logs (the default)')
+    draw.add_argument('--logs', type=Path, default=SHIPPED_LOGS,
+                      help=f'where the logs are (default: the shipped ones, {SHIPPED_LOGS})')
+    draw.add_argument('--out', type=Path, default=None, help='where the PNGs go (default: the --logs directory)')
+    draw.add_argument('--plot-only', action='store_true', help=argparse.SUPPRESS)   # the former spelling of `plot`
+
+    train = commands.add_parser('train', parents=[selection], help='train every run with `mate train`, then draw')
+    train.add_argument('--out', type=Path, default=Path('results'), help='runs go to OUT/runs/, PNGs to OUT (default results)')
+    train.add_argument('--steps', type=float, default=2e6, help='decision steps per run (default 2e6)')
+    train.add_argument('--jobs', type=int, default=1, help='trainings at a time (default 1)')
+    train.add_argument('--train-args', default='', help='extra `mate train` arguments, one string')
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in (*COMMANDS, '-h', '--help'):
+        argv.insert(0, 'plot')      # no command: redraw
+    args = build_parser().parse_args(argv)
+    if args.command == 'train':
+        args.out.mkdir(parents=True, exist_ok=True)
         tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds]
         with ThreadPoolExecutor(args.jobs) as pool:
             codes = list(pool.map(lambda t: run_one(args.out, *t, args.steps, args.train_args.split()), tasks))
         if any(codes):
             print(f'{sum(c != 0 for c in codes)} runs failed', file=sys.stderr)
-    plot(args.out, args.algos, args.seeds)
+        logs = out = args.out
+    else:
+        logs, out = args.logs, args.out or args.logs
+    if not plot(logs, out, args.algos, args.seeds, args.experiments):
+        print(f'nothing to plot: no log in {logs} of {", ".join(args.experiments)} with algos {" ".join(args.algos)} '
+              f'and seeds {" ".join(map(str, args.seeds))} (looked for ALGO-NAME-seedS.csv and '
+              'runs/ALGO-NAME-seedS/progress.csv)', file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

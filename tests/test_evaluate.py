@@ -86,11 +86,11 @@ def test_no_render_writes_nothing(tmp_path, monkeypatch):
     assert not list(tmp_path.iterdir())
 
 
-def test_agent_kwargs_must_be_a_json_object():
-    with pytest.raises(SystemExit, match='--camera-kwargs is not valid JSON'):
-        main(['evaluate', '--episodes', '1', '--camera-kwargs', '{memory: 3}', '--no-render'])
-    with pytest.raises(SystemExit, match='--target-kwargs must be a JSON object'):
-        main(['evaluate', '--episodes', '1', '--target-kwargs', '[1, 2]', '--no-render'])
+def test_agent_kwargs_must_be_a_json_object(capsys):
+    assert main(['evaluate', '--episodes', '1', '--camera-kwargs', '{memory: 3}', '--no-render']) == 2
+    assert '--camera-kwargs is not valid JSON' in capsys.readouterr().err
+    assert main(['evaluate', '--episodes', '1', '--target-kwargs', '[1, 2]', '--no-render']) == 2
+    assert '--target-kwargs must be a JSON object' in capsys.readouterr().err
 
 
 def test_wrapper_flags_build_the_documented_stack(tmp_path):

@@ -11,7 +11,7 @@ import math
 import os
 import subprocess
 import sys
-import time
+from pathlib import Path
 
 os.environ['SDL_VIDEODRIVER'] = 'dummy'  # headless: must precede pygame's display initialisation
 os.environ['SDL_AUDIODRIVER'] = 'dummy'
@@ -24,7 +24,8 @@ import pygame  # noqa: E402,F401  (part of the test extra: a missing renderer mu
 
 import mate
 from mate.constants import WAREHOUSE_RADIUS, WAREHOUSES
-from mate.render import WAREHOUSE_COLORS, Renderer, sector_polygon, visible_region
+from mate.evaluate import FrameRecorder
+from mate.render import MIN_TARGET_PIXELS, WAREHOUSE_COLORS, Renderer, hud_line, sector_polygon, visible_region
 from mate.video import save_gif, save_video
 
 SIZE = 800
@@ -172,7 +173,7 @@ def test_human_mode_opens_and_closes_a_window():
 def test_background_border_and_obstacle(scene):
     frame = scene.render()
     assert_color(frame, -500.0, 500.0, WHITE, tolerance=0)           # far from everything
-    assert_color(frame, 0.0, 1040.0, WHITE, tolerance=0)             # margin outside the terrain
+    assert_color(frame, 0.0, -1040.0, WHITE, tolerance=0)            # margin outside the terrain (the HUD is on top)
     assert pixel(frame, 1000.0, 0.0).max() < 60                      # terrain border: black
     assert pixel(frame, 0.0, -1000.0).max() < 60
     assert pixel(frame, -1000.0, 300.0).max() < 60
@@ -273,19 +274,6 @@ def test_same_state_renders_identically_and_steps_change_the_frame():
         assert not np.array_equal(before, after)
     assert np.array_equal(frames[-1], env.render())
     env.close()
-
-
-def test_render_speed_is_reported():
-    env = mate.make('MATE-4v8-9-v0', render_mode='rgb_array')
-    env.reset(seed=0)
-    env.render()
-    count, start = 20, time.perf_counter()
-    for _ in range(count):
-        env.step(env.action_space.sample())
-        env.render()
-    fps = count / (time.perf_counter() - start)
-    print(f'render+step speed at 800x800 (4v8-9): {fps:.0f} frames/s')
-    assert fps > 5.0  # generous: the machine is shared
 
 
 # --------------------------------------------------------------------------- callbacks and primitives
@@ -473,3 +461,133 @@ def test_writers_give_clear_errors(tmp_path):
     with pytest.raises(ValueError, match='single frame'):
         save_gif(frame, tmp_path / 'a.gif')
     assert not list(tmp_path.iterdir())
+
+
+# --------------------------------------------------------------------------- heads-up line, frame sizes
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE_FRAME = Path(__file__).parent / 'data' / 'render-scene-800.png'
+"""The scene (`make_scene()`) as rendered before the HUD and the small-frame minimum sizes existed."""
+
+
+def load_png(path) -> np.ndarray:
+    from PIL import Image
+    with Image.open(path) as image:
+        return np.asarray(image.convert('RGB'))
+
+
+def test_hud_line_summarises_step_coverage_and_cargo(scene):
+    world = scene.get_world()   # one target carrying 1 unit, 3 units waiting, none delivered; it is tracked
+    assert hud_line(world, scene.name, scene.max_episode_steps) == \
+        'render-scene | step 0/100 | coverage 1.00 | delivered 0/4'
+    world['episode_step'], world['num_delivered_cargoes'] = 37, 5
+    assert hud_line(world) == 'step 37 | coverage 1.00 | delivered 5/9'
+
+
+def test_hud_changes_only_its_band_and_follows_the_episode(scene):
+    with_hud = scene.render()
+    band = scene.viewer.hud_height
+    assert 10 <= band <= 25
+    assert (with_hud[:band].max(axis=2) < 100).sum() > 100            # dark text in the band
+    scene.render_hud = False
+    without = scene.render()
+    changed_rows = np.flatnonzero((with_hud != without).any(axis=(1, 2)))
+    assert changed_rows.size and changed_rows.max() < band
+    scene.render_hud = True
+    world = scene.get_world()
+    world['episode_step'] = 57
+    scene.set_world(world)
+    later = scene.render()
+    assert not np.array_equal(later[:band], with_hud[:band]) and np.array_equal(later[band:], with_hud[band:])
+
+
+def test_without_hud_the_frame_is_the_one_from_before_the_hud(scene):
+    reference = load_png(REFERENCE_FRAME)
+    scene.render_hud = False
+    assert np.array_equal(scene.render(), reference)
+    assert np.array_equal(Renderer('rgb_array', hud=False).frame(scene.get_world()), reference)
+    assert not np.array_equal(Renderer('rgb_array').frame(scene.get_world()), reference)
+
+
+def test_hud_setting_survives_pickling():
+    import pickle
+    assert pickle.loads(pickle.dumps(Renderer('rgb_array', hud=False))).hud is False
+    assert pickle.loads(pickle.dumps(Renderer('rgb_array'))).hud is True
+
+
+def test_frame_recorder_size_hud_and_step_limit(scene):
+    recorders = [FrameRecorder(every=1), FrameRecorder(every=1, max_episode_steps=50),
+                 FrameRecorder(every=1, max_episode_steps=500), FrameRecorder(every=1, hud=False)]
+    for recorder in recorders:
+        recorder(scene, 0)
+    world = scene.get_world()
+    expected = [Renderer('rgb_array', 600).frame(world, 0.0, scene.name, 100),
+                Renderer('rgb_array', 600).frame(world, 0.0, scene.name, 50),   # the evaluation's cap ...
+                Renderer('rgb_array', 600).frame(world, 0.0, scene.name, 100),  # ... unless above the env's
+                Renderer('rgb_array', 600, hud=False).frame(world)]
+    assert recorders[0].frames[0].shape == (600, 600, 3)
+    for recorder, frame in zip(recorders, expected):
+        assert np.array_equal(recorder.frames[0], frame)
+    assert not np.array_equal(expected[0], expected[1])
+
+
+def test_small_frames_draw_targets_and_cameras_at_a_minimum_size():
+    env = make_scene(target=(-500.0, 600.0))         # an untracked purple target, a blue camera body
+    renderer = Renderer('rgb_array', window_size=200, hud=False)   # true sizes: target 4.7 px, camera radius 3.8 px
+    frame = renderer.render(env).astype(int)
+
+    def pixels_of(color, center, reach: int = 20) -> np.ndarray:
+        column, row = renderer.to_pixels(center).astype(int)
+        window = frame[row - reach:row + reach, column - reach:column + reach]
+        rows, columns = np.nonzero(np.abs(window - np.round(np.asarray(color) * 255)).max(axis=2) <= 1)
+        return np.column_stack([columns, rows]) + [column - reach + 0.5, row - reach + 0.5]
+
+    target = pixels_of(WAREHOUSE_COLORS[2], (-500.0, 600.0))
+    length = np.hypot(*(target[:, None] - target[None]).transpose(2, 0, 1)).max()
+    assert MIN_TARGET_PIXELS - 2.0 <= length <= MIN_TARGET_PIXELS + 1.0
+    body = pixels_of((0.1, 0.2, 0.6), CAMERA) - renderer.to_pixels(CAMERA)
+    assert np.hypot(body[:, 0], body[:, 1]).max() >= 6.0
+    env.close()
+
+
+HEADLESS_RENDER = """
+import mate
+env = mate.make('MATE-1v1-0-v0', render_mode='human')
+env.reset(seed=0)
+try:
+    env.render()
+except RuntimeError as error:
+    print(error)
+else:
+    print('no error')
+"""
+
+
+@pytest.mark.parametrize('display', [{}, {'DISPLAY': ':9999'}, {'WAYLAND_DISPLAY': 'mate-test-no-such-display'}],
+                         ids=['no display', 'no X server', 'no Wayland compositor'])
+def test_human_mode_without_a_display_fails_with_one_clear_line(display):
+    environment = {key: value for key, value in os.environ.items()
+                   if key not in ('DISPLAY', 'WAYLAND_DISPLAY', 'SDL_VIDEODRIVER', 'XDG_RUNTIME_DIR')}
+    out = subprocess.run([sys.executable, '-c', HEADLESS_RENDER], env={**environment, **display},
+                         capture_output=True, text=True, check=True)
+    message = out.stdout.strip()
+    assert message.startswith("render_mode='human' ") and '\n' not in message
+    assert "render_mode='rgb_array'" in message and 'SDL_VIDEODRIVER=dummy' in message
+    assert 'XDG_RUNTIME_DIR' not in out.stderr and 'Traceback' not in out.stderr
+
+
+def test_legend_script_draws_the_legend(tmp_path):
+    path = tmp_path / 'legend.png'
+    subprocess.run([sys.executable, str(ROOT / 'scripts' / 'render_legend.py'), '--output', str(path)],
+                   env={**os.environ, 'SDL_VIDEODRIVER': 'dummy'}, capture_output=True, text=True, check=True)
+    legend = load_png(path)
+    assert legend.shape[1] == 800 and legend.shape[0] > 600
+
+    def shows(color) -> bool:
+        return bool((np.abs(legend.astype(int) - np.asarray(color)).max(axis=2) <= 2).sum() > 30)
+
+    assert shows(YELLOW) and shows(RUST) and shows(BLUE) and shows(OBSTACLE_GREY.round())
+    assert shows(np.round(WAREHOUSE_COLORS[1] * 255)) and shows((51, 153, 51))     # red cargo, green no-cargo target
+    assert (legend.max(axis=2) < 60).sum() > 2000                                   # caption text
+    docs = (ROOT / 'docs' / 'rendering.md').read_text()
+    assert 'images/legend.png' in docs and (ROOT / 'docs' / 'images' / 'legend.png').is_file()

@@ -38,13 +38,16 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
     """Read a checkpoint; CheckpointError if it is unreadable, of another format, or if any `expect`
     entry differs from the stored `meta` (e.g. team, env id, observation size)."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise CheckpointError(f'checkpoint {str(path)!r} does not exist')
+    if not path.is_file():
+        raise CheckpointError(f'checkpoint {str(path)!r} is not a file')
     try:
         data = torch.load(path, map_location='cpu', weights_only=True)
-    except Exception as exc:  # noqa: BLE001  (truncated zip, random bytes, pickled objects, ...)
-        raise CheckpointError(f'checkpoint {str(path)!r} is corrupt or not a mate.learn checkpoint '
-                              f'({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ""})') from None
+    except Exception:  # noqa: BLE001  (truncated zip, random bytes, text, pickled objects, ...)
+        # torch's own message is not passed on: it advises unsafe loading (`weights_only=False`)
+        raise CheckpointError(f'checkpoint {str(path)!r} is corrupt or not a mate.learn checkpoint: it is not a '
+                              'torch file of tensors and plain data (mate never unpickles other objects)') from None
     if not isinstance(data, dict) or data.get('format') != CHECKPOINT_FORMAT:
         found = data.get('format') if isinstance(data, dict) else type(data).__name__
         raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected {CHECKPOINT_FORMAT!r}')
@@ -52,6 +55,8 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
     if missing:
         raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
     meta = data['meta']
+    if not isinstance(meta, dict):
+        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt: its 'meta' entry is a {type(meta).__name__}, not a dict")
     for key, value in (expect or {}).items():
         found = meta.get(key, META_DEFAULTS.get(key))
         if found != value:

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from ..cli import CommandError, non_negative_int, number, positive_int, resolving_arguments
+
 __all__ = ['add_arguments', 'config_from_args', 'run']
 
 
@@ -15,15 +17,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--config', '--cfg', default=None,
                         help='preset name (e.g. MATE-4v8-9) or YAML/JSON path; default: the paper preset of the team '
                              '(cameras MATE-4v8-9, targets MATE-2v4-0)')
-    parser.add_argument('--steps', type=float, default=2e6, help='decision steps in total (default 2e6)')
+    parser.add_argument('--steps', type=number(float, minimum=1), default=2e6, help='decision steps in total (default 2e6)')
     parser.add_argument('--minutes', type=float, default=0.0,
                         help='also stop after this many minutes of training wall time (resumed sessions included); '
                              'default 0: no time limit')
-    parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--num-envs', type=int, default=64, help='batched games (default 64)')
-    parser.add_argument('--rollout-length', type=int, default=25, help='decisions per env per iteration (default 25)')
-    parser.add_argument('--epochs', type=int, default=4)
-    parser.add_argument('--minibatches', type=int, default=4)
+    parser.add_argument('--seed', type=non_negative_int, default=0)
+    parser.add_argument('--num-envs', type=positive_int, default=64, help='batched games (default 64)')
+    parser.add_argument('--rollout-length', type=positive_int, default=25, help='decisions per env per iteration (default 25)')
+    parser.add_argument('--epochs', type=positive_int, default=4)
+    parser.add_argument('--minibatches', type=positive_int, default=4)
     parser.add_argument('--hrl', action='store_true',
                         help='cameras only: the policy selects targets (one bit per target), a rule executor aims (paper §HRL)')
     parser.add_argument('--actor', choices=('mlp', 'per-target'), default=None,
@@ -49,9 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="cameras only: 'team' (default): every camera is rewarded with the team's coverage rate; "
                              "'difference': each camera with its own marginal contribution to it (the share of the "
                              "targets only it tracks), with one critic value per camera")
-    parser.add_argument('--frame-skip', type=int, default=None, help='default: 5 cameras, 10 targets')
-    parser.add_argument('--horizon', type=int, default=None, help='raw steps per training episode (default 500 decisions)')
-    parser.add_argument('--gae-lambda', type=float, default=0.95)
+    parser.add_argument('--frame-skip', type=positive_int, default=None, help='default: 5 cameras, 10 targets')
+    parser.add_argument('--horizon', type=positive_int, default=None, help='raw steps per training episode (default 500 decisions)')
+    parser.add_argument('--gae-lambda', type=number(float, minimum=0), default=0.95)
     parser.add_argument('--kl-coeff', type=float, default=None,
                         help='initial coefficient of the adaptive KL penalty (RLlib and the paper: 0.2); '
                              'default 0: off (0.2 with --paper)')
@@ -61,12 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='[[step, coef], ...] piecewise linear (default 0.01 -> 0.001 @1M -> 0 @3M)')
     parser.add_argument('--lr-schedule', default=None, metavar='JSON',
                         help='[[step, lr], ...] step function (default 5e-4, 2e-4 @1.5M, 1e-4 @3M)')
-    parser.add_argument('--snapshot-every', type=int, default=0, metavar='N',
+    parser.add_argument('--snapshot-every', type=non_negative_int, default=0, metavar='N',
                         help='keep the policy every N iterations as RUN_DIR/snapshots/policy-STEPS.pt (default off)')
     parser.add_argument('--init-from', default=None, metavar='PATH',
                         help='warm start from the networks of a checkpoint or exported policy of the same setting '
                              '(steps and schedules start from 0)')
-    parser.add_argument('--threads', type=int, default=0,
+    parser.add_argument('--threads', type=non_negative_int, default=0,
                         help='torch threads of the update phase (default 0: every core; collection always uses 1)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
     parser.add_argument('--fresh', action='store_true', help='ignore an existing checkpoint in the run directory')
@@ -74,20 +76,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _env(config: str | None) -> dict:
+    """The env keyword arguments of `--config`: a registered preset ID, or the config itself (read once here
+    so that an unknown name or a bad file fails now, with the `ConfigError` listing the presets)."""
     if config is None:
         return {}
+    from ..config import read_config
     from ..registration import registered_ids
 
     name = config.removesuffix('-v0')
     if f'{name}-v0' in registered_ids():
         return dict(env_id=f'{name}-v0')
-    if not Path(config).is_file():
-        raise SystemExit(f'mate train: --config {config!r} is neither a preset name nor a file')
+    read_config(config)
     return dict(env_id='MultiAgentTracking-v0', config=config)
 
 
 def config_from_args(args: argparse.Namespace):
-    """The `PPOConfig` of parsed `mate train` arguments (SystemExit with a message for bad ones)."""
+    """The `PPOConfig` of parsed `mate train` arguments (CommandError, a SystemExit, with a message for bad ones)."""
     from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 
     extra = dict(PAPER_HYPERPARAMETERS) if args.paper else {}
@@ -99,30 +103,30 @@ def config_from_args(args: argparse.Namespace):
             try:
                 extra[key] = tuple(tuple(p) for p in json.loads(text))
             except (ValueError, TypeError) as exc:
-                raise SystemExit(f'mate train: --{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
+                raise CommandError(f'--{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
     if args.hrl and args.team != 'camera':
-        raise SystemExit('mate train: --hrl exists for cameras only')
+        raise CommandError('--hrl exists for cameras only')
     if args.kl_coeff is not None:
         if not args.kl_coeff >= 0:
-            raise SystemExit(f'mate train: --kl-coeff must be >= 0 (0 = no KL penalty), got {args.kl_coeff}')
+            raise CommandError(f'--kl-coeff must be >= 0 (0 = no KL penalty), got {args.kl_coeff}')
         extra['kl_coeff'] = args.kl_coeff
     if not args.kl_target > 0:
-        raise SystemExit(f'mate train: --kl-target must be > 0, got {args.kl_target}')
+        raise CommandError(f'--kl-target must be > 0, got {args.kl_target}')
     if not args.minutes >= 0:
-        raise SystemExit(f'mate train: --minutes must be >= 0 (0 = no time limit), got {args.minutes}')
+        raise CommandError(f'--minutes must be >= 0 (0 = no time limit), got {args.minutes}')
     if args.lstm < 0:
-        raise SystemExit(f'mate train: --lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
+        raise CommandError(f'--lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
     if args.memory < 0:
-        raise SystemExit(f'mate train: --memory must be >= 0 steps (0 = no memory), got {args.memory}')
+        raise CommandError(f'--memory must be >= 0 steps (0 = no memory), got {args.memory}')
     if args.memory and args.team != 'camera':
-        raise SystemExit('mate train: --memory (shared sightings of targets) exists for cameras only')
+        raise CommandError('--memory (shared sightings of targets) exists for cameras only')
     if args.velocity and args.team != 'camera':
-        raise SystemExit('mate train: --velocity (motion of the seen targets) exists for cameras only')
+        raise CommandError('--velocity (motion of the seen targets) exists for cameras only')
     if args.credit != 'team' and args.team != 'camera':
-        raise SystemExit(f'mate train: --credit {args.credit} (each camera\'s own share of the coverage) exists for '
-                         'cameras only')
+        raise CommandError(f'--credit {args.credit} (each camera\'s own share of the coverage) exists for '
+                           'cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
-        raise SystemExit("mate train: --actor per-target reads a camera's target slots; it needs --team camera")
+        raise CommandError("--actor per-target reads a camera's target slots; it needs --team camera")
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                      time_limit=60.0 * args.minutes,
                      num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
@@ -134,26 +138,58 @@ def config_from_args(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace, console) -> int:
-    from .checkpoint import CheckpointError
-    from .ppo import train
+    """Train as `args` say; 0 when done (or already done), 130 when interrupted (resumable)."""
+    try:
+        from .checkpoint import CheckpointError, load_checkpoint
+        from .ppo import train
+    except ImportError as exc:
+        raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
 
-    config = config_from_args(args)
+    with resolving_arguments():
+        config = config_from_args(args)
+        resolved = config.resolved()
     name = (f'hrl-{args.algo}' if args.hrl else args.algo) + ('-full-obs' if args.full_observability else '')
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
-    resolved = config.resolved()
+    checkpoint_path = run_dir / 'checkpoint.pt'
+    resuming = checkpoint_path.exists() and not args.fresh
+    if resuming:   # (a resumed run ignores --init-from)
+        try:
+            done = _already_done(load_checkpoint(checkpoint_path), config)
+        except CheckpointError as exc:
+            raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
+        if done:
+            reason, flag = done
+            console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
+            return 0
+    elif config.init_from:   # a bad file fails now, before the envs are built
+        try:
+            load_checkpoint(config.init_from)
+        except CheckpointError as exc:
+            raise CommandError(f'--init-from: {exc}') from None
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({resolved.actor} actor, frame skip '
                   f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
-    if (run_dir / 'checkpoint.pt').exists() and not args.fresh:
-        console.print(f'resuming from {run_dir / "checkpoint.pt"}')
+    if resuming:
+        console.print(f'resuming from {checkpoint_path}')
     try:
         row = train(config, run_dir, resume=not args.fresh, progress=not args.no_progress)
-    except CheckpointError as exc:
-        raise SystemExit(f'mate train: {exc} (use --fresh or another --run-dir to start over)') from None
+    except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
+        raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
     except KeyboardInterrupt:
-        console.print(f'interrupted; run the same command again to resume from {run_dir / "checkpoint.pt"}')
+        console.print(f'interrupted; run the same command again to resume from {checkpoint_path}')
         return 130
     if config.time_limit and row.get('env_steps', config.total_steps) < config.total_steps:
         console.print(f'stopped at the time limit of {args.minutes:g} minutes')
     console.print(f"done: {row.get('env_steps', 0):,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
                   f"episode return {row.get('episode_return', float('nan')):.1f}; final policy {run_dir / 'final.pt'}")
     return 0
+
+
+def _already_done(saved: dict, config) -> tuple[str, str] | None:
+    """Why the run of checkpoint `saved` needs no more training under `config`, and the flag to raise
+    to train on; None if it does need more."""
+    steps, seconds = int(saved.get('env_steps', 0)), float(saved.get('wall_seconds', 0.0))
+    if steps >= config.total_steps:
+        return f'{steps:,} decision steps >= --steps {config.total_steps:,}', '--steps'
+    if config.time_limit and seconds >= config.time_limit:
+        return f'{seconds / 60:.3g} minutes of training >= --minutes {config.time_limit / 60:g}', '--minutes'
+    return None

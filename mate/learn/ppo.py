@@ -809,7 +809,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             if bar is not None:
                 bar[0].update(bar[1], completed=env_steps, status=(
                     f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                    f"episode return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}"))
+                    f"return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}"))
             if iteration % config.checkpoint_every == 0:
                 checkpoint(checkpoint_path)
             if config.snapshot_every and iteration % config.snapshot_every == 0:
@@ -843,16 +843,10 @@ def _warm_start(path, meta: dict, actor: nn.Module, critic: nn.Module, value_nor
 
 
 def _progress_bar(total: int, done: int):
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-    )
+    """The started training bar (`mate.progress`) and its task, at `done` of `total` decision steps."""
+    from ..progress import progress_bar
 
-    progress = Progress(TextColumn('training'), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                        TextColumn('{task.fields[status]}'))
-    task = progress.add_task('train', total=total, completed=done, status='')
+    progress = progress_bar()
+    task = progress.add_task('training', total=total, completed=done, status='')
     progress.start()
     return progress, task

@@ -27,7 +27,7 @@ def test_without_ray_the_command_explains_how_to_install_it(capsys, monkeypatch)
     monkeypatch.delitem(sys.modules, 'mate.integrations.rllib', raising=False)
     monkeypatch.delattr(mate.integrations, 'rllib', raising=False)
     assert cli.main(['rllib-train', '--iterations', '1']) == 2
-    assert "pip install 'mate[rllib]'" in capsys.readouterr().out.replace('\n', '')
+    assert "pip install 'mate[rllib]'" in capsys.readouterr().err.replace('\n', '')
 
 
 @pytest.mark.slow

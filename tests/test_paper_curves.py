@@ -1,0 +1,49 @@
+"""scripts/paper_curves.py: with no command it redraws the figures from the thinned logs shipped in
+scripts/results/ (no training), and says so when it finds nothing to draw."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+SCRIPT = Path(__file__).resolve().parents[1] / 'scripts' / 'paper_curves.py'
+FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'targets-4v8-0')
+
+
+@pytest.fixture(scope='module')
+def paper_curves():
+    spec = importlib.util.spec_from_file_location('paper_curves', SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_default_command_redraws_every_figure_from_the_shipped_logs(paper_curves, tmp_path, monkeypatch):
+    import matplotlib
+    matplotlib.use('Agg')
+
+    def no_training(*args):
+        raise AssertionError('plotting must not train')
+    monkeypatch.setattr(paper_curves, 'run_one', no_training)
+    assert paper_curves.main(['--out', str(tmp_path)]) == 0
+    for figure in FIGURES:
+        with Image.open(tmp_path / f'{figure}.png') as image:
+            assert image.format == 'PNG' and image.width >= 600 and image.height >= 400
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(f'{figure}.png' for figure in FIGURES)
+
+
+def test_nothing_to_plot_is_an_error(paper_curves, tmp_path, capsys):
+    assert paper_curves.main(['plot', '--logs', str(tmp_path)]) == 1
+    assert 'nothing to plot' in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_training_run_directory_is_preferred_to_a_thinned_log(paper_curves, tmp_path):
+    run = 'mappo-camera-4v8-9-seed0'
+    assert paper_curves.find_log(tmp_path, run) is None
+    (tmp_path / f'{run}.csv').write_text('env_steps\n')
+    assert paper_curves.find_log(tmp_path, run) == tmp_path / f'{run}.csv'
+    (tmp_path / 'runs' / run).mkdir(parents=True)
+    (tmp_path / 'runs' / run / 'progress.csv').write_text('env_steps\n')
+    assert paper_curves.find_log(tmp_path, run) == tmp_path / 'runs' / run / 'progress.csv'

@@ -1,0 +1,52 @@
+"""The progress bar of `mate evaluate` / `mate train` (mate.progress): the count never passes the total, and
+the count and the remaining time stay visible in a narrow terminal (the status text is cut first)."""
+
+import io
+
+import pytest
+from rich.console import Console
+
+from mate.progress import displayed_count, progress_bar
+
+STATUS = '2,345 steps/s  coverage 0.575  return 123.4  entropy 1.23'
+
+
+@pytest.mark.parametrize('completed, total, shown', [
+    (20_800, 20_000, 20_000),    # an iteration overshoots the total
+    (12_800, 20_000, 12_800),
+    (20_000, 20_000, 20_000),
+    (-3, 20_000, 0),
+    (5, None, 5),                # no total: nothing to clamp to
+])
+def test_displayed_count_is_clamped_to_the_total(completed, total, shown):
+    assert displayed_count(completed, total) == shown
+
+
+def render(width: int, completed: int, total: int = 20_000) -> str:
+    out = io.StringIO()
+    console = Console(file=out, width=width, force_terminal=True, color_system=None)
+    progress = progress_bar(console=console)
+    task = progress.add_task('training', total=total, completed=0, status='')
+    progress.update(task, completed=completed, status=STATUS)
+    console.print(progress.get_renderable())
+    return out.getvalue().rstrip('\n')
+
+
+def test_the_bar_shows_the_clamped_count():
+    line = render(120, 20_800)
+    assert '20,000/20,000' in line and '20,800' not in line
+
+
+@pytest.mark.parametrize('width', [80, 60, 50])
+def test_count_and_eta_stay_visible_in_a_narrow_terminal(width):
+    line = render(width, 12_800)
+    assert '\n' not in line and len(line) <= width
+    assert line.startswith('training ')
+    assert '12,800/20,000' in line and ' eta ' in line
+    assert STATUS not in line                # the status is what gets cut
+    if width == 80:
+        assert '2,345 steps/s' in line and line.endswith('…')
+
+
+def test_a_wide_terminal_shows_the_whole_status():
+    assert render(160, 12_800).endswith(STATUS)
