@@ -7,6 +7,7 @@ an object acting for every agent of every row in one call,
 
     team.reset(observation (B, N, D) float64 raw, rows (B,) bool)   # rows that start an episode
     team.act(observation (B, N, D)) -> actions (B, N, 2)            # once per env step
+    team.idle(rows)                     # optional: these rows' actions no longer matter (finished games)
 
 Batched teams here:
 
@@ -49,6 +50,16 @@ __all__ = ['BATCHED_AGENTS', 'BatchEpisode', 'GreedyTeam', 'MixtureTeam', 'Polic
 
 BATCHED_AGENTS = ('random', 'greedy', 'checkpoint:PATH', 'pretrained:NAME')
 """Agent names of `mate evaluate` that have a batched team."""
+
+
+_NEVER = np.iinfo(np.int64).max // 2
+"""A decision countdown that does not run out within any episode."""
+
+
+def _idle(team, rows: np.ndarray) -> None:
+    """`team.idle(rows)` for the teams that have it (the others just go on acting there)."""
+    if hasattr(team, 'idle'):
+        team.idle(rows)
 
 
 def _own_state(observation: np.ndarray) -> np.ndarray:
@@ -115,6 +126,10 @@ class PolicyTeam:
             index = torch.as_tensor(rows)
             for part in self.memory:
                 part[index] = 0.0
+
+    def idle(self, rows: np.ndarray) -> None:
+        """Make no more decisions in the rows `rows` (until their next reset): their games are over."""
+        self.countdown[np.asarray(rows, dtype=bool)] = _NEVER
 
     def _decide(self, observation: np.ndarray, rows: np.ndarray) -> None:
         """New decisions for the rows `rows` (indices): one forward pass for all their agents."""
@@ -235,6 +250,10 @@ class MixtureTeam:
         for member in self.members:
             member.reset(observation, rows)
 
+    def idle(self, rows: np.ndarray) -> None:
+        for member in self.members:
+            _idle(member, rows)
+
     def act(self, observation: np.ndarray) -> np.ndarray:
         actions = [member.act(observation) for member in self.members]
         return np.stack(actions)[self.choice, np.arange(len(self.choice))]
@@ -317,8 +336,9 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, m
                 progress(int((~live).sum()), episodes)
         if finished.any() and live.any():   # finished rows restart (ignored) so that the batch keeps stepping
             (camera_obs, target_obs), _ = vec.reset(options={'reset_mask': finished})
-            cameras.reset(camera_obs, finished)
-            targets.reset(target_obs, finished)
+            if ended.any():
+                _idle(cameras, ended)
+                _idle(targets, ended)
     seconds = time.perf_counter() - start
     normaliser = float(vec.params.max_target_team_episode_reward)
     results = [BatchEpisode(seed=seed + i, coverage_rate=float(coverage[i] / length[i]),
