@@ -252,8 +252,8 @@ def joint_assignment(cameras, targets, coord_grid, scores, state_mesh, permutati
                         break
         if better:
             best_total, best_cost = total, cost
-            best_order[:] = order
-            best_poses[:] = poses
+            for j in range(n):  # not a slice copy: that compiles numba's shape-mismatch error (40% of the compile)
+                best_order[j], best_poses[j] = order[j], poses[j]
     return best_order, best_poses, in_reach
 
 

@@ -7,7 +7,7 @@ warehouse src for destination dst; `awaiting_cargo_counts[b, dst]` counts units 
 from __future__ import annotations
 
 from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
-from .jit import allocating_kernel, inline_kernel, kernel
+from .jit import inline_kernel, kernel
 from .perception import is_tracked
 from .rng import randint
 
@@ -102,17 +102,18 @@ def transport_cargoes(p, w, b):
     return dense, sparse
 
 
-@allocating_kernel
+@kernel
 def load_all_targets(p, w, b):
     """Reset option `targets_start_with_cargoes`: each unloaded target takes cargo from the first
     non-empty warehouse in a random order of the four (without moving)."""
-    order = [0, 1, 2, 3]
+    order = 0x3210  # warehouses 0..3 in 4 bits each, order[i] = (order >> 4 i) & 15; shuffled again per target
     for t in range(p.num_targets):
         if w.target_goal[b, t] >= 0:
             continue
         for i in range(NUM_WAREHOUSES - 1, 0, -1):  # Fisher-Yates shuffle
             j = randint(w.rng, b, i + 1)
-            order[i], order[j] = order[j], order[i]
-        for src in order:
-            if pick_up(p, w, b, t, src):
+            swapped = ((order >> (4 * i)) ^ (order >> (4 * j))) & 15  # order[i] ^ order[j]
+            order ^= (swapped << (4 * i)) | (swapped << (4 * j))
+        for i in range(NUM_WAREHOUSES):
+            if pick_up(p, w, b, t, (order >> (4 * i)) & 15):
                 break

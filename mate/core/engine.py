@@ -18,11 +18,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-from numba import njit
 
 from ..constants import NUM_WAREHOUSES
 from .cargo import transport_cargoes
-from .jit import inline_kernel
+from .jit import entry_kernel, inline_kernel
 from .kinematics import move_targets, rotate_and_zoom_cameras
 from .observe import global_state, joint_observation, update_coverage
 from .params import Params
@@ -106,11 +105,11 @@ def _refresh_rows(p, w, mask):
             update_coverage(p, w, b)
 
 
-_step_rows = njit(cache=True, nogil=True, _nrt=False)(_step_rows)
-_reset_rows = njit(cache=True, nogil=True)(_reset_rows)  # placement allocates small scratch arrays
-_observe_rows = njit(cache=True, nogil=True, _nrt=False)(_observe_rows)
-_state_rows = njit(cache=True, nogil=True, _nrt=False)(_state_rows)
-_refresh_rows = njit(cache=True, nogil=True, _nrt=False)(_refresh_rows)
+_step_rows = entry_kernel(_step_rows)
+_reset_rows = entry_kernel(_reset_rows)
+_observe_rows = entry_kernel(_observe_rows)
+_state_rows = entry_kernel(_state_rows)
+_refresh_rows = entry_kernel(_refresh_rows)
 
 _POOL: ThreadPoolExecutor | None = None
 

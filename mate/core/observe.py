@@ -8,11 +8,11 @@ from __future__ import annotations
 
 
 from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
-from .jit import inline_kernel, kernel
+from .jit import inline_kernel, ir_inline_kernel, kernel
 from .perception import is_tracked
 
 
-@inline_kernel
+@ir_inline_kernel
 def _preserved(p, out, index):
     """Write the 13 preserved entries: counts, own slot index, warehouse centres, half-width."""
     out[0], out[1], out[2], out[3] = p.num_cameras, p.num_targets, p.num_obstacles, index
@@ -22,7 +22,7 @@ def _preserved(p, out, index):
     return 13
 
 
-@inline_kernel
+@ir_inline_kernel
 def _camera_public(p, w, b, c, out, k, f=1.0):
     """Write camera c's public state [x, y, r, R cos phi, R sin phi, theta] at out[k:k+6],
     times f (1.0, or 0.0 to write zeros; see `_flagged_camera`)."""
@@ -34,7 +34,7 @@ def _camera_public(p, w, b, c, out, k, f=1.0):
     return k + 6
 
 
-@inline_kernel
+@ir_inline_kernel
 def _camera_private(p, w, b, c, out, k):
     """Camera public state followed by [max_sight_range, rotation_step, zooming_step]."""
     k = _camera_public(p, w, b, c, out, k)
@@ -42,7 +42,7 @@ def _camera_private(p, w, b, c, out, k):
     return k + 3
 
 
-@inline_kernel
+@ir_inline_kernel
 def _target_public(p, w, b, t, out, k, f=1.0):
     """Target public state [x, y, sight_range, is_loaded] at out[k:k+4], times f."""
     out[k], out[k + 1] = w.target_pos[b, t, 0] * f + 0.0, w.target_pos[b, t, 1] * f + 0.0
@@ -50,7 +50,7 @@ def _target_public(p, w, b, t, out, k, f=1.0):
     return k + 4
 
 
-@inline_kernel
+@ir_inline_kernel
 def _target_private(p, w, b, t, out, k):
     """Target public state + [step_size, capacity, goal_bits(4), empty_bits(4)]."""
     k = _target_public(p, w, b, t, out, k)
@@ -61,7 +61,7 @@ def _target_private(p, w, b, t, out, k):
     return k + 10
 
 
-@inline_kernel
+@ir_inline_kernel
 def _obstacle(w, b, o, out, k, f=1.0):
     """Obstacle o's [x, y, radius] at out[k:k+3], times f."""
     out[k], out[k + 1] = w.obstacle_pos[b, o, 0] * f + 0.0, w.obstacle_pos[b, o, 1] * f + 0.0
@@ -74,21 +74,21 @@ def _obstacle(w, b, o, out, k, f=1.0):
 # a negative value times 0 into 0.0) instead of branching on the view mask: the masks are hard to
 # predict, and the branch-free version builds observations ~20% faster (docs/performance.md).
 
-@inline_kernel
+@ir_inline_kernel
 def _flagged_camera(p, w, b, c, visible, out, k):
     f = visible * 1.0
     out[_camera_public(p, w, b, c, out, k, f)] = f
     return k + 7
 
 
-@inline_kernel
+@ir_inline_kernel
 def _flagged_target(p, w, b, t, visible, out, k):
     f = visible * 1.0
     out[_target_public(p, w, b, t, out, k, f)] = f
     return k + 5
 
 
-@inline_kernel
+@ir_inline_kernel
 def _flagged_obstacle(w, b, o, visible, out, k):
     f = visible * 1.0
     out[_obstacle(w, b, o, out, k, f)] = f

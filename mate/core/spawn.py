@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..constants import (
     MAX_CAMERA_VIEWING_ANGLE,
     NUM_WAREHOUSES,
@@ -21,17 +19,23 @@ from ..constants import (
     WAREHOUSES,
 )
 from .cargo import generate_cargoes, load_all_targets, transport_cargoes
-from .jit import allocating_kernel, inline_kernel, kernel
+from .jit import inline_kernel, kernel
 from .kinematics import orient_camera, sight_range_of
 from .perception import flag_camera_obstacles, perceive
 from .rng import randint, uniform
 
 
 @kernel
-def _shuffle(rng, b, slots):
-    """Uniform in-place permutation (Fisher-Yates) of slots (N,) int64."""
+def _identity(slots):
+    """slots (N,) int64 = 0, 1, ..., N - 1."""
     for i in range(slots.shape[0]):
         slots[i] = i
+
+
+@kernel
+def _shuffle(rng, b, slots):
+    """Uniform in-place permutation (Fisher-Yates) of slots (N,) int64."""
+    _identity(slots)
     for i in range(slots.shape[0] - 1, 0, -1):
         j = randint(rng, b, i + 1)
         slots[i], slots[j] = slots[j], slots[i]
@@ -127,7 +131,7 @@ def place_targets(p, w, b):
                 break
 
 
-@allocating_kernel
+@kernel
 def assign_slots(p, w, b):
     """Slot orders (shuffled if configured) and target capacities (k high-capacity slots)."""
     if p.shuffle_entities:
@@ -135,19 +139,20 @@ def assign_slots(p, w, b):
         _shuffle(w.rng, b, w.target_order[b])
         _shuffle(w.rng, b, w.obstacle_order[b])
     else:
-        w.camera_order[b] = np.arange(p.num_cameras)
-        w.target_order[b] = np.arange(p.num_targets)
-        w.obstacle_order[b] = np.arange(p.num_obstacles)
+        _identity(w.camera_order[b])
+        _identity(w.target_order[b])
+        _identity(w.obstacle_order[b])
     w.target_capacity[b] = 1
     k = p.num_high_capacity_targets
     if k > 0:
-        slots = np.empty(p.num_targets, np.int64)
+        slots = w.target_goal[b]  # scratch (Nt,) int64, set back to -1 below: kernels allocate nothing
         if p.shuffle_entities:
             _shuffle(w.rng, b, slots)
         else:
-            slots[:] = np.arange(p.num_targets)
+            _identity(slots)
         for i in range(k):
             w.target_capacity[b, slots[i]] = 2
+        w.target_goal[b] = -1
 
 
 @kernel
@@ -171,7 +176,7 @@ def clear_bookkeeping(p, w, b):
     w.truncated[b] = False
 
 
-@allocating_kernel
+@kernel
 def reset_row(p, w, b):
     """A new episode in row b, drawing from its random stream."""
     assign_slots(p, w, b)
