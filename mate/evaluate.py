@@ -75,7 +75,7 @@ def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
 
 
 @dataclass
-class EpisodeResult:
+class EpisodeSummary:
     """Summary of one episode (rates are means over its steps, returns are sums)."""
     seed: int
     coverage_rate: float
@@ -86,6 +86,11 @@ class EpisodeResult:
     normalized_target_return: float
     delivered_cargoes: int
     episode_length: int
+
+
+@dataclass
+class EpisodeResult(EpisodeSummary):
+    """An `EpisodeSummary` with the speed of its play (env steps per second)."""
     steps_per_second: float
 
 

@@ -28,7 +28,6 @@ Batched teams here:
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
@@ -36,6 +35,7 @@ import numpy as np
 import torch
 
 from ..constants import PRESERVED_DIM
+from ..evaluate import EpisodeSummary
 from ..messages import Team
 from ..vector import make_vec
 from .agents import LoadedPolicy, load_policy, pretrained_path
@@ -276,19 +276,8 @@ def make_team(spec: str, team, num_envs: int, counts, seed: int | None = None, *
     raise ValueError(f'agent {spec!r} has no batched version; batched agents: {", ".join(BATCHED_AGENTS)}')
 
 
-@dataclasses.dataclass
-class BatchEpisode:
-    """One row's first episode: rates are means over its steps, returns sums (the fields of
-    `mate.evaluate.EpisodeResult`)."""
-    seed: int
-    coverage_rate: float
-    real_coverage_rate: float
-    transport_rate: float
-    camera_return: float
-    target_return: float
-    normalized_target_return: float
-    delivered_cargoes: int
-    episode_length: int
+BatchEpisode = EpisodeSummary
+"""One row's first episode (`mate.evaluate.EpisodeSummary`: rates are means over its steps, returns sums)."""
 
 
 def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, max_episode_steps: int | None = None,
