@@ -38,19 +38,26 @@ def _action_bank(rng, batch_size: int, params, count: int = _BANK):
              rng.uniform(-speed, speed, (batch_size, params.num_targets, 2))) for _ in range(count)]
 
 
+def _steps_per_second(env: MultiAgentTracking, next_action, seconds: float) -> tuple[int, float]:
+    """(steps, seconds) of stepping `env` with `next_action(step)` for about `seconds` (resets included),
+    after one warm-up step."""
+    env.step(next_action(0))
+    steps, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        for _ in range(100):
+            _, _, terminated, truncated, _ = env.step(next_action(steps))
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+    return steps, elapsed
+
+
 def measure_single_env(preset: str, seconds: float = 2.0, seed: int = 0) -> dict:
     """Steps/s of one `MultiAgentTracking` env with random actions (resets included)."""
     env = MultiAgentTracking(preset)
     env.reset(seed=seed)
     bank = [(c[0], t[0]) for c, t in _action_bank(np.random.default_rng(seed), 1, env.params)]
-    env.step(bank[0])
-    steps, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        for _ in range(100):
-            _, _, terminated, truncated, _ = env.step(bank[steps % _BANK])
-            steps += 1
-            if terminated or truncated:
-                env.reset()
+    steps, elapsed = _steps_per_second(env, lambda step: bank[step % _BANK], seconds)
     return {'kind': 'single env', 'preset': preset, 'batch_size': 1, 'dtype': 'float64',
             'steps': steps, 'seconds': elapsed, 'env_steps_per_second': steps / elapsed}
 
@@ -61,14 +68,7 @@ def measure_readme_loop(preset: str, seconds: float = 2.0, seed: int = 0) -> dic
     env = MultiAgentTracking(preset)
     env.reset(seed=seed)
     env.action_space.seed(seed)
-    env.step(env.action_space.sample())
-    steps, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        for _ in range(100):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            steps += 1
-            if terminated or truncated:
-                env.reset()
+    steps, elapsed = _steps_per_second(env, lambda step: env.action_space.sample(), seconds)
     return {'kind': 'README loop', 'preset': preset, 'batch_size': 1, 'dtype': 'float64',
             'steps': steps, 'seconds': elapsed, 'env_steps_per_second': steps / elapsed}
 

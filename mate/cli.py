@@ -149,15 +149,28 @@ def _evaluate(args: argparse.Namespace) -> int:
             results.append(result)
             progress.update(task, advance=1, status=f'coverage {result.coverage_rate:.3f}, '
                                                     f'{result.steps_per_second:,.0f} steps/s')
-    summary = ev.summarise(results)
-    _print_summary(env, args, summary)
+    summary = _report(env, args, results)
     if recorder is not None:
         recorder.close()
         _save_frames(recorder.frames, args)
+    _write_results(args, results, summary)
+    return 0
+
+
+def _report(env, args: argparse.Namespace, results: list) -> list[dict]:
+    """Print the summary table of `results`; returns the summary rows."""
+    from . import evaluate as ev
+    summary = ev.summarise(results)
+    _print_summary(env, args, summary)
+    return summary
+
+
+def _write_results(args: argparse.Namespace, results: list, summary: list[dict]) -> None:
+    """`--json PATH`: the settings, the summary and every episode."""
     if args.json:
+        from . import evaluate as ev
         settings = {k: v for k, v in vars(args).items() if k != 'run'}
         console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}')
-    return 0
 
 
 def _evaluate_batched(args: argparse.Namespace) -> int:
@@ -175,8 +188,8 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
         camera_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs')
         target_kwargs = _json_kwargs(args.target_kwargs, '--target-kwargs')
         env = make('MultiAgentTracking-v0', config=args.config)
-        cameras, targets = ev.batched_teams(args.config, args.camera_agent, args.target_agent, args.episodes,
-                                            args.seed, camera_kwargs, target_kwargs)
+        cameras, targets = ev.batched_teams(env, args.camera_agent, args.target_agent, args.episodes, args.seed,
+                                            camera_kwargs, target_kwargs)
     console.print(f'environment: {env} (batched: {args.episodes} games at once)')
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
     if not args.no_render:
@@ -185,13 +198,10 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
         task = progress.add_task('evaluating', total=args.episodes, status='')
         results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
                                   progress=lambda done, total: progress.update(task, completed=done))
-    summary = ev.summarise(results)
-    _print_summary(env, args, summary)
+    summary = _report(env, args, results)
     console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
                   'env-steps/s (whole batch)')
-    if args.json:
-        settings = {k: v for k, v in vars(args).items() if k != 'run'}
-        console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}')
+    _write_results(args, results, summary)
     return 0
 
 

@@ -177,19 +177,19 @@ SUMMARY_ROWS = (
 )
 
 
-def batched_teams(config, camera_agent: str, target_agent: str, episodes: int, seed: int,
+def batched_teams(env, camera_agent: str, target_agent: str, episodes: int, seed: int,
                   camera_kwargs: dict | None = None, target_kwargs: dict | None = None) -> tuple:
     """The batched agents of `mate.learn.evaluate` for `mate evaluate --batched` (random, greedy,
-    checkpoint:PATH, pretrained:NAME; kwargs: `frame_skip`, and `deterministic` for policies), the camera
-    team seeded with `seed` and the target team with `seed + 1`. ValueError for an unknown agent or one
-    without a batched version."""
+    checkpoint:PATH, pretrained:NAME; kwargs: `frame_skip`, and `deterministic` for policies) for
+    `episodes` games of `env`'s sizes, the camera team seeded with `seed` and the target team with
+    `seed + 1`. ValueError for an unknown agent or one without a batched version."""
     try:
         from .learn.evaluate import make_team
     except ImportError as exc:
         raise ValueError(f"--batched needs the training extra (pip install 'mate[train]'): {exc}") from None
     for spec, team in ((camera_agent, Team.CAMERA), (target_agent, Team.TARGET)):
         resolve_agent(spec, team)                       # unknown names: the usual message
-    counts = _counts(config)
+    counts = (env.num_cameras, env.num_targets, env.num_obstacles)
     return (make_team(camera_agent, Team.CAMERA, episodes, counts, seed=seed, **(camera_kwargs or {})),
             make_team(target_agent, Team.TARGET, episodes, counts, seed=seed + 1, **(target_kwargs or {})))
 
@@ -203,13 +203,6 @@ def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: 
         raise ValueError(f'max_steps must be at least 1, got {max_steps}')
     batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress)
     return [EpisodeResult(**asdict(episode), steps_per_second=timing['env_steps_per_second']) for episode in batch]
-
-
-def _counts(config) -> tuple[int, int, int]:
-    from .core.params import params_from_config
-    from .config import read_config
-    params = params_from_config(read_config(config))
-    return params.num_cameras, params.num_targets, params.num_obstacles
 
 
 def summarise(results: list[EpisodeResult]) -> list[dict]:

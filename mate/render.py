@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from .constants import TERRAIN_SIZE, WAREHOUSE_RADIUS, WAREHOUSES
+from .constants import NUM_WAREHOUSES, TARGET_STATE_DIM_PRIVATE, TERRAIN_SIZE, WAREHOUSE_RADIUS, WAREHOUSES
 
 __all__ = [
     'MIN_CAMERA_PIXELS', 'MIN_TARGET_PIXELS', 'TARGET_RENDER_SIZE', 'WAREHOUSE_COLORS', 'WINDOW_SIZE',
@@ -116,7 +116,9 @@ def hud_line(world: dict, name: str | None = None, max_episode_steps: int | None
     """
     step = int(world['episode_step'])
     delivered = int(world['num_delivered_cargoes'])
-    carried = np.asarray(world['target_state'], dtype=np.float64).reshape(-1, 14)[:, 6:10].sum()
+    goal_bits = slice(6, 6 + NUM_WAREHOUSES)   # units carried per destination (a target's private state)
+    states = np.asarray(world['target_state'], dtype=np.float64).reshape(-1, TARGET_STATE_DIM_PRIVATE)
+    carried = states[:, goal_bits].sum()
     total = delivered + int(np.sum(world['remaining_cargoes'])) + int(round(carried))
     parts = [] if name is None else [str(name)]
     parts.append(f'step {step}' if max_episode_steps is None else f'step {step}/{int(max_episode_steps)}')

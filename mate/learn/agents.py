@@ -92,6 +92,20 @@ class LoadedPolicy:
         """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
         return self.actor.initial_state(*shape) if self.recurrent else None
 
+    def inputs(self, raw: np.ndarray, memory: np.ndarray | None = None, previous: np.ndarray | None = None):
+        """The network's input (..., D) from raw observations (..., D_raw) of its team, as in training:
+        preprocessed (relative coordinates rescaled to [-1, 1]), then the sighting-memory columns `memory`
+        (..., 4 Nt) of a policy trained with them, then (velocity policies) each seen target's displacement
+        since the observations `previous` (..., D_raw) of the last env step."""
+        meta = self.meta
+        counts = tuple(meta['counts'])
+        columns = [preprocess_observation(raw, meta['team'], *counts)]
+        if memory is not None:
+            columns.append(memory)
+        if meta.get('velocity'):
+            columns.append(target_displacements(raw, previous, counts, meta['frame_skip']))
+        return np.concatenate(columns, axis=-1) if len(columns) > 1 else columns[0]
+
     @torch.no_grad()
     def logits(self, processed: np.ndarray, memory=None):
         """Logits (..., A) of processed observations (..., D); with a recurrent actor also the next memory."""
@@ -101,6 +115,17 @@ class LoadedPolicy:
                 return self.actor(obs).numpy()
             logits, memory = self.actor.step(obs, memory)
         return logits.numpy(), memory
+
+
+def choose(logits: np.ndarray, deterministic: bool, rng: np.random.Generator) -> np.ndarray:
+    """Choices (...,) from logits (..., A): the argmax, or one draw from softmax(logits) per row (one
+    uniform number each from `rng`, in row order)."""
+    if deterministic:
+        return logits.argmax(axis=-1)
+    p = np.exp(logits - logits.max(axis=-1, keepdims=True))
+    p /= p.sum(axis=-1, keepdims=True)
+    u = rng.random(p.shape[:-1] + (1,))
+    return np.minimum((p.cumsum(axis=-1) < u).sum(axis=-1), p.shape[-1] - 1)
 
 
 def load_policy(path, team=None) -> LoadedPolicy:
@@ -206,29 +231,15 @@ class _PolicyAgentMixin:
             self._remember(observation)
         self._observed = False
         if self._countdown <= 0 or self._held is None:
-            processed = preprocess_observation(observation, self.TEAM, self.num_cameras, self.num_targets,
-                                               self.num_obstacles)
-            if self._sightings is not None:
-                processed = np.concatenate([processed, self._sightings.features(observation[None, None])[0, 0]])
-            meta = self.policy.meta
-            if meta.get('velocity'):
-                moved = target_displacements(observation, self._previous, meta['counts'], meta['frame_skip'])
-                processed = np.concatenate([processed, moved])
-            heads = meta.get('action_heads', 1)
+            memory = None if self._sightings is None else self._sightings.features(observation[None, None])[0, 0]
+            processed = self.policy.inputs(observation, memory, self._previous)
             if self.policy.recurrent:
                 logits, self._memory = self.policy.logits(processed[None], self._memory)
             else:
                 logits = self.policy.logits(processed[None])
-            logits = logits[0].reshape(heads, -1)
+            logits = logits[0].reshape(self.policy.meta.get('action_heads', 1), -1)
             greedy = self.deterministic if deterministic is None else deterministic
-            if greedy:
-                choice = logits.argmax(axis=-1)
-            else:
-                p = np.exp(logits - logits.max(axis=-1, keepdims=True))
-                p /= p.sum(axis=-1, keepdims=True)
-                u = self.np_random.random((heads, 1))
-                choice = np.minimum((p.cumsum(axis=-1) < u).sum(axis=-1), p.shape[-1] - 1)
-            self._held = choice
+            self._held = choose(logits, greedy, self.np_random)
             self._countdown = self.frame_skip
         self._countdown -= 1
         self._previous = np.array(observation, dtype=np.float64)

@@ -51,7 +51,7 @@ from .memory import MEMORY_FEATURES, SightingMemory, camera_sightings
 from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
-__all__ = ['CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'difference_rewards', 'discrete_to_continuous',
+__all__ = ['CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards', 'discrete_to_continuous',
            'preprocess_observation']
 
 CREDITS = ('team', 'difference')
@@ -76,16 +76,21 @@ def preprocess_observation(observation, team, num_cameras, num_targets, num_obst
     return rescale_observation(relative, team, num_cameras, num_targets, num_obstacles).astype(np.float32)
 
 
+def action_high(observation, team) -> np.ndarray:
+    """Each agent's action bound (..., 2), float64, from its raw observation (..., D): cameras
+    (rotation step, zooming step) in degrees, targets (step size, step size)."""
+    own = np.asarray(observation)[..., PRESERVED_DIM:]
+    if as_team(team) is Team.CAMERA:
+        return own[..., 7:9].astype(np.float64)
+    return np.repeat(own[..., 4:5].astype(np.float64), 2, axis=-1)
+
+
 def discrete_to_continuous(indices, observation, team, levels: int = 5) -> np.ndarray:
     """Action indices (..., N) -> continuous actions (..., N, 2) scaled by each agent's own bounds,
-    read from its raw observation (..., N, D): camera (rotation step, zooming step), target step size."""
+    read from its raw observation (..., N, D) (`action_high`)."""
     indices = np.asarray(indices, dtype=np.int64)
-    observation = np.asarray(observation)
-    if as_team(team) is Team.CAMERA:
-        high = observation[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9].astype(np.float64)
-        return square_grid(levels)[indices] * high
-    step = observation[..., PRESERVED_DIM + 4:PRESERVED_DIM + 5].astype(np.float64)
-    return disk_grid(levels)[indices] * step
+    grid = square_grid(levels) if as_team(team) is Team.CAMERA else disk_grid(levels)
+    return grid[indices] * action_high(observation, team)
 
 
 def difference_rewards(sees: np.ndarray) -> np.ndarray:

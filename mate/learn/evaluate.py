@@ -34,16 +34,14 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
-from ..constants import PRESERVED_DIM
 from ..evaluate import EpisodeSummary
 from ..messages import Team
 from ..vector import make_vec
-from .agents import LoadedPolicy, load_policy, pretrained_path
-from .envs import as_team, discrete_to_continuous, preprocess_observation
+from .agents import LoadedPolicy, choose, load_policy, pretrained_path
+from .envs import action_high, as_team, discrete_to_continuous
 from .hrl import executor_actions
 from .memory import SightingMemory
 from .opponents import VecGreedyCamera, VecGreedyTarget
-from .velocity import target_displacements
 
 __all__ = ['BATCHED_AGENTS', 'BatchEpisode', 'GreedyTeam', 'MixtureTeam', 'PolicyTeam', 'RandomTeam', 'make_team',
            'play_batch']
@@ -60,19 +58,6 @@ def _idle(team, rows: np.ndarray) -> None:
     """`team.idle(rows)` for the teams that have it (the others just go on acting there)."""
     if hasattr(team, 'idle'):
         team.idle(rows)
-
-
-def _own_state(observation: np.ndarray) -> np.ndarray:
-    return observation[..., PRESERVED_DIM:]
-
-
-def _action_high(observation: np.ndarray, team: Team) -> np.ndarray:
-    """Each agent's action bound (..., 2) from its raw observation: cameras (rotation step, zooming step),
-    targets (step size, step size)."""
-    own = _own_state(observation)
-    if team is Team.CAMERA:
-        return own[..., 7:9]
-    return np.repeat(own[..., 4:5], 2, axis=-1)
 
 
 class PolicyTeam:
@@ -134,12 +119,8 @@ class PolicyTeam:
     def _decide(self, observation: np.ndarray, rows: np.ndarray) -> None:
         """New decisions for the rows `rows` (indices): one forward pass for all their agents."""
         raw = observation[rows]
-        columns = [preprocess_observation(raw, self.team, *self.counts)]
-        if self.sightings is not None:
-            columns.append(self.sightings.features(raw, rows))
-        if self.policy.meta.get('velocity'):
-            columns.append(target_displacements(raw, self.previous[rows], self.counts, self.policy.meta['frame_skip']))
-        processed = np.concatenate(columns, axis=-1) if len(columns) > 1 else columns[0]
+        memory = None if self.sightings is None else self.sightings.features(raw, rows)
+        processed = self.policy.inputs(raw, memory, self.previous[rows])
         if self.memory is not None:
             index = torch.as_tensor(rows)
             logits, (h, c) = self.policy.logits(processed, tuple(part[index] for part in self.memory))
@@ -147,14 +128,7 @@ class PolicyTeam:
         else:
             logits = self.policy.logits(processed)
         logits = logits.reshape(len(rows), self.num_agents, self.heads, -1)
-        if self.deterministic:
-            choice = logits.argmax(axis=-1)
-        else:
-            p = np.exp(logits - logits.max(axis=-1, keepdims=True))
-            p /= p.sum(axis=-1, keepdims=True)
-            u = self.rng.random(p.shape[:-1] + (1,))
-            choice = np.minimum((p.cumsum(axis=-1) < u).sum(axis=-1), p.shape[-1] - 1)
-        self.held[rows] = choice
+        self.held[rows] = choose(logits, self.deterministic, self.rng)
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         observation = np.asarray(observation, dtype=np.float64)
@@ -192,7 +166,7 @@ class RandomTeam:
     def act(self, observation: np.ndarray) -> np.ndarray:
         drawing = np.flatnonzero(self.step % self.frame_skip == 0)
         if drawing.size:
-            high = _action_high(np.asarray(observation)[drawing], self.team)
+            high = action_high(np.asarray(observation)[drawing], self.team)
             self.action[drawing] = (2.0 * self.rng.random(high.shape) - 1.0) * high
         self.step += 1
         return self.action.copy()
