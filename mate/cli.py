@@ -1,4 +1,4 @@
-"""The `mate` command line: `mate evaluate`, `mate train`, `mate bench`, `mate generate-config`, ...
+"""The `mate` command line: `mate evaluate`, `mate train`, `mate psro`, `mate bench`, `mate generate-config`, ...
 
 Each sub-command lives in a small function that parses nothing itself: `main` builds the
 argument parser, and the sub-command receives the parsed namespace.
@@ -300,6 +300,12 @@ def _train(args: argparse.Namespace) -> int:
     return command.run(args, console)
 
 
+def _psro(args: argparse.Namespace) -> int:
+    from .learn.population import command
+
+    return command.run(args, console)
+
+
 def build_parser() -> argparse.ArgumentParser:
     debug = argparse.ArgumentParser(add_help=False)   # --debug before or after the command name
     debug.add_argument('--debug', action='store_true', default=argparse.SUPPRESS, help=DEBUG_HELP)
@@ -382,6 +388,16 @@ def build_parser() -> argparse.ArgumentParser:
     train = command('train', help='train MAPPO/IPPO cameras or targets against greedy opponents (PyTorch)')
     add_train_arguments(train)
     train.set_defaults(run=_train)
+
+    from .learn.population.command import add_arguments as add_psro_arguments  # imports no torch
+    psro = command('psro', help='population training: PSRO-Nash, fictitious self-play or self-play, with exploitability',
+                   description='Grow a camera pool and a target pool by best responses to the other pool\'s '
+                               'meta-strategy (spec training.md §5): HRL-MAPPO cameras, MAPPO targets, payoff '
+                               'entries played in batches, exploitability (paper Eq. 2) per iteration. Everything is '
+                               'saved after each stage; the same command resumes a killed run. "mate psro plot '
+                               'DIR..." draws the figures.')
+    add_psro_arguments(psro)
+    psro.set_defaults(run=_psro)
     return parser
 
 

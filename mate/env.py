@@ -210,8 +210,8 @@ class MultiAgentTracking(GameDescription, gym.Env):
 
     @staticmethod
     def _team_action(value, count: int, team: str, box: spaces.Box) -> np.ndarray:
-        try:
-            array = np.asarray(value, dtype=np.float64)
+        try:   # a TeamSpace sample carries its stacked array (no re-stacking of the per-agent views)
+            array = np.asarray(value.array if type(value) is mate_spaces.TeamSample else value, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f'{team} joint action is not numeric: {exc}') from None
         if array.size != 2 * count:

@@ -68,15 +68,23 @@ assert len(_CAMERA_PUBLIC[0]) + len(_CAMERA_EXTRA[0]) == CAMERA_STATE_DIM_PRIVAT
 assert len(_TARGET_PUBLIC[0]) + len(_TARGET_EXTRA[0]) == TARGET_STATE_DIM_PRIVATE
 
 
+class TeamSample(tuple):
+    """A `TeamSpace` sample: the tuple of per-agent samples, and `array`, the (count, ...) array they are
+    views of."""
+
+    array: np.ndarray
+
+
 class TeamSpace(spaces.Tuple):
     """`Tuple((space,) * count)`: one space per agent of a team, all alike, that samples the whole team
     with one draw.
 
     Gymnasium's `Tuple.sample` asks every agent's space in turn (~12 us per `Box`), which cost the
-    README's random loop ten times the step itself. Here `sample()` draws a `(count, ...)` array from
+    README's random loop ten times the step itself. Here `sample()` takes a `(count, ...)` array from
     the team space's own generator (`Box`: uniform within the bounds, `low + (high - low) * U[0, 1)`;
-    `Discrete`: uniform integers) and returns it as the usual tuple of per-agent samples (views of that
-    array). Seeding as
+    `Discrete`: uniform integers), drawn `BLOCK` samples at a time (for a Box the same numbers as one
+    draw per sample), and returns it as the usual tuple of per-agent samples (views of that array), a
+    `TeamSample` whose `array` is the whole team's array (the env takes it without re-stacking). Seeding as
     `Tuple`: `seed(int)` (or seeding an enclosing `Tuple`) makes samples reproducible, `seed([s0, s1, ...])`
     seeds the team generator from the list, `seed(None)` from entropy. Masked samples and other kinds of
     space fall back to `Tuple.sample`.
@@ -99,19 +107,33 @@ class TeamSpace(spaces.Tuple):
         else:
             self._kind = None          # Tuple.sample, agent by agent
 
+    BLOCK = 64
+    """Team samples drawn from the generator at once."""
+
+    _block: np.ndarray | None = None     # (BLOCK, count, ...) drawn samples; a new array every refill
+    _taken = 0                           # of them handed out
+
     def _draw(self) -> np.ndarray:
-        """Every agent's sample at once, (count, *agent shape)."""
-        rng = self.np_random
-        if self._kind == 'box':
-            values = rng.random(self._shape)     # low + span * U[0, 1), scaled in place
-            values *= self._span
-            values += self._low
-            return values.astype(self.agent_space.dtype, copy=False)
-        space = self.agent_space
-        return (space.start + rng.integers(space.n, size=self.count)).astype(space.dtype, copy=False)
+        """Every agent's sample at once, (count, *agent shape): the next one of the current block."""
+        block = self._block
+        if block is None or self._taken == len(block):
+            rng = self.np_random
+            if self._kind == 'box':
+                block = rng.random((self.BLOCK, *self._shape))     # low + span * U[0, 1), scaled in place
+                block *= self._span
+                block += self._low
+                block = block.astype(self.agent_space.dtype, copy=False)
+            else:
+                space = self.agent_space
+                block = (space.start + rng.integers(space.n, size=(self.BLOCK, self.count))).astype(space.dtype,
+                                                                                                  copy=False)
+            self._block, self._taken = block, 0
+        self._taken += 1
+        return block[self._taken - 1]
 
     def seed(self, seed=None) -> tuple:
         """Seed the team generator and the agents' spaces as `Tuple.seed`; returns the agents' seeds."""
+        self._block = None                   # samples drawn before the seed are dropped
         if isinstance(seed, (list, tuple)):
             seeds = super().seed(seed)
             entropy = [int(s) & 0xFFFFFFFFFFFFFFFF for s in seed if s is not None]
@@ -124,7 +146,10 @@ class TeamSpace(spaces.Tuple):
     def sample(self, mask=None, probability=None) -> tuple:
         if self._kind is None or mask is not None or probability is not None:
             return super().sample(mask=mask, probability=probability)
-        return tuple(self._draw())
+        values = self._draw()
+        sample = TeamSample(values)
+        sample.array = values
+        return sample
 
     def __repr__(self) -> str:
         return f'TeamSpace({self.agent_space!r} x {self.count})'

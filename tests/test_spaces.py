@@ -261,3 +261,29 @@ def test_env_action_space_samples_reproducibly():
     c = discrete.action_space.sample()
     discrete.action_space.seed(7)
     assert c == discrete.action_space.sample() and c in discrete.action_space
+
+
+def test_team_space_draws_in_blocks_the_numbers_of_one_draw_per_sample():
+    """Across a block refill the samples continue the generator's stream exactly as one draw per sample
+    would; a sample carries its team array, which the env takes as is."""
+    import mate
+    box = _box()
+    space = S.TeamSpace(box, 3)
+    space.seed(11)
+    samples = [space.sample() for _ in range(S.TeamSpace.BLOCK + 5)]
+    space.seed(11)
+    rng = space.np_random
+    low, span = box.low.astype(np.float64), (box.high - box.low).astype(np.float64)
+    expected = [low + span * rng.random((3, 2)) for _ in range(S.TeamSpace.BLOCK + 5)]
+    for sample, wanted in zip(samples, expected):
+        assert isinstance(sample, S.TeamSample) and len(sample) == 3
+        np.testing.assert_allclose(np.stack(sample), wanted, rtol=0, atol=1e-12)
+        assert np.shares_memory(sample.array, sample[0]) and sample.array.shape == (3, 2)
+    env = mate.make('MATE-2v4-0-v0')
+    env.reset(seed=0)
+    env.action_space.seed(2)
+    action = env.action_space.sample()
+    again = mate.make('MATE-2v4-0-v0')
+    again.reset(seed=0)
+    plain = (np.stack(action[0]).copy(), np.stack(action[1]).copy())
+    assert _same(env.step(action)[0][0], again.step(plain)[0][0])

@@ -1,10 +1,10 @@
-"""`TeamVecEnv`: the training view of B batched games for one team against a batched greedy opponent.
+"""`TeamVecEnv`: the training view of B batched games for one team against a batched opponent.
 
 What a learner sees per decision step (the paper's wrapper stack, done on arrays):
 
 * discrete actions, `levels**2` per agent (the grids of `DiscreteCamera` / `DiscreteTarget`, scaled by
   each agent's own step bounds read from its observation);
-* the opponent (`VecGreedyTarget` / `VecGreedyCamera`) acts at every raw step;
+* the opponent (by default the greedy rules, `VecGreedyTarget` / `VecGreedyCamera`) acts at every raw step;
 * frame skip k: a decision is held for k raw steps; rewards are summed (camera: coverage rate, the
   `AuxiliaryCameraRewards` setting of the paper; target: the raw dense team reward);
 * observations with coordinates relative to the agent (`convert_coordinates`) and rescaled to
@@ -22,7 +22,12 @@ What a learner sees per decision step (the paper's wrapper stack, done on arrays
   velocity (`mate.learn.velocity`, from the camera's observations at the last two raw steps), appended
   after the memory columns (2 per target slot);
 * `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the
-  coverage rate (`difference_rewards`) instead of the team's coverage rate; rewards are then (B, N).
+  coverage rate (`difference_rewards`) instead of the team's coverage rate; rewards are then (B, N);
+* `camera_reward='mixed'` (cameras): the population players' reward (spec training.md §5.1), per raw step
+  0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward, instead of the coverage rate;
+* `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of
+  `mate.learn.evaluate` (`reset(observation, rows)`, `act(observation)`), e.g. a mixture over a population
+  (`mate psro`), instead of the batched greedy rules.
 
 Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
 ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
@@ -51,11 +56,20 @@ from .memory import MEMORY_FEATURES, SightingMemory, camera_sightings
 from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
-__all__ = ['CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards', 'discrete_to_continuous',
-           'preprocess_observation']
+__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards', 'discrete_to_continuous',
+           'mixed_camera_reward', 'preprocess_observation']
 
 CREDITS = ('team', 'difference')
 """How a camera's reward is assigned: the team's coverage rate, or its own marginal contribution to it."""
+
+CAMERA_REWARDS = ('coverage', 'mixed')
+"""What a camera team is rewarded with per raw step: the coverage rate (the paper's cooperative runs), or
+0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, spec training.md §5.1)."""
+
+
+def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
+    """The population players' camera reward (spec training.md §5.1) from one raw step's (B,) arrays."""
+    return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
 
 PAPER_SETTINGS = {
     'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5, horizon=2500),
@@ -115,7 +129,7 @@ def compress(x: np.ndarray) -> np.ndarray:
 
 
 class TeamVecEnv:
-    """B games, one trained team (`'camera'` or `'target'`), the other team a batched greedy opponent.
+    """B games, one trained team (`'camera'` or `'target'`), the other team a batched opponent (greedy by default).
 
     `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
     `step(actions (B, N) int)` -> (obs, state, reward, done (B,), truncated (B,), info): reward (B,) the
@@ -130,10 +144,16 @@ class TeamVecEnv:
     def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
                  frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
                  seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
-                 memory: int = 0, velocity: bool = False, credit: str = 'team', **overrides) -> None:
+                 memory: int = 0, velocity: bool = False, credit: str = 'team', camera_reward: str = 'coverage',
+                 opponent=None, **overrides) -> None:
         team = as_team(team)
         if credit not in CREDITS:
             raise ValueError(f'credit must be one of {CREDITS}, got {credit!r}')
+        if camera_reward not in CAMERA_REWARDS:
+            raise ValueError(f'camera_reward must be one of {CAMERA_REWARDS}, got {camera_reward!r}')
+        if camera_reward != 'coverage' and (team is not Team.CAMERA or credit != 'team'):
+            raise ValueError(f"camera_reward {camera_reward!r} is a camera team reward (credit 'team' only)")
+        self.camera_reward = camera_reward
         if credit == 'difference' and team is not Team.CAMERA:
             raise ValueError("credit 'difference' (each camera's own share of the coverage) exists for cameras only")
         self.credit = credit
@@ -174,10 +194,13 @@ class TeamVecEnv:
         self._before = None    # velocity: the trained team's raw observations one raw step earlier
         self._target_records = int(observation_indices_of(team, nc, nt, no)[2])   # camera obs: target slots
         self.state_dim = self.vec.single_state_space.shape[0]
-        if team is Team.CAMERA:
-            self.opponent = VecGreedyTarget(num_envs, nt, seed=None if seed is None else seed + 7919)
+        opponent_seed = None if seed is None else seed + 7919
+        if opponent is not None:
+            self.opponent = opponent(num_envs, self.counts, opponent_seed)
+        elif team is Team.CAMERA:
+            self.opponent = VecGreedyTarget(num_envs, nt, seed=opponent_seed)
         else:
-            self.opponent = VecGreedyCamera(num_envs, nc, nt, no, seed=None if seed is None else seed + 7919)
+            self.opponent = VecGreedyCamera(num_envs, nc, nt, no, seed=opponent_seed)
         self._seed = seed
         self._raw = None
         self._return = np.zeros(num_envs)
@@ -255,7 +278,7 @@ class TeamVecEnv:
     def reset(self, seed: int | None = None):
         observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
         observations = self._enhanced(observations)
-        self.opponent.reset(self._other(observations))
+        self.opponent.reset(self._other(observations), np.ones(self.num_envs, dtype=bool))
         self._raw = self._own(observations).copy()
         self._before = self._raw.copy()
         self._other_raw = self._other(observations)
@@ -298,7 +321,8 @@ class TeamVecEnv:
             live = ~done & ~restarting
             r = rewards[0] if self.team is Team.CAMERA else rewards[1]
             if self.team is Team.CAMERA:
-                r = infos['coverage_rate']
+                r = infos['coverage_rate'] if self.camera_reward == 'coverage' else \
+                    mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
             if self.credit == 'difference':
                 reward += np.where(live[:, None], difference_rewards(self._sees), 0.0)
             else:

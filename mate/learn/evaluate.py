@@ -190,16 +190,19 @@ class GreedyTeam:
 
 class MixtureTeam:
     """Plays member k in a row for a whole episode, k drawn with probabilities `weights` at the row's
-    reset. Every member acts on every row (its per-row state stays consistent) and each row takes its
-    member's actions: the cost is the members' summed cost.
+    reset. Every member steps on every row (its per-row state stays consistent) and each row takes its
+    member's actions; members that can idle (`PolicyTeam`) make no decisions in the rows they do not
+    play, so a mixture of policies costs about one policy's forward passes.
 
     Args:
         members: batched teams of one team, all for the same B games.
         weights: non-negative, not all zero (default: equal); normalised.
         seed: seed of the generator that draws the members.
+        assignment: (B,) member index of every row, fixed instead of drawn (a payoff matrix's entries
+            played side by side in one batch).
     """
 
-    def __init__(self, members: Sequence, weights=None, seed: int | None = None) -> None:
+    def __init__(self, members: Sequence, weights=None, seed: int | None = None, assignment=None) -> None:
         self.members = list(members)
         if not self.members:
             raise ValueError('a mixture needs at least one member')
@@ -215,14 +218,25 @@ class MixtureTeam:
         self.weights = weights / weights.sum()
         self.rng = np.random.default_rng(seed)
         self.choice = None
+        self.assignment = None
+        if assignment is not None:
+            self.assignment = np.asarray(assignment, dtype=np.int64)
+            if self.assignment.ndim != 1 or ((self.assignment < 0) | (self.assignment >= len(self.members))).any():
+                raise ValueError(f'assignment must be a vector of member indices in [0, {len(self.members) - 1}]')
 
     def reset(self, observation: np.ndarray, rows: np.ndarray) -> None:
         rows = np.asarray(rows, dtype=bool)
         if self.choice is None:
             self.choice = np.zeros(len(rows), dtype=np.int64)
-        self.choice[rows] = self.rng.choice(len(self.members), size=int(rows.sum()), p=self.weights)
-        for member in self.members:
+        if self.assignment is not None:
+            if len(self.assignment) != len(rows):
+                raise ValueError(f'assignment has {len(self.assignment)} rows; the batch has {len(rows)}')
+            self.choice[rows] = self.assignment[rows]
+        else:
+            self.choice[rows] = self.rng.choice(len(self.members), size=int(rows.sum()), p=self.weights)
+        for k, member in enumerate(self.members):
             member.reset(observation, rows)
+            _idle(member, rows & (self.choice != k))
 
     def idle(self, rows: np.ndarray) -> None:
         for member in self.members:
@@ -254,10 +268,12 @@ BatchEpisode = EpisodeSummary
 """One row's first episode (`mate.evaluate.EpisodeSummary`: rates are means over its steps, returns sums)."""
 
 
-def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, max_episode_steps: int | None = None,
+def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequence[int] = 0,
+               max_episode_steps: int | None = None,
                progress: Callable[[int, int], None] | None = None) -> tuple[list[BatchEpisode], dict]:
-    """Play `episodes` games at once, row i seeded with `seed + i`, each to the end of its first episode
-    (at most `max_episode_steps` steps; default: the config's limit).
+    """Play `episodes` games at once, row i seeded with `seed + i` (or `seed[i]` for a sequence of
+    `episodes` seeds), each to the end of its first episode (at most `max_episode_steps` steps; default:
+    the config's limit).
 
     `camera_team` / `target_team` are batched teams or factories `f(num_envs, counts) -> team`.
     `progress(finished_rows, episodes)` is called after every step on which some row finished.
@@ -266,6 +282,9 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, m
     """
     if episodes < 1:
         raise ValueError(f'episodes must be at least 1, got {episodes}')
+    seeds = [int(seed) + i for i in range(episodes)] if np.ndim(seed) == 0 else [int(s) for s in seed]
+    if len(seeds) != episodes:
+        raise ValueError(f'seed must be one integer or {episodes} integers (one per episode), got {len(seeds)}')
     overrides = {} if max_episode_steps is None else {'max_episode_steps': int(max_episode_steps)}
     vec = make_vec('MultiAgentTracking-v0', num_envs=episodes, config=config, autoreset_mode='disabled', **overrides)
     counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)
@@ -274,7 +293,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, m
     if cameras.team is not Team.CAMERA or targets.team is not Team.TARGET:
         raise ValueError('camera_team must play the cameras and target_team the targets')
     start = time.perf_counter()
-    (camera_obs, target_obs), _ = vec.reset(seed=seed)
+    (camera_obs, target_obs), _ = vec.reset(seed=seeds)
     everyone = np.ones(episodes, dtype=bool)
     cameras.reset(camera_obs, everyone)
     targets.reset(target_obs, everyone)
@@ -304,7 +323,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int = 0, m
                 _idle(targets, ended)
     seconds = time.perf_counter() - start
     normaliser = float(vec.params.max_target_team_episode_reward)
-    results = [BatchEpisode(seed=seed + i, coverage_rate=float(coverage[i] / length[i]),
+    results = [BatchEpisode(seed=seeds[i], coverage_rate=float(coverage[i] / length[i]),
                             real_coverage_rate=float(real_coverage[i] / length[i]),
                             transport_rate=float(transport[i]), camera_return=float(returns[0, i]),
                             target_return=float(returns[1, i]),

@@ -599,7 +599,9 @@ class Logger:
 
 def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, progress: bool = True,
           callback=None, envs=None) -> dict:
-    """Train; write progress.csv, tensorboard/ and checkpoint.pt (+ final.pt) under `run_dir`.
+    """Train; write progress.csv, tensorboard/ and checkpoint.pt (+ final.pt) under `run_dir`, and best.pt:
+    the actor (as `snapshot`) at the best mean return over the last 25 training episodes, looked at once
+    25 episodes have finished (the paper's PSRO players are their runs' best checkpoints).
 
     Resumes from `run_dir/checkpoint.pt` when it exists and `resume` is true (the config stored in the
     checkpoint must describe the same experiment, else `CheckpointError`). `callback(row)` sees every
@@ -637,6 +639,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
     env_steps, iteration, wall_before = 0, 0, 0.0     # wall_before: training seconds of earlier sessions
     kl_coeff = config.kl_coeff                          # adapts every iteration (`adapt_kl_coeff`)
+    best_return = -math.inf                             # of best.pt
     checkpoint_path = run_dir / 'checkpoint.pt'
     if resume and checkpoint_path.exists():
         saved = load_checkpoint(checkpoint_path, expect=dict(meta, algo=config.algo))
@@ -647,6 +650,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         env_steps, iteration = saved['env_steps'], saved['iteration']
         kl_coeff = float(saved.get('kl_coeff', config.kl_coeff))
         wall_before = float(saved.get('wall_seconds', 0.0))
+        best_return = float(saved.get('best_return', -math.inf))
     elif config.init_from:
         _warm_start(config.init_from, dict(meta, algo=config.algo), actor, critic, value_norm)
     generator = torch.Generator().manual_seed(config.seed * 1_000_003 + iteration)
@@ -656,7 +660,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                                    value_norm=value_norm.state_dict(), optimizer=optimizer.state_dict(),
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
                                    kl_coeff=kl_coeff, wall_seconds=wall_before + time.perf_counter() - start,
-                                   meta=dict(meta, algo=config.algo)))
+                                   best_return=best_return, meta=dict(meta, algo=config.algo)))
 
     def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
         save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
@@ -804,6 +808,9 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                        episodes=len(recent), lr=lr, entropy_coef=entropy_coef,
                        **{k: v / updates for k, v in stats.items()}, kl_coeff=row_kl_coeff)
             logger.write(row)
+            if len(recent) == episodes.maxlen and row['episode_return'] > best_return:
+                best_return = row['episode_return']
+                snapshot(run_dir / 'best.pt')
             if callback is not None:
                 callback(row)
             if bar is not None:

@@ -1,0 +1,147 @@
+"""The two jobs of a population run, as plain functions of plain data (a process pool or Ray runs them).
+
+* `best_response(...)`: train one team's best response against a mixture over the other team's pool;
+  returns the bytes of the chosen policy file and a summary.
+* `payoff_entries(...)`: play every asked (camera k, target l) pairing for E episodes in one batch;
+  returns each entry's means.
+
+Pool members travel as *payloads*: a batched agent name of `mate evaluate` ('random', 'greedy',
+'pretrained:NAME') or the bytes of a policy file, so that a worker on another machine of a Ray cluster
+needs no shared file system. A worker turns a payload into a batched team (`mate.learn.evaluate`);
+population members always sample their actions (spec training.md §5.1: they are stochastic).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ['best_response', 'member_team', 'payoff_entries', 'policy_from_bytes', 'rescaled_schedules']
+
+
+def policy_from_bytes(data: bytes, team):
+    """A `LoadedPolicy` from a policy file's bytes (read through a private temporary file, checked by
+    `load_checkpoint` like any file)."""
+    from ..agents import load_policy
+
+    with tempfile.TemporaryDirectory(prefix='mate-member-') as folder:
+        path = Path(folder) / 'policy.pt'
+        path.write_bytes(data)
+        return load_policy(path, team)
+
+
+def member_team(payload, team, num_envs: int, counts, seed: int | None):
+    """The batched team of one pool member: a policy file's bytes, or an agent name of `make_team`."""
+    from ..evaluate import PolicyTeam, make_team
+
+    if isinstance(payload, (bytes, bytearray)):
+        return PolicyTeam(policy_from_bytes(bytes(payload), team), team, num_envs, counts, seed=seed,
+                          deterministic=False)
+    kwargs = {'deterministic': False} if str(payload).partition(':')[0] in ('pretrained', 'checkpoint') else {}
+    return make_team(str(payload), team, num_envs, counts, seed=seed, **kwargs)
+
+
+def rescaled_schedules(total_steps: int) -> dict:
+    """The PSRO best responses' schedules rescaled to a budget of T decision steps (spec training.md §5.2):
+    learning rate 5e-4, 1e-4 from 0.4 T, 5e-5 from 0.8 T; entropy coefficient 0.05 -> 0.01 at 0.2 T ->
+    0.001 at 0.4 T -> 0 at T (linear in between)."""
+    T = int(total_steps)
+    return dict(lr_schedule=((0, 5e-4), (int(0.4 * T), 1e-4), (int(0.8 * T), 5e-5)),
+                entropy_schedule=((0, 0.05), (int(0.2 * T), 0.01), (int(0.4 * T), 0.001), (T, 0.0)))
+
+
+def best_response(team: str, env: dict, opponents: list, weights: list[float], steps: int, seed: int,
+                  run_dir: str, init: bytes | None = None, num_envs: int = 16, torch_threads: int = 1,
+                  checkpoint_every: int = 5) -> dict:
+    """Train `team`'s best response (cameras: HRL-MAPPO with the mixed reward; targets: MAPPO) for `steps`
+    decision steps against the mixture of the other team's `opponents` (payloads) with `weights` (drawn per
+    episode and env row), warm-started from the actor of `init` (policy bytes) if given.
+
+    `env`: {'env_id': ..., 'config': ...} of the game. Resumes from `run_dir/checkpoint.pt` when a killed
+    job left one. Returns {'policy': bytes of best.pt (else final.pt), 'chosen': 'best' | 'final', 'steps',
+    'seconds', 'episode_return', 'episode_coverage', 'episode_normalized_target_return'}.
+    """
+    from ..envs import TeamVecEnv
+    from ..evaluate import MixtureTeam
+    from ..ppo import PPOConfig, train
+
+    other = 'target' if team == 'camera' else 'camera'
+    kept = [(member, w) for member, w in zip(opponents, weights) if w > 0]     # zero-weight members dropped
+    if not kept:
+        raise ValueError('the opponent mixture has no member with a positive weight')
+
+    def opponent(num_envs_, counts, seed_):
+        members = [member_team(member, other, num_envs_, counts, None if seed_ is None else seed_ + 101 * k)
+                   for k, (member, _) in enumerate(kept)]
+        return MixtureTeam(members, [w for _, w in kept], seed=seed_)
+
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    init_path = None
+    if init is not None:
+        init_path = run_dir / 'init.pt'
+        init_path.write_bytes(init)
+    camera = team == 'camera'
+    config = PPOConfig(algo='mappo', team=team, env_id=env['env_id'], config=env.get('config'), hrl=camera,
+                       total_steps=int(steps), num_envs=int(num_envs), seed=int(seed), torch_threads=int(torch_threads),
+                       checkpoint_every=int(checkpoint_every), init_from=None if init_path is None else str(init_path),
+                       **rescaled_schedules(steps)).resolved()
+    envs = TeamVecEnv(team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
+                      horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
+                      hrl=config.hrl, camera_reward='mixed' if camera else 'coverage', opponent=opponent)
+    start = time.perf_counter()
+    row = train(config, run_dir, resume=True, progress=False, envs=envs)
+    chosen = 'best' if (run_dir / 'best.pt').exists() else 'final'
+    return dict(policy=(run_dir / f'{chosen}.pt').read_bytes(), chosen=chosen, steps=int(row.get('env_steps', steps)),
+                seconds=time.perf_counter() - start,
+                **{key: float(row.get(key, math.nan)) for key in
+                   ('episode_return', 'episode_coverage', 'episode_normalized_target_return')})
+
+
+def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[int, int]], episodes: int,
+                   seed: int = 0, max_episode_steps: int | None = None) -> list[dict]:
+    """Play each pairing (camera member k, target member l) of `pairs` for `episodes` episodes with env
+    seeds seed .. seed + episodes - 1 (the same seeds for every pairing), all in one vector env.
+
+    `cameras` / `targets` are the pools' payloads (only the members named in `pairs` are built).
+    Returns one dict per pair, in order: k, l, `payoff` (mean normalised target-team return, the target's
+    utility U_T), its standard error `payoff_sem`, `coverage`, `real_coverage`, `length` (means) and
+    `env_steps_per_second`.
+    """
+    from ..evaluate import MixtureTeam, play_batch
+
+    if not pairs:
+        return []
+    pairs = [(int(k), int(l)) for k, l in pairs]
+    rows = len(pairs) * episodes
+    seeds = [seed + e for _ in pairs for e in range(episodes)]
+    camera_ids = sorted({k for k, _ in pairs})
+    target_ids = sorted({l for _, l in pairs})
+    camera_rows = np.repeat([camera_ids.index(k) for k, _ in pairs], episodes)
+    target_rows = np.repeat([target_ids.index(l) for _, l in pairs], episodes)
+    config = env.get('config') or env['env_id'].removesuffix('-v0')
+
+    def team_of(pool, ids, assignment, side, offset):
+        def build(num_envs, counts):
+            members = [member_team(pool[i], side, num_envs, counts, seed=10_000 * offset + i) for i in ids]
+            return MixtureTeam(members, assignment=assignment)
+        return build
+
+    results, timing = play_batch(config, team_of(cameras, camera_ids, camera_rows, 'camera', 1),
+                                 team_of(targets, target_ids, target_rows, 'target', 2), rows, seed=seeds,
+                                 max_episode_steps=max_episode_steps)
+    entries = []
+    for p, (k, l) in enumerate(pairs):
+        block = results[p * episodes:(p + 1) * episodes]
+        payoff = np.array([r.normalized_target_return for r in block])
+        entries.append(dict(k=k, l=l, payoff=float(payoff.mean()),
+                            payoff_sem=float(payoff.std(ddof=1) / np.sqrt(episodes)) if episodes > 1 else 0.0,
+                            coverage=float(np.mean([r.coverage_rate for r in block])),
+                            real_coverage=float(np.mean([r.real_coverage_rate for r in block])),
+                            length=float(np.mean([r.episode_length for r in block])),
+                            env_steps_per_second=float(timing['env_steps_per_second'])))
+    return entries

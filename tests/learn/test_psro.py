@@ -1,0 +1,261 @@
+"""Population training (`mate psro`): the opponent mixture in the training env, the jobs, the loop end to
+end, its resumption after a kill, the Ray runner and the plots."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mate
+from mate.cli import main
+from mate.learn.agents import pretrained_path
+from mate.learn.checkpoint import load_checkpoint
+from mate.learn.envs import TeamVecEnv, discrete_to_continuous, mixed_camera_reward
+from mate.learn.evaluate import MixtureTeam, PolicyTeam, RandomTeam, play_batch
+from mate.learn.population.jobs import best_response, payoff_entries, policy_from_bytes, rescaled_schedules
+from mate.learn.population.psro import LocalRunner, PSROError, PSROSettings, RayRunner, load_state, run_psro
+from mate.learn.population.solvers import exploitability
+from mate.learn.ppo import PPOConfig, train
+
+from .test_batched_evaluation import COUNTS, _policy
+from .toy import CueMatching
+
+ENV = dict(env_id='MATE-2v4-0-v0', config=None)
+TINY = ['--iterations', '2', '--br-steps', '200', '--num-envs', '4', '--eval-episodes', '3', '--eval-steps', '120']
+
+
+class StillTargets:
+    team = mate.Team.TARGET
+
+    def __init__(self):
+        self.resets = []
+
+    def reset(self, observation, rows):
+        self.resets.append(np.asarray(rows, dtype=bool).copy())
+
+    def act(self, observation):
+        return np.zeros(observation.shape[:-1] + (2,))
+
+
+# ---------------------------------------------------------------- training env, mixtures, batches
+
+def test_team_env_takes_an_opponent_and_the_mixed_camera_reward():
+    """The camera reward 'mixed' is 0.5 coverage + 0.5 real coverage + 0.1 raw camera reward of the raw
+    step, as a plain vector env playing the same actions against the same opponent reports them."""
+    still = StillTargets()
+    env = TeamVecEnv('camera', num_envs=3, env_id='MATE-2v4-0-v0', frame_skip=1, horizon=50, seed=3,
+                     camera_reward='mixed', opponent=lambda b, counts, seed: still)
+    vec = mate.make_vec('MATE-2v4-0-v0', num_envs=3, observation_dtype=np.float32, autoreset_mode='next_step',
+                        max_episode_steps=50)
+    env.reset()
+    vec.reset(seed=3)
+    assert len(still.resets) == 1 and still.resets[0].all()               # every row starts with an explicit mask
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        actions = rng.integers(25, size=(3, 2))
+        moves = discrete_to_continuous(actions, env.raw_observations, 'camera')
+        reward = env.step(actions)[2]
+        _, rewards, _, _, infos = vec.step((moves, np.zeros((3, 4, 2))))
+        expected = mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
+        np.testing.assert_allclose(reward, expected, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="camera_reward must be one of"):
+        TeamVecEnv('camera', num_envs=1, env_id='MATE-2v4-0-v0', camera_reward='delivery')
+    with pytest.raises(ValueError, match='camera team reward'):
+        TeamVecEnv('target', num_envs=1, env_id='MATE-2v4-0-v0', camera_reward='mixed')
+
+
+def test_mixture_members_decide_only_in_their_rows_and_assignments_are_fixed():
+    members = [PolicyTeam(_policy('camera', seed=s), 'camera', 6, COUNTS, seed=s) for s in range(2)]
+    mixture = MixtureTeam(members, assignment=[0, 1, 1, 0, 0, 1])
+    vec = mate.make_vec('MATE-2v4-0-v0', num_envs=6)
+    (camera_obs, _), _ = vec.reset(seed=0)
+    mixture.reset(camera_obs, np.ones(6, dtype=bool))
+    np.testing.assert_array_equal(mixture.choice, [0, 1, 1, 0, 0, 1])
+    mixture.act(camera_obs)
+    for k, member in enumerate(members):             # a member idles in the rows of the other one
+        assert (member.countdown[mixture.choice != k] > 10 ** 9).all()
+        assert (member.countdown[mixture.choice == k] == member.frame_skip - 1).all()
+    with pytest.raises(ValueError, match=r'member indices in \[0, 1\]'):
+        MixtureTeam(members, assignment=[0, 2])
+
+
+def test_play_batch_takes_one_seed_per_row():
+    def teams():
+        return (lambda b, c: RandomTeam('camera', b, c, seed=0)), (lambda b, c: RandomTeam('target', b, c, seed=1))
+
+    by_start, _ = play_batch('MATE-2v4-0', *teams(), episodes=3, seed=5, max_episode_steps=40)
+    by_list, _ = play_batch('MATE-2v4-0', *teams(), episodes=3, seed=[5, 6, 7], max_episode_steps=40)
+    assert by_list == by_start and [r.seed for r in by_list] == [5, 6, 7]
+    with pytest.raises(ValueError, match='3 integers'):
+        play_batch('MATE-2v4-0', *teams(), episodes=3, seed=[5, 6])
+
+
+# ---------------------------------------------------------------- jobs
+
+def test_train_keeps_the_best_actor(tmp_path):
+    class Scored(CueMatching):       # episodes report their real return (the toy reports 0)
+        def step(self, actions):
+            result = super().step(actions)
+            self.score = getattr(self, 'score', 0.0) + float(result[2].mean())
+            for episode in result[5]['episodes']:
+                episode['return'] = self.score
+            if result[5]['episodes']:
+                self.score = 0.0
+            return result
+
+    config = PPOConfig(algo='mappo', actor='mlp', total_steps=16 * 8 * 30, num_envs=16, rollout_length=8, seed=0,
+                       torch_threads=1)
+    train(config, tmp_path, progress=False, envs=Scored(num_envs=16, length=2))
+    rows = [row for row in map(str.split, (tmp_path / 'progress.csv').read_text().splitlines())]
+    header = rows[0][0].split(',')
+    table = [dict(zip(header, map(float, line[0].split(',')))) for line in rows[1:]]
+    eligible = [row['episode_return'] for row in table if row['episodes'] == 25]
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    assert saved['best_return'] == pytest.approx(max(eligible))
+    best = load_checkpoint(tmp_path / 'best.pt')
+    assert 'critic' not in best and set(best['actor']) == set(saved['actor'])
+
+
+def test_rescaled_schedules_follow_the_spec():
+    schedules = rescaled_schedules(1000)
+    assert schedules['lr_schedule'] == ((0, 5e-4), (400, 1e-4), (800, 5e-5))
+    assert schedules['entropy_schedule'] == ((0, 0.05), (200, 0.01), (400, 0.001), (1000, 0.0))
+
+
+def test_best_response_job_returns_a_policy_of_its_team(tmp_path):
+    target = Path(pretrained_path('mappo-target-2v4-0')).read_bytes()
+    result = best_response('camera', ENV, ['random', target], [0.0, 1.0], steps=200, seed=0,
+                           run_dir=str(tmp_path / 'br'), num_envs=4)
+    policy = policy_from_bytes(result['policy'], 'camera')
+    assert policy.meta['hrl'] and policy.meta['counts'] == [2, 4, 0] and result['chosen'] in ('best', 'final')
+    assert result['steps'] >= 200
+    config = load_checkpoint(tmp_path / 'br' / 'checkpoint.pt')['config']
+    assert config['entropy_schedule'][0] == [0, 0.05]                     # the PSRO schedules
+    with pytest.raises(ValueError, match='positive weight'):
+        best_response('target', ENV, ['random'], [0.0], steps=100, seed=0, run_dir=str(tmp_path / 'none'))
+
+
+def test_payoff_entries_are_reproducible_and_keep_their_order():
+    pairs = [(1, 0), (0, 0)]
+    first = payoff_entries(ENV, ['random', 'greedy'], ['random'], pairs, episodes=4, max_episode_steps=400)
+    again = payoff_entries(ENV, ['random', 'greedy'], ['random'], pairs, episodes=4, max_episode_steps=400)
+    assert [(e['k'], e['l']) for e in first] == pairs
+    assert [e['payoff'] for e in first] == [e['payoff'] for e in again]
+    for entry in first:
+        assert entry['length'] == 400 and 0 <= entry['coverage'] <= 1 and -1 < entry['payoff'] < 1
+    assert first[0]['coverage'] > first[1]['coverage']                    # greedy cameras cover more than random
+
+
+# ---------------------------------------------------------------- the loop
+
+def _state_checks(state: dict, iterations: int) -> None:
+    m = iterations + 1
+    assert [len(state['pools'][side]) for side in ('camera', 'target')] == [m, m]
+    assert len(state['iterations']) == m and state['iterations'][0]['exploitability'] is None
+    payoff = np.array(state['payoff'], dtype=float)
+    assert payoff.shape == (m, m) and np.isfinite(payoff).all()
+    for i, record in enumerate(state['iterations']):
+        for side in ('camera', 'target'):
+            strategy = np.array(record[f'{side}_strategy'])
+            assert strategy.shape == (i + 1,) and strategy.min() >= 0 and strategy.sum() == pytest.approx(1.0)
+        if i:   # Eq. 2 over the pools extended by iteration i's best responses, sigma of iteration i - 1
+            previous = state['iterations'][i - 1]
+            gains = exploitability(-payoff[:i + 1, :i + 1], previous['camera_strategy'], previous['target_strategy'])
+            assert record['exploitability'] == pytest.approx(dict(camera=gains['row'], target=gains['column'],
+                                                                  mean=gains['mean']))
+
+
+def test_psro_end_to_end_then_plots(tmp_path, capsys):
+    out = tmp_path / 'run'
+    assert main(['psro', '--solver', 'nash', *TINY, '--out', str(out)]) == 0      # two local worker processes
+    state = load_state(out)
+    _state_checks(state, 2)
+    for side in ('camera', 'target'):
+        for i in (1, 2):
+            assert policy_from_bytes((out / f'players/{side}-{i}.pt').read_bytes(), side).meta['counts'] == [2, 4, 0]
+    # the second best responses were warm-started from the first ones
+    assert load_checkpoint(out / 'players/camera-2/checkpoint.pt')['config']['init_from'].endswith('init.pt')
+    printed = capsys.readouterr().out
+    assert 'on 2 local processes' in printed and 'iteration 2: exploitability' in printed and 'done: 2 iterations' in printed
+
+    assert main(['psro', '--solver', 'nash', *TINY, '--out', str(out)]) == 0      # done: nothing to redo
+    assert load_state(out) == state
+    assert main(['psro', '--solver', 'nash', *TINY[:2], '--br-steps', '300', *TINY[4:], '--out', str(out)]) == 2
+    assert 'other settings (br_steps 200 there, 300 here)' in capsys.readouterr().err
+
+    assert main(['psro', 'plot', str(out), '--out', str(tmp_path / 'plots')]) == 0
+    for name in ('exploitability.png', 'meta-strategies-run.png'):
+        image = tmp_path / 'plots' / name
+        assert image.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and image.stat().st_size > 10_000
+
+
+def test_psro_resumes_after_a_kill(tmp_path):
+    """Kill the process once the first camera best response is in the pool (the target one is training),
+    start the same command again: the finished stages are kept, the run completes."""
+    out = tmp_path / 'run'
+    command = [sys.executable, '-m', 'mate.cli', 'psro', '--workers', '1', '--iterations', '2', '--br-steps', '400', '--num-envs', '4',
+               '--eval-episodes', '3', '--eval-steps', '120', '--out', str(out)]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               env=dict(os.environ, MATE_COMPILE_NOTICE='0'))
+    deadline = time.time() + 600
+    try:
+        while time.time() < deadline and process.poll() is None:
+            state = load_state(out) if (out / 'state.json').exists() else None
+            if state and len(state['pools']['camera']) >= 2:
+                break
+            time.sleep(0.05)
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+    assert process.returncode == -signal.SIGKILL, process.stderr.read().decode()[-2000:]
+    before = load_state(out)
+    assert len(before['iterations']) == 1 and len(before['pools']['target']) == 1   # killed mid-iteration 1
+    camera_policy = (out / 'players/camera-1.pt').read_bytes()
+
+    resumed = subprocess.run(command, capture_output=True, text=True, env=dict(os.environ, MATE_COMPILE_NOTICE='0'))
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert 'resuming' in resumed.stdout and 'training the target best response' in resumed.stdout
+    assert 'training the camera and target' not in resumed.stdout.split('iteration 2')[0]   # camera 1 not retrained
+    after = load_state(out)
+    _state_checks(after, 2)
+    assert (out / 'players/camera-1.pt').read_bytes() == camera_policy
+    assert after['payoff'][0][0] == before['payoff'][0][0]
+
+
+def test_psro_on_a_local_ray_instance(tmp_path):
+    import ray   # the rllib extra (CI installs it)
+
+    runner = RayRunner(None, num_cpus=2)
+    try:
+        assert runner.parallel == 2 and ray.is_initialized()
+        settings = PSROSettings(solver='uniform', iterations=1, br_steps=200, num_envs=4, eval_episodes=3, eval_steps=120)
+        state = run_psro(settings, tmp_path / 'run', runner, say=lambda line: None)
+    finally:
+        runner.close()
+    _state_checks(state, 1)
+    assert state['iterations'][1]['camera_strategy'] == [0.5, 0.5]       # FSP: uniform over the pool
+
+
+def test_psro_settings_are_checked(tmp_path, capsys):
+    with pytest.raises(PSROError, match='unknown solver'):
+        PSROSettings(solver='minimax').validate()
+    with pytest.raises(PSROError, match='br_steps must be an integer >= 1'):
+        PSROSettings(br_steps=0).validate()
+    assert main(['psro', '--address', 'local', '--workers', '2', '--out', str(tmp_path / 'x')]) == 2
+    assert '--workers is for local processes' in capsys.readouterr().err
+    assert main(['psro', '--initial-cameras', 'heuristic', '--out', str(tmp_path / 'x')]) == 2
+    assert '--initial-cameras must be random, greedy or pretrained:NAME' in capsys.readouterr().err
+    assert main(['psro', '--config', 'MATE-9v9-9', '--out', str(tmp_path / 'x')]) == 2
+    assert main(['psro', 'plot', str(tmp_path / 'nothing')]) == 2
+    assert 'holds no population run' in capsys.readouterr().err
+    (tmp_path / 'bad').mkdir()
+    (tmp_path / 'bad' / 'state.json').write_text('{"format": "other"}')
+    with pytest.raises(PSROError, match='not a PSRO state'):
+        run_psro(PSROSettings(), tmp_path / 'bad', LocalRunner(1))
