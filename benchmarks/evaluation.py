@@ -35,7 +35,7 @@ from mate.bench import machine_facts
 from mate.evaluate import play_episode
 from mate.learn.agents import AGENT_CLASSES, LoadedPolicy, load_policy, pretrained_path
 from mate.learn.evaluate import PolicyTeam, make_team, play_batch
-from mate.learn.ppo import make_actor
+from mate.learn.networks import make_actor
 
 MAX_STEPS = {'MATE-4v8-9': 2000, 'MATE-2v4-0': 5000}
 

@@ -21,8 +21,8 @@ from .envs import (
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
 _LAZY = {
-    'PPOConfig': 'ppo', 'train': 'ppo', 'compute_gae': 'ppo', 'ppo_policy_loss': 'ppo', 'Actor': 'ppo',
-    'Critic': 'ppo', 'ValueNormalizer': 'ppo', 'piecewise': 'ppo', 'PAPER_HYPERPARAMETERS': 'ppo',
+    'PPOConfig': 'ppo', 'train': 'ppo', 'compute_gae': 'ppo', 'ppo_policy_loss': 'ppo', 'Actor': 'networks',
+    'Critic': 'networks', 'ValueNormalizer': 'ppo', 'piecewise': 'schedules', 'PAPER_HYPERPARAMETERS': 'ppo',
     'CheckpointError': 'checkpoint', 'save_checkpoint': 'checkpoint', 'load_checkpoint': 'checkpoint',
     'PolicyCameraAgent': 'agents', 'PolicyTargetAgent': 'agents', 'load_agent': 'agents',
     'load_policy': 'agents', 'pretrained_path': 'agents', 'export_policy': 'agents',

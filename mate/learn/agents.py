@@ -36,7 +36,7 @@ from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import as_team, discrete_to_continuous, preprocess_observation
 from .hrl import executor_actions
 from .memory import SightingMemory, camera_sightings
-from .ppo import Actor, make_actor
+from .networks import Actor, make_actor
 from .velocity import target_displacements
 
 __all__ = [

@@ -1,4 +1,4 @@
-"""`mate train ALGO --team camera|target ...`: argument parser and runner (torch imported only when run)."""
+"""`mate train mappo|ippo|iql --team camera|target ...`: argument parser and runner (torch imported only when run)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ __all__ = ['add_arguments', 'config_from_args', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('algo', choices=('mappo', 'ippo'), help='centralised (MAPPO) or local (IPPO) critic')
+    parser.add_argument('algo', choices=('mappo', 'ippo', 'iql'),
+                        help='centralised (MAPPO) or local (IPPO) critic, or independent Q-learning (IQL)')
     parser.add_argument('--team', choices=('camera', 'target'), default='camera', help='team to train (default camera)')
     parser.add_argument('--config', '--cfg', default=None,
                         help='preset name (e.g. MATE-4v8-9) or YAML/JSON path; default: the paper preset of the team '
@@ -22,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='also stop after this many minutes of training wall time (resumed sessions included); '
                              'default 0: no time limit')
     parser.add_argument('--seed', type=non_negative_int, default=0)
-    parser.add_argument('--num-envs', type=positive_int, default=64, help='batched games (default 64)')
+    parser.add_argument('--num-envs', type=positive_int, default=None, help='batched games (default 64; IQL 16)')
     parser.add_argument('--rollout-length', type=positive_int, default=25, help='decisions per env per iteration (default 25)')
     parser.add_argument('--epochs', type=positive_int, default=4)
     parser.add_argument('--minibatches', type=positive_int, default=4)
@@ -70,6 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              '(steps and schedules start from 0)')
     parser.add_argument('--threads', type=non_negative_int, default=0,
                         help='torch threads of the update phase (default 0: every core; collection always uses 1)')
+    iql = parser.add_argument_group('IQL (value-based) options')
+    iql.add_argument('--buffer-size', type=positive_int, default=500_000, help='agent transitions of replay (default 500,000)')
+    iql.add_argument('--batch-size', type=positive_int, default=1024, help='agent transitions per update (default 1024)')
+    iql.add_argument('--learning-starts', type=non_negative_int, default=5_000,
+                     help='decision steps stored before the first update (default 5,000)')
+    iql.add_argument('--epsilon-schedule', default=None, metavar='JSON',
+                     help='[[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
     parser.add_argument('--fresh', action='store_true', help='ignore an existing checkpoint in the run directory')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar (CSV and TensorBoard only)')
@@ -90,30 +98,64 @@ def _env(config: str | None) -> dict:
     return dict(env_id='MultiAgentTracking-v0', config=config)
 
 
+PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=False, lstm=0, full_observability=False,
+                memory=0, velocity=False, gae_lambda=0.95, kl_coeff=None, kl_target=0.01, entropy_schedule=None,
+                snapshot_every=0, init_from=None)
+"""The options of `mate train` that only the PPO trainers take, with their defaults."""
+DQN_ONLY = dict(buffer_size=500_000, batch_size=1024, learning_starts=5_000, epsilon_schedule=None)
+"""The options only IQL takes, with their defaults."""
+
+
+def _schedule(args: argparse.Namespace, key: str):
+    text = getattr(args, key)
+    try:
+        return tuple(tuple(p) for p in json.loads(text))
+    except (ValueError, TypeError) as exc:
+        raise CommandError(f'--{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
+
+
+def _refuse(args: argparse.Namespace, options: dict, algo: str) -> None:
+    """CommandError naming the first of `options` given a non-default value (options of another trainer)."""
+    for key, default in options.items():
+        if getattr(args, key) != default:
+            raise CommandError(f'--{key.replace("_", "-")} is not an option of {algo}')
+
+
 def config_from_args(args: argparse.Namespace):
-    """The `PPOConfig` of parsed `mate train` arguments (CommandError, a SystemExit, with a message for bad ones)."""
+    """The `PPOConfig` (or `DQNConfig`) of parsed `mate train` arguments (CommandError, a SystemExit, with a
+    message for bad ones)."""
+    if not args.minutes >= 0:
+        raise CommandError(f'--minutes must be >= 0 (0 = no time limit), got {args.minutes}')
+    if args.hrl and args.team != 'camera':
+        raise CommandError('--hrl exists for cameras only')
+    if args.credit != 'team' and args.team != 'camera':
+        raise CommandError(f'--credit {args.credit} (each camera\'s own share of the coverage) exists for '
+                           'cameras only')
+    if args.algo == 'iql':
+        from .dqn import DQNConfig
+
+        _refuse(args, PPO_ONLY, 'IQL')
+        extra = {key: _schedule(args, key) for key in ('lr_schedule', 'epsilon_schedule') if getattr(args, key)}
+        return DQNConfig(algo='iql', team=args.team, total_steps=int(args.steps), seed=args.seed,
+                         time_limit=60.0 * args.minutes, num_envs=args.num_envs or 16, frame_skip=args.frame_skip,
+                         horizon=args.horizon, hrl=args.hrl, credit=args.credit, buffer_size=args.buffer_size,
+                         batch_size=args.batch_size, learning_starts=args.learning_starts,
+                         torch_threads=args.threads or 1, **_env(args.config), **extra)
     from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 
+    _refuse(args, DQN_ONLY, args.algo.upper())
     extra = dict(PAPER_HYPERPARAMETERS) if args.paper else {}
     if args.actor:
         extra['actor'] = args.actor
     for key in ('entropy_schedule', 'lr_schedule'):
-        text = getattr(args, key)
-        if text:
-            try:
-                extra[key] = tuple(tuple(p) for p in json.loads(text))
-            except (ValueError, TypeError) as exc:
-                raise CommandError(f'--{key.replace("_", "-")} must be JSON [[step, value], ...]: {exc}')
-    if args.hrl and args.team != 'camera':
-        raise CommandError('--hrl exists for cameras only')
+        if getattr(args, key):
+            extra[key] = _schedule(args, key)
     if args.kl_coeff is not None:
         if not args.kl_coeff >= 0:
             raise CommandError(f'--kl-coeff must be >= 0 (0 = no KL penalty), got {args.kl_coeff}')
         extra['kl_coeff'] = args.kl_coeff
     if not args.kl_target > 0:
         raise CommandError(f'--kl-target must be > 0, got {args.kl_target}')
-    if not args.minutes >= 0:
-        raise CommandError(f'--minutes must be >= 0 (0 = no time limit), got {args.minutes}')
     if args.lstm < 0:
         raise CommandError(f'--lstm must be >= 0 (0 = feed-forward), got {args.lstm}')
     if args.memory < 0:
@@ -122,14 +164,11 @@ def config_from_args(args: argparse.Namespace):
         raise CommandError('--memory (shared sightings of targets) exists for cameras only')
     if args.velocity and args.team != 'camera':
         raise CommandError('--velocity (motion of the seen targets) exists for cameras only')
-    if args.credit != 'team' and args.team != 'camera':
-        raise CommandError(f'--credit {args.credit} (each camera\'s own share of the coverage) exists for '
-                           'cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
         raise CommandError("--actor per-target reads a camera's target slots; it needs --team camera")
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                      time_limit=60.0 * args.minutes,
-                     num_envs=args.num_envs, rollout_length=args.rollout_length, epochs=args.epochs,
+                     num_envs=args.num_envs or 64, rollout_length=args.rollout_length, epochs=args.epochs,
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
@@ -141,6 +180,7 @@ def run(args: argparse.Namespace, console) -> int:
     """Train as `args` say; 0 when done (or already done), 130 when interrupted (resumable)."""
     try:
         from .checkpoint import CheckpointError, load_checkpoint
+        from .dqn import train_dqn
         from .ppo import train
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
@@ -161,17 +201,19 @@ def run(args: argparse.Namespace, console) -> int:
             reason, flag = done
             console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
             return 0
-    elif config.init_from:   # a bad file fails now, before the envs are built
+    elif getattr(config, 'init_from', None):   # a bad file fails now, before the envs are built
         try:
             load_checkpoint(config.init_from)
         except CheckpointError as exc:
             raise CommandError(f'--init-from: {exc}') from None
-    console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({resolved.actor} actor, frame skip '
+    network = f'{resolved.actor} actor' if hasattr(resolved, 'actor') else 'dueling Q-network'
+    console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({network}, frame skip '
                   f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
     if resuming:
         console.print(f'resuming from {checkpoint_path}')
     try:
-        row = train(config, run_dir, resume=not args.fresh, progress=not args.no_progress)
+        trainer = train_dqn if args.algo == 'iql' else train
+        row = trainer(config, run_dir, resume=not args.fresh, progress=not args.no_progress)
     except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
         raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
     except KeyboardInterrupt:

@@ -19,7 +19,7 @@ from mate.learn.evaluate import (
     play_batch,
 )
 from mate.learn.memory import MEMORY_FEATURES
-from mate.learn.ppo import make_actor
+from mate.learn.networks import make_actor
 from mate.learn.velocity import VELOCITY_FEATURES
 
 COUNTS = (2, 4, 0)          # MATE-2v4-0

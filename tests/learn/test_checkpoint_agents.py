@@ -30,7 +30,7 @@ def test_round_trip_and_agent_plays(tmp_path):
     assert data['meta']['team'] == 'camera' and data['meta']['obs_dim'] == 56
     policy = load_policy(path, 'camera')
     x = torch.randn(3, 56)
-    from mate.learn.ppo import Actor
+    from mate.learn.networks import Actor
     actor = Actor(56, 25, (16,))
     actor.load_state_dict(data['actor'])
     assert np.allclose(policy.logits(x.numpy()), actor(x).detach().numpy())
@@ -214,7 +214,7 @@ def _camera_views(steps: int = 60, seed: int = 0):
 
 
 def test_per_target_actor_scores_every_slot_with_one_scorer():
-    from mate.learn.ppo import PerTargetActor
+    from mate.learn.networks import PerTargetActor
     torch.manual_seed(0)
     obs, _ = _camera_views(steps=4)
     obs, perm = obs.reshape(-1, obs.shape[-1]), [2, 0, 3, 1]
@@ -233,7 +233,7 @@ def test_per_target_actor_scores_every_slot_with_one_scorer():
 
 
 def test_flat_per_target_head_ignores_slot_order_and_unseen_slots():
-    from mate.learn.ppo import PerTargetActor
+    from mate.learn.networks import PerTargetActor
     torch.manual_seed(1)
     obs, _ = _camera_views(steps=4)
     obs = obs.reshape(-1, obs.shape[-1])
@@ -258,7 +258,7 @@ def test_flat_per_target_head_ignores_slot_order_and_unseen_slots():
 
 
 def test_per_target_actor_slot_features_match_the_world():
-    from mate.learn.ppo import PerTargetActor
+    from mate.learn.networks import PerTargetActor
     obs, worlds = _camera_views()
     actor = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(8,))
     features = actor.slot_features(obs).numpy()                              # (S, Nc, Nt, 13)

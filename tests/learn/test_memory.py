@@ -10,7 +10,8 @@ from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
 from mate.learn.envs import TeamVecEnv
 from mate.learn.memory import MEMORY_FEATURES, SightingMemory
-from mate.learn.ppo import PerTargetActor, PPOConfig, train
+from mate.learn.networks import PerTargetActor
+from mate.learn.ppo import PPOConfig, train
 from mate.spaces import observation_indices_of
 
 COUNTS = (2, 3, 0)

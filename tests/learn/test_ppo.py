@@ -1,21 +1,20 @@
 import pytest
 import torch
 
+from mate.learn.networks import Actor, RecurrentActor
 from mate.learn.ppo import (
-    Actor,
     PPOConfig,
-    RecurrentActor,
     ValueNormalizer,
     adapt_kl_coeff,
     compute_gae,
     critic_inputs,
     minibatch_rows,
     per_agent,
-    piecewise,
     ppo_policy_loss,
     sampled_kl,
     train,
 )
+from mate.learn.schedules import piecewise
 
 from .toy import CueMatching, CueRecall
 

@@ -9,7 +9,8 @@ import mate
 from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
 from mate.learn.envs import TeamVecEnv, preprocess_observation
-from mate.learn.ppo import PerTargetActor, PPOConfig, train
+from mate.learn.networks import PerTargetActor
+from mate.learn.ppo import PPOConfig, train
 from mate.learn.velocity import VELOCITY_FEATURES, target_displacements
 from mate.spaces import observation_indices_of
 

@@ -1,0 +1,23 @@
+"""Schedules of a training run: piecewise functions of the decision-step count (spec training.md §1.6).
+
+A schedule is ((step, value), ...): a step function (`interpolate=False`: the value of the last breakpoint
+reached, e.g. learning rates) or linear between breakpoints (`interpolate=True`: entropy coefficients,
+exploration rates); constant before the first and after the last breakpoint.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+__all__ = ['piecewise']
+
+
+def piecewise(schedule, step: float, interpolate: bool) -> float:
+    """Value of a ((step, value), ...) schedule: a step function, or linear between breakpoints."""
+    points = sorted(schedule)
+    if step <= points[0][0]:
+        return float(points[0][1])
+    for (s0, v0), (s1, v1) in itertools.pairwise(points):
+        if step < s1:
+            return float(v0 + (v1 - v0) * (step - s0) / (s1 - s0)) if interpolate else float(v0)
+    return float(points[-1][1])
