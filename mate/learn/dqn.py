@@ -33,7 +33,6 @@ import dataclasses
 import math
 import os
 import time
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +41,7 @@ from torch import nn
 
 from .checkpoint import save_checkpoint, load_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
-from .logging import Logger, training_bar
+from .logging import RunReport
 from .networks import make_actor
 from .schedules import piecewise
 
@@ -206,13 +205,13 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
         save_checkpoint(path, dict(actor=q_net.state_dict(), target=target_net.state_dict(),
                                    optimizer=optimizer.state_dict(), env_steps=env_steps, iteration=iteration,
                                    config=config.to_dict(), wall_seconds=wall_before + time.perf_counter() - start,
-                                   best_return=best_return, meta=meta))
+                                   best_return=report.best_return, meta=meta))
 
     obs, _ = envs.reset(seed=config.seed + 10_007 * iteration)
-    episodes = deque(maxlen=25)
-    logger = Logger(run_dir, resume=env_steps > 0)
+    report = RunReport(run_dir, config.total_steps, env_steps, progress, callback, best_return, save_best=lambda: (
+        save_checkpoint(run_dir / 'best.pt', dict(actor=q_net.state_dict(), meta=meta, config=config.to_dict(),
+                                                  env_steps=env_steps))))
     start, start_steps, row = time.perf_counter(), env_steps, {}
-    bar = training_bar(config.total_steps, env_steps) if progress else None
     coverage, losses, q_means = [], [], []
     next_report = (env_steps // config.report_every + 1) * config.report_every
     next_copy = (env_steps // config.target_update + 1) * config.target_update
@@ -238,7 +237,7 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
             obs = next_obs
             env_steps += B
             coverage.append(float(np.mean(info['coverage'])))
-            episodes.extend(info['episodes'])
+            report.add_episodes(info['episodes'])
 
             # ---- learn: one double-Q update per env step, once the buffer holds `learning_starts` steps
             if env_steps >= learning_from:
@@ -268,37 +267,21 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
                 next_report += config.report_every
                 iteration += 1
                 elapsed = time.perf_counter() - start
-                recent = list(episodes)
                 row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
                            wall_seconds=round(wall_before + elapsed, 2),
                            steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
                            rollout_coverage=float(np.mean(coverage)),
-                           episode_coverage=float(np.mean([e['coverage'] for e in recent])) if recent else math.nan,
-                           episode_return=float(np.mean([e['return'] for e in recent])) if recent else math.nan,
-                           episode_normalized_target_return=float(np.mean([e.get('raw_return', np.nan) for e in recent]))
-                           if recent else math.nan,
-                           episodes=len(recent), epsilon=epsilon,
+                           **report.episode_means(), epsilon=epsilon,
                            lr=piecewise(config.lr_schedule, env_steps, interpolate=False),
                            loss=float(np.mean(losses)) if losses else math.nan,
                            q_mean=float(np.mean(q_means)) if q_means else math.nan, buffer=replay.size)
                 coverage, losses, q_means = [], [], []
-                logger.write(row)
-                if len(recent) == episodes.maxlen and row['episode_return'] > best_return:
-                    best_return = row['episode_return']
-                    save_checkpoint(run_dir / 'best.pt', dict(actor=q_net.state_dict(), meta=meta,
-                                                             config=config.to_dict(), env_steps=env_steps))
-                if callback is not None:
-                    callback(row)
-                if bar is not None:
-                    bar[0].update(bar[1], completed=env_steps, status=(
-                        f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                        f"return {row['episode_return']:.1f}  epsilon {epsilon:.2f}"))
+                report.write(row, f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
+                                  f"return {row['episode_return']:.1f}  epsilon {epsilon:.2f}")
                 if iteration % config.checkpoint_every == 0:
                     checkpoint(checkpoint_path)
         checkpoint(checkpoint_path)
         checkpoint(run_dir / 'final.pt')
     finally:
-        logger.close()
-        if bar is not None:
-            bar[0].stop()
+        report.close()
     return row

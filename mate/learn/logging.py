@@ -1,13 +1,66 @@
-"""What a training run reports: `Logger` (progress.csv, and TensorBoard scalars when it imports) and
-`training_bar` (the one-line rich progress bar of `mate train`). Shared by every trainer."""
+"""What a training run reports, shared by every trainer: `RunReport` (one row per iteration to the logger,
+the progress bar and a callback; the window of recent episodes; the best return so far), `Logger`
+(progress.csv, and TensorBoard scalars when it imports) and `training_bar` (the one-line rich bar).
+"""
 
 from __future__ import annotations
 
 import csv
 import math
+from collections import deque
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ['Logger', 'training_bar']
+import numpy as np
+
+__all__ = ['EPISODE_WINDOW', 'Logger', 'RunReport', 'training_bar']
+
+EPISODE_WINDOW = 25
+"""Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
+
+
+class RunReport:
+    """Where a training run's iterations go.
+
+    `add_episodes(dicts)` keeps the last `EPISODE_WINDOW` finished episodes (`coverage`, `return`, and
+    `raw_return`: the normalised target return); `episode_means()` averages them; `write(row, status)`
+    writes the row (CSV/TensorBoard), calls `save_best()` when the window is full and its mean return beats
+    `best_return` (then updated), calls `callback(row)` and moves the bar to `row['env_steps']` with `status`.
+    """
+
+    def __init__(self, run_dir: Path, total_steps: int, done_steps: int, progress: bool,
+                 callback: Callable[[dict], None] | None, best_return: float, save_best: Callable[[], None]) -> None:
+        self.episodes = deque(maxlen=EPISODE_WINDOW)
+        self.logger = Logger(run_dir, resume=done_steps > 0)
+        self.bar = training_bar(total_steps, done_steps) if progress else None
+        self.callback, self.best_return, self.save_best = callback, best_return, save_best
+
+    def add_episodes(self, episodes) -> None:
+        self.episodes.extend(episodes)
+
+    def episode_means(self) -> dict:
+        recent = list(self.episodes)
+
+        def mean(key: str) -> float:
+            return float(np.mean([e.get(key, np.nan) for e in recent])) if recent else math.nan
+
+        return dict(episode_coverage=mean('coverage'), episode_return=mean('return'),
+                    episode_normalized_target_return=mean('raw_return'), episodes=len(recent))
+
+    def write(self, row: dict, status: str) -> None:
+        self.logger.write(row)
+        if len(self.episodes) == EPISODE_WINDOW and row['episode_return'] > self.best_return:
+            self.best_return = row['episode_return']
+            self.save_best()
+        if self.callback is not None:
+            self.callback(row)
+        if self.bar is not None:
+            self.bar[0].update(self.bar[1], completed=row['env_steps'], status=status)
+
+    def close(self) -> None:
+        self.logger.close()
+        if self.bar is not None:
+            self.bar[0].stop()
 
 
 class Logger:

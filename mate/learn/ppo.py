@@ -26,7 +26,6 @@ import dataclasses
 import math
 import os
 import time
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +35,7 @@ from torch import nn
 from ..core.engine import NUM_THREADS
 from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
-from .logging import Logger, training_bar
+from .logging import RunReport
 from .networks import Critic, make_actor
 from .schedules import piecewise
 
@@ -310,7 +309,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                                    value_norm=value_norm.state_dict(), optimizer=optimizer.state_dict(),
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
                                    kl_coeff=kl_coeff, wall_seconds=wall_before + time.perf_counter() - start,
-                                   best_return=best_return, meta=dict(meta, algo=config.algo)))
+                                   best_return=report.best_return, meta=dict(meta, algo=config.algo)))
 
     def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
         save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
@@ -340,10 +339,9 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
     obs, state = envs.reset(seed=config.seed + 10_007 * iteration)
     obs, state = torch.from_numpy(obs), torch.from_numpy(state)
-    episodes = deque(maxlen=25)   # RLlib smooths episode metrics over the last 25 episodes
-    logger = Logger(run_dir, resume=env_steps > 0)
+    report = RunReport(run_dir, config.total_steps, env_steps, progress, callback, best_return,
+                       save_best=lambda: snapshot(run_dir / 'best.pt'))
     start, start_steps, row = time.perf_counter(), env_steps, {}
-    bar = training_bar(config.total_steps, env_steps) if progress else None
 
     def out_of_time() -> bool:   # the wall-time budget (`time_limit`) is spent
         return config.time_limit > 0 and wall_before + time.perf_counter() - start >= config.time_limit
@@ -384,7 +382,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 start_buf[t], starting = starting, torch.from_numpy(done).clone()
                 obs, state = torch.from_numpy(next_obs), torch.from_numpy(next_state)
                 coverage.append(float(info['coverage'].mean()))
-                episodes.extend(info['episodes'])
+                report.add_episodes(info['episodes'])
             env_steps += T * B
             collect_seconds = time.perf_counter() - t_collect
 
@@ -446,27 +444,14 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
             # ---- log
             elapsed = time.perf_counter() - start
-            recent = list(episodes)
             row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
                        wall_seconds=round(wall_before + elapsed, 2), steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
                        collect_share=collect_seconds / max(time.perf_counter() - t_collect, 1e-9),
                        rollout_coverage=float(np.mean(coverage)),
-                       episode_coverage=float(np.mean([e['coverage'] for e in recent])) if recent else float('nan'),
-                       episode_return=float(np.mean([e['return'] for e in recent])) if recent else float('nan'),
-                       episode_normalized_target_return=float(np.mean([e.get('raw_return', np.nan) for e in recent]))
-                       if recent else float('nan'),
-                       episodes=len(recent), lr=lr, entropy_coef=entropy_coef,
+                       **report.episode_means(), lr=lr, entropy_coef=entropy_coef,
                        **{k: v / updates for k, v in stats.items()}, kl_coeff=row_kl_coeff)
-            logger.write(row)
-            if len(recent) == episodes.maxlen and row['episode_return'] > best_return:
-                best_return = row['episode_return']
-                snapshot(run_dir / 'best.pt')
-            if callback is not None:
-                callback(row)
-            if bar is not None:
-                bar[0].update(bar[1], completed=env_steps, status=(
-                    f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                    f"return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}"))
+            report.write(row, f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
+                              f"return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}")
             if iteration % config.checkpoint_every == 0:
                 checkpoint(checkpoint_path)
             if config.snapshot_every and iteration % config.snapshot_every == 0:
@@ -474,9 +459,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         checkpoint(checkpoint_path)
         checkpoint(run_dir / 'final.pt')
     finally:
-        logger.close()
-        if bar is not None:
-            bar[0].stop()
+        report.close()
     return row
 
 
