@@ -3,7 +3,10 @@
 # budget (5 iterations, 40,000 decision steps per best response, 40 episodes per payoff entry, natural
 # episode ends), seeds 0-2, then the fixed-opponent comparison (greedy cameras and the shipped MAPPO
 # targets, each against a best response of 200,000 steps: the training a PSRO side's newest policy has
-# had after 5 warm-started iterations). Every run resumes if started again. ~1.5 h on 2 cores.
+# had after 5 warm-started iterations). Every run resumes if started again. ~1 h 50 min on 2 cores.
+# Then: python scripts/psro_table.py $OUT --json scripts/results/psro/psro-results.json (the tables), and
+# python scripts/psro_final_exploitability.py $OUT/nash-seed0 --br-steps 200000 (the fixed-pair probe of a
+# final population, ~7 min).
 set -euo pipefail
 OUT=${OUT:-runs/psro-results}
 COMMON="--config MATE-2v4-0 --iterations 5 --br-steps 40000 --eval-episodes 40 --workers 2"
