@@ -56,8 +56,8 @@ from .memory import MEMORY_FEATURES, SightingMemory, camera_sightings
 from .velocity import VELOCITY_FEATURES, target_displacements
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
-__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards', 'discrete_to_continuous',
-           'mixed_camera_reward', 'preprocess_observation']
+__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards',
+           'discrete_to_continuous', 'mixed_camera_reward', 'preprocess_observation']
 
 CREDITS = ('team', 'difference')
 """How a camera's reward is assigned: the team's coverage rate, or its own marginal contribution to it."""
@@ -70,6 +70,7 @@ CAMERA_REWARDS = ('coverage', 'mixed')
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
     """The population players' camera reward (spec training.md §5.1) from one raw step's (B,) arrays."""
     return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
+
 
 PAPER_SETTINGS = {
     'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5, horizon=2500),

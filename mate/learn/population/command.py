@@ -53,7 +53,7 @@ def run(args: argparse.Namespace, console) -> int:
     if getattr(args, 'psro_command', None) == 'plot':
         return _plot(args, console)
     try:
-        from .psro import LocalRunner, PSROError, PSROSettings, RayRunner, run_psro
+        from .psro import LocalRunner, PSROError, PSROSettings, RayRunner, env_of, run_psro
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
     from ...config import ConfigError
@@ -70,9 +70,7 @@ def run(args: argparse.Namespace, console) -> int:
         raise CommandError('--workers is for local processes; with --address Ray places the jobs')
     workers = args.workers or min(2, os.cpu_count() or 1)
     try:
-        from .psro import env_of
-
-        env_of(settings.config)
+        env_of(settings.config)   # a bad preset or file fails before any worker or Ray starts
         runner = RayRunner(None if args.address == 'local' else args.address) if args.address else LocalRunner(workers)
         where = f'Ray ({args.address})' if args.address else f'{workers} local process{"es" if workers > 1 else ""}'
         console.print(f'population run: {settings.solver} on {settings.config}, {settings.iterations} iterations, '

@@ -61,6 +61,8 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
     decision steps against the mixture of the other team's `opponents` (payloads) with `weights` (drawn per
     episode and env row), warm-started from the actor of `init` (policy bytes) if given.
 
+    `torch_threads`: threads of the training's updates; one, because a best response's minibatches are small
+    and two threads ran them several times slower whenever the other core was busy (another job, the env).
     `env`: {'env_id': ..., 'config': ...} of the game. Resumes from `run_dir/checkpoint.pt` when a killed
     job left one. Returns {'policy': bytes of best.pt (else final.pt), 'chosen': 'best' | 'final', 'steps',
     'seconds', 'episode_return', 'episode_coverage', 'episode_normalized_target_return'}.

@@ -31,7 +31,8 @@ import numpy as np
 
 from .solvers import SOLVERS, exploitability, meta_strategies
 
-__all__ = ['PSROSettings', 'STATE_FORMAT', 'PSROError', 'load_state', 'run_psro']
+__all__ = ['LocalRunner', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT', 'env_of', 'load_state', 'member_payload',
+           'run_psro']
 
 STATE_FORMAT = 'mate.psro/1'
 SIDES = ('camera', 'target')
@@ -118,7 +119,7 @@ def _grow(matrix: list, rows: int, columns: int) -> list:
     return matrix + [[None] * columns for _ in range(rows - len(matrix))]
 
 
-def _payload(member: str, out: Path):
+def member_payload(member: str, out: Path):
     """What a job receives for a pool member: a policy file's bytes, or the agent name."""
     return (out / member).read_bytes() if member.endswith('.pt') else member
 
@@ -227,18 +228,15 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
         if done:
             say(f'resuming {out}: {done - 1} of {settings.iterations} iterations done')
     runner = runner or LocalRunner(1)
-    threads = 1   # torch threads of a training's updates: a best response's minibatches are small, and two
-                  # threads ran them several times slower whenever the other core was busy (another job, the env)
     try:
         while len(state['iterations']) <= settings.iterations:
-            _iteration(state, settings, env, out, runner, threads, jobs, say)
+            _iteration(state, settings, env, out, runner, jobs, say)
     finally:
-        if runner is not None:
-            runner.close()
+        runner.close()
     return state
 
 
-def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner, threads: int, jobs, say) -> None:
+def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, say) -> None:
     i = len(state['iterations'])
     started = time.perf_counter()
     pools = state['pools']
@@ -252,13 +250,12 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
         job_list = []
         for side in todo:
             other = 'target' if side == 'camera' else 'camera'
-            init = _payload(pools[side][i - 1], out) if i >= 2 and pools[side][i - 1].endswith('.pt') else None
+            init = member_payload(pools[side][i - 1], out) if i >= 2 and pools[side][i - 1].endswith('.pt') else None
             job_list.append((jobs.best_response, dict(
-                team=side, env=env, opponents=[_payload(m, out) for m in pools[other][:len(strategies[other])]],
+                team=side, env=env, opponents=[member_payload(m, out) for m in pools[other][:len(strategies[other])]],
                 weights=strategies[other], steps=settings.br_steps,
                 seed=settings.seed * 1_000 + 2 * i + (side == 'target'),
-                run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs,
-                torch_threads=threads)))
+                run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs)))
         if todo:
             say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
                 f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
@@ -286,8 +283,8 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
         say(f'iteration {i}: evaluating {len(missing)} payoff entr{"y" if len(missing) == 1 else "ies"} '
             f'({settings.eval_episodes} episodes each)')
         chunks = [missing[c::runner.parallel] for c in range(min(runner.parallel, len(missing)))]
-        cameras = [_payload(member, out) for member in pools['camera']]
-        targets = [_payload(member, out) for member in pools['target']]
+        cameras = [member_payload(member, out) for member in pools['camera']]
+        targets = [member_payload(member, out) for member in pools['target']]
         evaluated = time.perf_counter()
 
         def evaluated_chunk(_, entries):
@@ -327,10 +324,4 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
 
 def _fmt(strategy) -> str:
     return '[' + ' '.join(f'{p:.2f}' for p in strategy) + ']'
-
-
-def exploitability_history(state: dict) -> list[dict]:
-    """[{iteration, camera, target, mean}] of the iterations >= 1 of a state."""
-    return [dict(iteration=r['iteration'], **r['exploitability']) for r in state['iterations']
-            if r.get('exploitability') is not None]
 
