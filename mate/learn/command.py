@@ -1,4 +1,4 @@
-"""`mate train mappo|ippo|iql --team camera|target ...`: argument parser and runner (torch imported only when run)."""
+"""`mate train mappo|ippo|iql|qmix --team camera|target ...`: argument parser and runner (torch imported only when run)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ __all__ = ['add_arguments', 'config_from_args', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('algo', choices=('mappo', 'ippo', 'iql'),
-                        help='centralised (MAPPO) or local (IPPO) critic, or independent Q-learning (IQL)')
+    parser.add_argument('algo', choices=('mappo', 'ippo', 'iql', 'qmix'),
+                        help='centralised (MAPPO) or local (IPPO) critic, independent Q-learning (IQL) or value '
+                             'decomposition with a monotonic mixer (QMIX)')
     parser.add_argument('--team', choices=('camera', 'target'), default='camera', help='team to train (default camera)')
     parser.add_argument('--config', '--cfg', default=None,
                         help='preset name (e.g. MATE-4v8-9) or YAML/JSON path; default: the paper preset of the team '
@@ -23,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='also stop after this many minutes of training wall time (resumed sessions included); '
                              'default 0: no time limit')
     parser.add_argument('--seed', type=non_negative_int, default=0)
-    parser.add_argument('--num-envs', type=positive_int, default=None, help='batched games (default 64; IQL 16)')
+    parser.add_argument('--num-envs', type=positive_int, default=None, help='batched games (default 64; IQL and QMIX 16)')
     parser.add_argument('--rollout-length', type=positive_int, default=25, help='decisions per env per iteration (default 25)')
     parser.add_argument('--epochs', type=positive_int, default=4)
     parser.add_argument('--minibatches', type=positive_int, default=4)
@@ -71,13 +72,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              '(steps and schedules start from 0)')
     parser.add_argument('--threads', type=non_negative_int, default=0,
                         help='torch threads of the update phase (default 0: every core; collection always uses 1)')
-    iql = parser.add_argument_group('IQL (value-based) options')
-    iql.add_argument('--buffer-size', type=positive_int, default=500_000, help='agent transitions of replay (default 500,000)')
-    iql.add_argument('--batch-size', type=positive_int, default=1024, help='agent transitions per update (default 1024)')
-    iql.add_argument('--learning-starts', type=non_negative_int, default=5_000,
-                     help='decision steps stored before the first update (default 5,000)')
-    iql.add_argument('--epsilon-schedule', default=None, metavar='JSON',
-                     help='[[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
+    value = parser.add_argument_group('value-based (IQL, QMIX) options')
+    value.add_argument('--buffer-size', type=positive_int, default=None,
+                       help='replay size: IQL agent transitions (default 500,000), QMIX decision steps (default '
+                            '1,000,000, as 2,000 episodes of 500)')
+    value.add_argument('--batch-size', type=positive_int, default=1024,
+                       help='samples per update: IQL agent transitions, QMIX decision steps (default 1024)')
+    value.add_argument('--update-every', type=positive_int, default=128,
+                       help='decision steps between updates (default 128, the spec\'s sampling round)')
+    value.add_argument('--learning-starts', type=non_negative_int, default=5_000,
+                       help='decision steps stored before the first update (default 5,000)')
+    value.add_argument('--epsilon-schedule', default=None, metavar='JSON',
+                       help='[[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
+    value.add_argument('--sequence-length', type=positive_int, default=25,
+                       help='QMIX: decision steps per replay chunk of the recurrent agents (default 25)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
     parser.add_argument('--fresh', action='store_true', help='ignore an existing checkpoint in the run directory')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar (CSV and TensorBoard only)')
@@ -102,8 +110,12 @@ PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=Fa
                 memory=0, velocity=False, gae_lambda=0.95, kl_coeff=None, kl_target=0.01, entropy_schedule=None,
                 snapshot_every=0, init_from=None)
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
-DQN_ONLY = dict(buffer_size=500_000, batch_size=1024, learning_starts=5_000, epsilon_schedule=None)
-"""The options only IQL takes, with their defaults."""
+DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
+                sequence_length=25)
+"""The options only the value-based trainers (IQL, QMIX) take, with their defaults."""
+QMIX_ONLY = dict(sequence_length=25)
+"""The value-based options only QMIX takes."""
+VALUE_BASED = ('iql', 'qmix')
 
 
 def _schedule(args: argparse.Namespace, key: str):
@@ -131,15 +143,18 @@ def config_from_args(args: argparse.Namespace):
     if args.credit != 'team' and args.team != 'camera':
         raise CommandError(f'--credit {args.credit} (each camera\'s own share of the coverage) exists for '
                            'cameras only')
-    if args.algo == 'iql':
+    if args.algo in VALUE_BASED:
         from .dqn import DQNConfig
 
-        _refuse(args, PPO_ONLY, 'IQL')
+        _refuse(args, PPO_ONLY, args.algo.upper())
+        if args.algo == 'iql':
+            _refuse(args, QMIX_ONLY, 'IQL')
         extra = {key: _schedule(args, key) for key in ('lr_schedule', 'epsilon_schedule') if getattr(args, key)}
-        return DQNConfig(algo='iql', team=args.team, total_steps=int(args.steps), seed=args.seed,
+        return DQNConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                          time_limit=60.0 * args.minutes, num_envs=args.num_envs or 16, frame_skip=args.frame_skip,
                          horizon=args.horizon, hrl=args.hrl, credit=args.credit, buffer_size=args.buffer_size,
-                         batch_size=args.batch_size, learning_starts=args.learning_starts,
+                         batch_size=args.batch_size, update_every=args.update_every,
+                         sequence_length=args.sequence_length, learning_starts=args.learning_starts,
                          torch_threads=args.threads or 1, **_env(args.config), **extra)
     from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 
@@ -206,13 +221,14 @@ def run(args: argparse.Namespace, console) -> int:
             load_checkpoint(config.init_from)
         except CheckpointError as exc:
             raise CommandError(f'--init-from: {exc}') from None
-    network = f'{resolved.actor} actor' if hasattr(resolved, 'actor') else 'dueling Q-network'
+    network = (f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
+               'GRU agent network, mixer' if args.algo == 'qmix' else 'dueling Q-network')
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({network}, frame skip '
                   f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
     if resuming:
         console.print(f'resuming from {checkpoint_path}')
     try:
-        trainer = train_dqn if args.algo == 'iql' else train
+        trainer = train_dqn if args.algo in VALUE_BASED else train
         row = trainer(config, run_dir, resume=not args.fresh, progress=not args.no_progress)
     except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
         raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None

@@ -97,7 +97,7 @@ class PolicyTeam:
         period = int(meta.get('memory', 0))
         self.sightings = SightingMemory(self.num_envs, self.counts, period) if period else None
         self.previous = None                                        # velocity: last step's observations
-        self.memory = self.policy.initial_memory(*shape)           # recurrent state (h, c), or None
+        self.memory = self.policy.initial_memory(*shape)           # recurrent state (h, c) or (h,), or None
 
     def reset(self, observation: np.ndarray, rows: np.ndarray) -> None:
         rows = np.asarray(rows, dtype=bool)
@@ -123,8 +123,9 @@ class PolicyTeam:
         processed = self.policy.inputs(raw, memory, self.previous[rows])
         if self.memory is not None:
             index = torch.as_tensor(rows)
-            logits, (h, c) = self.policy.logits(processed, tuple(part[index] for part in self.memory))
-            self.memory[0][index], self.memory[1][index] = h, c
+            logits, memory = self.policy.logits(processed, tuple(part[index] for part in self.memory))
+            for part, value in zip(self.memory, memory):
+                part[index] = value
         else:
             logits = self.policy.logits(processed)
         logits = logits.reshape(len(rows), self.num_agents, self.heads, -1)

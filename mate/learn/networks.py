@@ -6,6 +6,7 @@
   pair per slot; flat: pooled into 25 moves), see its docstring;
 * `RecurrentActor`: MLP -> LSTM -> head, with per-row episode starts;
 * `DuelingQNetwork`: IQL's action values (value and advantage streams), one or several heads;
+* `RecurrentQNetwork`: QMIX's agent network (embedding -> GRU -> action values), one or several heads;
 * `make_actor(kind, ...)`: one of them from a checkpoint's metadata;
 * `Critic`: a value MLP with one or more outputs.
 
@@ -24,7 +25,8 @@ from ..spaces import observation_indices_of, observation_space_of
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
-__all__ = ['ACTIVATIONS', 'Actor', 'Critic', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'linear', 'make_actor', 'mlp']
+__all__ = ['ACTIVATIONS', 'Actor', 'Critic', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'RecurrentQNetwork',
+           'linear', 'make_actor', 'mlp']
 
 
 ACTIVATIONS = {'tanh': (nn.Tanh, 5.0 / 3.0), 'relu': (nn.ReLU, math.sqrt(2.0))}
@@ -316,13 +318,52 @@ class DuelingQNetwork(nn.Module):
         return q.flatten(-2)
 
 
+class RecurrentQNetwork(nn.Module):
+    """QMIX's agent network (spec training.md §2.4): observation -> Linear(width) + ReLU -> GRU(width) ->
+    Linear -> action values (..., heads * choices); with several heads (HRL cameras) the value of a joint
+    choice is the sum of the heads' values, as in `DuelingQNetwork`. PyTorch's default initialisation.
+
+    `step(obs (..., D), state)` -> (values (..., A), state), `state` a 1-tuple (h (..., width),) as the
+    deployment agents carry it; `forward(obs (T, ..., D), h0 (..., width))` unrolls sequences that never
+    cross an episode start (the replay's chunks) and returns values (T, ..., A).
+    """
+
+    recurrent = True
+
+    def __init__(self, obs_dim: int, heads: int, choices: int, width: int = 256) -> None:
+        super().__init__()
+        self.heads, self.choices, self.width = int(heads), int(choices), int(width)
+        self.embed = nn.Sequential(nn.Linear(obs_dim, self.width), nn.ReLU())
+        self.gru = nn.GRU(self.width, self.width)
+        self.head = nn.Linear(self.width, self.heads * self.choices)
+
+    def initial_state(self, *shape: int) -> tuple[torch.Tensor]:
+        return (torch.zeros(*shape, self.width),)
+
+    def step(self, obs: torch.Tensor, state):
+        values, h = self.unroll(obs[None], state[0])
+        return values[0], (h,)
+
+    def forward(self, obs: torch.Tensor, h0: torch.Tensor) -> torch.Tensor:
+        return self.unroll(obs, h0)[0]
+
+    def unroll(self, obs: torch.Tensor, h0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Values (T, ..., A) of sequences obs (T, ..., D) from the states h0 (..., width), and the last state."""
+        T, lead = obs.shape[0], obs.shape[1:-1]
+        out, h = self.gru(self.embed(obs).reshape(T, -1, self.width), h0.reshape(1, -1, self.width))
+        return self.head(out).reshape(T, *lead, -1), h.reshape(*lead, self.width)
+
+
 def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: str, meta: dict,
                lstm: int = 0) -> nn.Module:
     """The policy network named `kind`: 'mlp' or 'per-target' (cameras only), wrapped in a `RecurrentActor`
-    when `lstm` > 0 (PPO), or 'dueling' (IQL's Q-network; its Q-values are read as logits)."""
+    when `lstm` > 0 (PPO); 'dueling' (IQL's Q-network) or 'recurrent-q' (QMIX's agent network, width
+    `hidden[-1]`), whose Q-values are read as logits."""
+    heads = int(meta.get('action_heads', 1))
     if kind == 'dueling':
-        heads = int(meta.get('action_heads', 1))
         return DuelingQNetwork(obs_dim, heads, num_actions // heads, hidden, activation)
+    if kind == 'recurrent-q':
+        return RecurrentQNetwork(obs_dim, heads, num_actions // heads, hidden[-1])
     if kind == 'mlp':
         actor = Actor(obs_dim, num_actions, hidden, activation, context_extra=lstm)
     elif kind == 'per-target':
@@ -332,7 +373,7 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
                                context_extra=lstm, memory=bool(meta.get('memory', 0)),
                                velocity=bool(meta.get('velocity', False)))
     else:
-        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target', 'dueling'")
+        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target', 'dueling', 'recurrent-q'")
     return RecurrentActor(actor, lstm) if lstm else actor
 
 

@@ -71,3 +71,44 @@ class OwnCueMatching(CueMatching):
         own = (np.asarray(actions) == self.cue).astype(np.float64)      # before the next cue is drawn
         obs, state, _, done, truncated, info = super().step(actions)
         return obs, state, own, done, truncated, info
+
+
+class TwoStepGame:
+    """The two-step cooperative game of the QMIX paper (Rashid et al. 2018, Fig. 3), for B envs at once.
+
+    Both agents observe (and the state is) the one-hot of the stage: 1, 2A or 2B. At stage 1 the first
+    agent's action picks the next stage (0 -> 2A, 1 -> 2B) and nobody is paid; at stage 2A every joint
+    action pays 7; at 2B the payoff is [[0, 1], [1, 8]]. Episodes end after two decisions (terminal). The
+    optimal joint policy earns 8; learners whose per-agent values average over an exploring partner value
+    2B at (1 + 8) / 2 = 4.5 < 7 and settle for 7."""
+
+    team = 'camera'
+    frame_skip = 1
+    PAYOFF_2B = np.array([[0.0, 1.0], [1.0, 8.0]])
+
+    def __init__(self, num_envs=16):
+        self.num_envs, self.num_agents, self.num_actions = num_envs, 2, 2
+        self.obs_dim, self.state_dim, self.counts = 3, 3, (2, 1, 0)
+        self.stage = np.zeros(num_envs, dtype=np.int64)
+
+    def _observe(self):
+        state = np.eye(3, dtype=np.float32)[self.stage]
+        return np.repeat(state[:, None], 2, axis=1), state
+
+    def reset(self, seed=None):
+        self.stage[:] = 0
+        return self._observe()
+
+    def step(self, actions):
+        actions = np.asarray(actions)
+        first = self.stage == 0
+        reward = np.where(self.stage == 1, 7.0, self.PAYOFF_2B[actions[:, 0], actions[:, 1]])
+        reward = np.where(first, 0.0, reward)
+        done = ~first
+        self.stage = np.where(first, 1 + actions[:, 0], 2)
+        final_obs, final_state = self._observe()
+        self.stage[done] = 0
+        obs, state = self._observe()
+        info = dict(final_obs=final_obs, final_state=final_state, coverage=reward,
+                    episodes=[dict(coverage=0.0, length=2, **{'return': float(r)}) for r in reward[done]])
+        return obs, state, reward, done, np.zeros_like(done), info
