@@ -385,7 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     rllib_train.set_defaults(run=_rllib_train)
 
     from .learn.command import add_arguments as add_train_arguments  # imports no torch
-    train = command('train', help='train MAPPO/IPPO/IQL/QMIX cameras or targets against greedy opponents (PyTorch)')
+    train = command('train', help='train MAPPO/IPPO/IQL/QMIX/MADDPG cameras or targets against greedy opponents (PyTorch)')
     add_train_arguments(train)
     train.set_defaults(run=_train)
 

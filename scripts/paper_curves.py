@@ -32,14 +32,18 @@ from pathlib import Path
 
 import numpy as np
 
+ALGOS = ('mappo', 'ippo', 'iql', 'qmix', 'maddpg')
+PPO_ALGOS = ('mappo', 'ippo')
 EXPERIMENTS = {
-    # name: (mate train arguments, figure(s), metric column, y label)
+    # name: (mate train arguments, figure(s), metric column, y label); PPO_ARGUMENTS are added for MAPPO/IPPO
     'camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9'], 'cameras-4v8-9', 'rollout_coverage',
                      'mean coverage rate'),
     # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
-    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl',
-                          '--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]'], 'cameras-4v8-9',
+    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'], 'cameras-4v8-9',
                          'rollout_coverage', 'mean coverage rate'),
+    # value-based HRL with the spec's Discrete(256) selection instead of a keep/ignore head per target slot
+    'hrl-joint-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--joint-selection'],
+                               'cameras-4v8-9', 'rollout_coverage', 'mean coverage rate'),
     'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], ('targets-2v4-0', 'targets-2v4-0-observability'),
                      'episode_normalized_target_return', 'normalised target episode reward'),
     # the paper's Fig. 6 ablation: the same, with the targets seeing everything (EnhancedObservation)
@@ -49,6 +53,8 @@ EXPERIMENTS = {
     'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], 'targets-4v8-0',
                      'episode_normalized_target_return', 'normalised target episode reward'),
 }
+# HRL-MAPPO: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
+PPO_ARGUMENTS = {'hrl-camera-4v8-9': ['--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]']}
 FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0': ('target', 'MATE-2v4-0-v0'),
                    'targets-4v8-0': ('target', 'MATE-4v8-0-v0'),
                    'targets-2v4-0-observability': ('target', 'MATE-2v4-0-v0')}
@@ -85,7 +91,8 @@ def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) 
 
 def run_one(out: Path, name: str, algo: str, seed: int, steps: float, extra: list[str]) -> int:
     run_dir = out / 'runs' / f'{algo}-{name}-seed{seed}'
-    command = [sys.executable, '-m', 'mate.cli', 'train', algo, *EXPERIMENTS[name][0], '--steps', str(steps),
+    ppo = PPO_ARGUMENTS.get(name, []) if algo in PPO_ALGOS else []
+    command = [sys.executable, '-m', 'mate.cli', 'train', algo, *EXPERIMENTS[name][0], *ppo, '--steps', str(steps),
                '--seed', str(seed), '--run-dir', str(run_dir), '--no-progress', *extra]
     print(' '.join(command), flush=True)
     return subprocess.call(command, stdout=subprocess.DEVNULL)
@@ -131,11 +138,12 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
                 curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
                 if not curves:
                     continue
-                grid = np.linspace(0, min(x[-1] for x, _ in curves), 200)
+                grid = np.geomspace(max(x[0] for x, _ in curves), min(x[-1] for x, _ in curves), 200)
                 ys = np.array([np.interp(grid, x, y) for x, y in curves])
                 mean, std = ys.mean(0), ys.std(0)
                 prefix = 'HRL-' if name.startswith('hrl') else ''
                 suffix = (', full obs.' if name.endswith('full-obs') else ', partial obs.') if 'observability' in figure else ''
+                suffix += ', Discrete(256)' if 'joint' in name else ''
                 ax.plot(grid, mean, label=f'{prefix}{algo.upper()}{suffix} ({len(ys)} seed{"s" * (len(ys) > 1)})')
                 ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
                 drawn = True
@@ -145,10 +153,11 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
         team, env_id = FIGURE_SETTINGS[figure]
         ax.axhline(greedy_reference(team, env_id), color='grey', linestyle='--',
                    label=f'greedy {team}s (same setting)')
-        ax.set_xlabel('decision steps')
+        ax.set_xscale('log')      # off-policy runs of minutes beside PPO runs of millions of steps
+        ax.set_xlabel('decision steps (log scale)')
         ax.set_ylabel(label)
         ax.set_title(figure)
-        ax.legend()
+        ax.legend(fontsize='small')
         fig.tight_layout()
         out.mkdir(parents=True, exist_ok=True)
         fig.savefig(out / f'{figure}.png', dpi=120)
@@ -166,7 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest='command', required=True, metavar='{plot,train}')
     selection = argparse.ArgumentParser(add_help=False)
-    selection.add_argument('--algos', nargs='+', default=['mappo', 'ippo'], choices=['mappo', 'ippo'])
+    selection.add_argument('--algos', nargs='+', default=list(ALGOS), choices=ALGOS,
+                           help='algorithms (default all; `train` skips MADDPG on HRL experiments)')
     selection.add_argument('--seeds', nargs='+', type=int, default=[0, 1, 2])
     selection.add_argument('--experiments', nargs='+', default=list(EXPERIMENTS), choices=list(EXPERIMENTS))
 
@@ -191,7 +201,9 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == 'train':
         args.out.mkdir(parents=True, exist_ok=True)
-        tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds]
+        tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds
+                 if not (algo == 'maddpg' and name.startswith('hrl'))      # HRL selects targets: no continuous form
+                 and not (algo not in ('iql', 'qmix') and 'joint' in name)]
         with ThreadPoolExecutor(args.jobs) as pool:
             codes = list(pool.map(lambda t: run_one(args.out, *t, args.steps, args.train_args.split()), tasks))
         if any(codes):

@@ -5,6 +5,11 @@ rescaling to [-1, 1]), picks one of the `levels**2` discrete actions, maps it on
 `DiscreteCamera` / `DiscreteTarget` scaled by its own step bounds, and holds the decision for
 `frame_skip` env steps (the training frame skip). It does not communicate.
 
+Value-based policies (IQL, QMIX) are read the same way, their Q-values taken as logits and acted on greedily
+(QMIX's GRU state carried like an LSTM's). MADDPG policies (`meta['continuous']`) hold one actor per agent:
+an agent feeds its own network (by its index in the team) and holds the continuous action it returns, a share
+of its own step bounds, for `frame_skip` steps.
+
 HRL camera policies (`meta['hrl']`) instead hold a target selection (one bit per target slot) for
 `frame_skip` steps and let the rule executor of `mate.learn.hrl` aim at every step.
 
@@ -33,8 +38,8 @@ import torch
 from ..agents.base import CameraAgentBase, TargetAgentBase
 from ..messages import Team
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from .envs import as_team, discrete_to_continuous, preprocess_observation
-from .hrl import executor_actions
+from .envs import action_high, as_team, discrete_to_continuous, preprocess_observation
+from .hrl import executor_actions, selection_bits
 from .memory import SightingMemory, camera_sightings
 from .networks import Actor, make_actor
 from .velocity import target_displacements
@@ -233,19 +238,28 @@ class _PolicyAgentMixin:
         if self._countdown <= 0 or self._held is None:
             memory = None if self._sightings is None else self._sightings.features(observation[None, None])[0, 0]
             processed = self.policy.inputs(observation, memory, self._previous)
-            if self.policy.recurrent:
-                logits, self._memory = self.policy.logits(processed[None], self._memory)
+            if self.policy.meta.get('continuous'):   # per-agent actors (MADDPG): this agent's row of the team input
+                team_input = np.zeros((self.policy.meta['num_agents'], processed.shape[-1]), dtype=np.float32)
+                team_input[self.index] = processed
+                self._held = self.policy.logits(team_input)[self.index]
             else:
-                logits = self.policy.logits(processed[None])
-            logits = logits[0].reshape(self.policy.meta.get('action_heads', 1), -1)
-            greedy = self.deterministic if deterministic is None else deterministic
-            self._held = choose(logits, greedy, self.np_random)
+                if self.policy.recurrent:
+                    logits, self._memory = self.policy.logits(processed[None], self._memory)
+                else:
+                    logits = self.policy.logits(processed[None])
+                logits = logits[0].reshape(self.policy.meta.get('action_heads', 1), -1)
+                greedy = self.deterministic if deterministic is None else deterministic
+                self._held = choose(logits, greedy, self.np_random)
             self._countdown = self.frame_skip
         self._countdown -= 1
         self._previous = np.array(observation, dtype=np.float64)
         if self.policy.meta.get('hrl'):   # target selection held; the executor re-aims every step
-            return executor_actions(observation, self._held, self.num_cameras, self.num_targets,
-                                    self.num_obstacles)
+            selection = self._held
+            if self.policy.meta.get('joint_selection'):   # one index among 2^Nt selections
+                selection = selection_bits(self.num_targets)[self._held[0]]
+            return executor_actions(observation, selection, self.num_cameras, self.num_targets, self.num_obstacles)
+        if self.policy.meta.get('continuous'):
+            return self._held * action_high(observation, self.TEAM)
         return discrete_to_continuous(self._held[:1], observation[None], self.TEAM, self.policy.meta['levels'])[0]
 
 

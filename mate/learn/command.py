@@ -1,4 +1,4 @@
-"""`mate train mappo|ippo|iql|qmix --team camera|target ...`: argument parser and runner (torch imported only when run)."""
+"""`mate train mappo|ippo|iql|qmix|maddpg --team camera|target ...`: argument parser and runner (torch imported only when run)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ __all__ = ['add_arguments', 'config_from_args', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('algo', choices=('mappo', 'ippo', 'iql', 'qmix'),
-                        help='centralised (MAPPO) or local (IPPO) critic, independent Q-learning (IQL) or value '
-                             'decomposition with a monotonic mixer (QMIX)')
+    parser.add_argument('algo', choices=('mappo', 'ippo', 'iql', 'qmix', 'maddpg'),
+                        help='centralised (MAPPO) or local (IPPO) critic, independent Q-learning (IQL), value '
+                             'decomposition with a monotonic mixer (QMIX), or MADDPG as MA-TD3 (continuous actions, '
+                             'one actor and two centralised critics per agent)')
     parser.add_argument('--team', choices=('camera', 'target'), default='camera', help='team to train (default camera)')
     parser.add_argument('--config', '--cfg', default=None,
                         help='preset name (e.g. MATE-4v8-9) or YAML/JSON path; default: the paper preset of the team '
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='also stop after this many minutes of training wall time (resumed sessions included); '
                              'default 0: no time limit')
     parser.add_argument('--seed', type=non_negative_int, default=0)
-    parser.add_argument('--num-envs', type=positive_int, default=None, help='batched games (default 64; IQL and QMIX 16)')
+    parser.add_argument('--num-envs', type=positive_int, default=None, help='batched games (default 64; IQL, QMIX and MADDPG 16)')
     parser.add_argument('--rollout-length', type=positive_int, default=25, help='decisions per env per iteration (default 25)')
     parser.add_argument('--epochs', type=positive_int, default=4)
     parser.add_argument('--minibatches', type=positive_int, default=4)
@@ -72,18 +73,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              '(steps and schedules start from 0)')
     parser.add_argument('--threads', type=non_negative_int, default=0,
                         help='torch threads of the update phase (default 0: every core; collection always uses 1)')
-    value = parser.add_argument_group('value-based (IQL, QMIX) options')
+    value = parser.add_argument_group('off-policy (IQL, QMIX, MADDPG) options')
     value.add_argument('--buffer-size', type=positive_int, default=None,
                        help='replay size: IQL agent transitions (default 500,000), QMIX decision steps (default '
-                            '1,000,000, as 2,000 episodes of 500)')
+                            '1,000,000, as 2,000 episodes of 500), MADDPG decision steps (default 500,000)')
     value.add_argument('--batch-size', type=positive_int, default=1024,
-                       help='samples per update: IQL agent transitions, QMIX decision steps (default 1024)')
+                       help='samples per update: IQL agent transitions, QMIX and MADDPG decision steps (default 1024)')
     value.add_argument('--update-every', type=positive_int, default=128,
                        help='decision steps between updates (default 128, the spec\'s sampling round)')
     value.add_argument('--learning-starts', type=non_negative_int, default=5_000,
                        help='decision steps stored before the first update (default 5,000)')
     value.add_argument('--epsilon-schedule', default=None, metavar='JSON',
-                       help='[[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
+                       help='IQL, QMIX: [[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
+    value.add_argument('--joint-selection', action='store_true',
+                       help="IQL, QMIX with --hrl: one choice among the 2^Nt target selections (the spec's "
+                            "Discrete(256)) instead of a keep/ignore head per target slot")
     value.add_argument('--sequence-length', type=positive_int, default=25,
                        help='QMIX: decision steps per replay chunk of the recurrent agents (default 25)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
@@ -111,10 +115,12 @@ PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=Fa
                 snapshot_every=0, init_from=None)
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
 DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
-                sequence_length=25)
+                sequence_length=25, joint_selection=False)
 """The options only the value-based trainers (IQL, QMIX) take, with their defaults."""
 QMIX_ONLY = dict(sequence_length=25)
 """The value-based options only QMIX takes."""
+NOT_MADDPG = dict(epsilon_schedule=None, sequence_length=25, lr_schedule=None, hrl=False, joint_selection=False)
+"""Options MADDPG does not take (it has no epsilon, sequences, schedules or target selection)."""
 VALUE_BASED = ('iql', 'qmix')
 
 
@@ -143,6 +149,16 @@ def config_from_args(args: argparse.Namespace):
     if args.credit != 'team' and args.team != 'camera':
         raise CommandError(f'--credit {args.credit} (each camera\'s own share of the coverage) exists for '
                            'cameras only')
+    if args.algo == 'maddpg':
+        from .maddpg import MADDPGConfig
+
+        _refuse(args, PPO_ONLY, 'MADDPG')
+        _refuse(args, NOT_MADDPG, 'MADDPG')
+        return MADDPGConfig(team=args.team, total_steps=int(args.steps), seed=args.seed, time_limit=60.0 * args.minutes,
+                            num_envs=args.num_envs or 16, frame_skip=args.frame_skip, horizon=args.horizon,
+                            credit=args.credit, buffer_size=args.buffer_size or 500_000, batch_size=args.batch_size,
+                            update_every=args.update_every, learning_starts=args.learning_starts,
+                            torch_threads=args.threads or 1, **_env(args.config))
     if args.algo in VALUE_BASED:
         from .dqn import DQNConfig
 
@@ -155,6 +171,7 @@ def config_from_args(args: argparse.Namespace):
                          horizon=args.horizon, hrl=args.hrl, credit=args.credit, buffer_size=args.buffer_size,
                          batch_size=args.batch_size, update_every=args.update_every,
                          sequence_length=args.sequence_length, learning_starts=args.learning_starts,
+                         joint_selection=args.joint_selection,
                          torch_threads=args.threads or 1, **_env(args.config), **extra)
     from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 
@@ -196,6 +213,7 @@ def run(args: argparse.Namespace, console) -> int:
     try:
         from .checkpoint import CheckpointError, load_checkpoint
         from .dqn import train_dqn
+        from .maddpg import train_maddpg
         from .ppo import train
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
@@ -222,13 +240,14 @@ def run(args: argparse.Namespace, console) -> int:
         except CheckpointError as exc:
             raise CommandError(f'--init-from: {exc}') from None
     network = (f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
-               'GRU agent network, mixer' if args.algo == 'qmix' else 'dueling Q-network')
+               {'qmix': 'GRU agent network, mixer', 'iql': 'dueling Q-network',
+                'maddpg': 'an actor and twin critics per agent, continuous actions'}[args.algo])
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({network}, frame skip '
                   f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
     if resuming:
         console.print(f'resuming from {checkpoint_path}')
     try:
-        trainer = train_dqn if args.algo in VALUE_BASED else train
+        trainer = {'iql': train_dqn, 'qmix': train_dqn, 'maddpg': train_maddpg}.get(args.algo, train)
         row = trainer(config, run_dir, resume=not args.fresh, progress=not args.no_progress)
     except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
         raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None

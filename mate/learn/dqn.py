@@ -26,11 +26,12 @@ truncations: their targets bootstrap from the last observation.
 QMIX's replay holds chunks of `sequence_length` decision steps that never cross an episode start (an episode
 that ends early leaves the rest of its chunk masked), each with the GRU state the acting network had at its
 first step; the original stored whole episodes of up to 500 decisions. At the spec's 2,000 episodes
-(1,000,000 decision steps) the MATE-4v8-9 camera buffer takes ~3.1 GB, filled as it is used.
+(1,000,000 decision steps) the HRL MATE-4v8-9 camera buffer takes 3.25 GB, filled as it is used.
 
 HRL cameras (`hrl=True`) choose keep/ignore for every target slot; the Q-value of a selection is the sum of
 the slots' values (one head per slot: the argmax of the sum is each slot's own argmax), instead of the
-original's one output per selection (Discrete(2^Nt)). Targets a camera does not see are never selected (the
+original's one output per selection (Discrete(2^Nt), `joint_selection=True`). Targets a camera does not see are
+never selected (the
 executor would ignore them), as in the PPO trainer.
 
 Resuming: the replay is not saved (at the spec's sizes it is 1-3 GB); a resumed run refills it with
@@ -52,12 +53,14 @@ from torch import nn
 
 from .checkpoint import save_checkpoint, load_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
+from .hrl import joint_allowed, selection_bits
 from .logging import RunReport
 from .networks import RecurrentQNetwork, make_actor
+from .replay import TransitionRing
 from .schedules import piecewise
 
-__all__ = ['DQNConfig', 'QMixer', 'ReplayBuffer', 'SequenceReplay', 'double_q_targets', 'double_q_values', 'epsilon_greedy',
-           'iql_loss', 'qmix_loss', 'train_dqn']
+__all__ = ['DQNConfig', 'QMixer', 'ReplayBuffer', 'SequenceReplay', 'double_q_targets', 'double_q_values',
+           'epsilon_greedy', 'iql_loss', 'qmix_loss', 'train_dqn']
 
 ALGORITHMS = ('iql', 'qmix')
 
@@ -74,6 +77,7 @@ class DQNConfig:
     horizon: int | None = None           # raw steps per training episode; None: 500 decisions
     levels: int = 5                      # discrete levels per action axis (25 actions)
     hrl: bool = False                    # cameras only: keep/ignore per target slot, rule executor aims
+    joint_selection: bool = False        # HRL: one choice among 2^Nt selections (the spec's Discrete(256))
     credit: str = 'team'                 # cameras: 'team' or 'difference' rewards (IQL only)
     total_steps: int = 1_000_000         # decision steps (per env, summed over envs)
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
@@ -100,6 +104,8 @@ class DQNConfig:
         network widths, learning rates and buffer size)."""
         if self.algo not in ALGORITHMS:
             raise ValueError(f'unknown value-based algorithm {self.algo!r}; valid: {", ".join(ALGORITHMS)}')
+        if self.joint_selection and not self.hrl:
+            raise ValueError('joint_selection is a form of the HRL target selection: it needs hrl=True')
         if self.algo == 'qmix' and self.credit != 'team':
             raise ValueError(f"QMIX learns from the team reward: credit must be 'team', not {self.credit!r}")
         for name in ('sequence_length', 'update_every', 'batch_size', 'num_envs'):
@@ -123,37 +129,17 @@ class DQNConfig:
 
 # ============================================================================ replay and the two formulas
 
-class ReplayBuffer:
-    """A ring of agent transitions in preallocated arrays: obs and next_obs (C, D) float32, action (C, H)
-    int64, reward and terminal (C,) float32. `add` takes M transitions at once (M <= C); `sample`
-    draws uniformly among those stored. Memory: C x (2 D x 4 + H x 8 + 8) bytes."""
+class ReplayBuffer(TransitionRing):
+    """IQL's ring of agent transitions: obs and next_obs (C, D) float32, action (C, H) int64, reward and
+    terminal (C,) float32; `add(obs, action, reward, next_obs, terminal)` takes M transitions at once.
+    Memory: C x (2 D x 4 + H x 8 + 8) bytes."""
 
     def __init__(self, capacity: int, obs_dim: int, heads: int) -> None:
-        self.capacity, self.size, self.cursor = int(capacity), 0, 0
-        self.obs = np.zeros((self.capacity, obs_dim), dtype=np.float32)
-        self.next_obs = np.zeros((self.capacity, obs_dim), dtype=np.float32)
-        self.action = np.zeros((self.capacity, heads), dtype=np.int64)
-        self.reward = np.zeros(self.capacity, dtype=np.float32)
-        self.terminal = np.zeros(self.capacity, dtype=np.float32)
-
-    @property
-    def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.obs, self.next_obs, self.action, self.reward, self.terminal))
+        super().__init__(capacity, obs=((obs_dim,), np.float32), action=((heads,), np.int64),
+                         reward=((), np.float32), next_obs=((obs_dim,), np.float32), terminal=((), np.float32))
 
     def add(self, obs, action, reward, next_obs, terminal) -> None:
-        count = len(obs)
-        if count > self.capacity:
-            raise ValueError(f'{count} transitions do not fit a buffer of {self.capacity}')
-        rows = (self.cursor + np.arange(count)) % self.capacity
-        self.obs[rows], self.action[rows], self.reward[rows] = obs, action, reward
-        self.next_obs[rows], self.terminal[rows] = next_obs, terminal
-        self.cursor = int((self.cursor + count) % self.capacity)
-        self.size = min(self.size + count, self.capacity)
-
-    def sample(self, batch: int, rng: np.random.Generator) -> dict[str, torch.Tensor]:
-        rows = rng.integers(self.size, size=batch)
-        return {name: torch.from_numpy(getattr(self, name)[rows])
-                for name in ('obs', 'action', 'reward', 'next_obs', 'terminal')}
+        super().add(obs=obs, action=action, reward=reward, next_obs=next_obs, terminal=terminal)
 
 
 class SequenceReplay:
@@ -323,6 +309,9 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
     H = getattr(envs, 'action_heads', 1)
     C = getattr(envs, 'action_choices', envs.num_actions)
     hrl = bool(getattr(envs, 'hrl', False))
+    bits = None
+    if hrl and config.joint_selection:   # one choice among 2^Nt selections instead of Nt keep/ignore heads
+        bits, H, C = selection_bits(H), 1, 2 ** H
 
     # ---- networks, optimiser, replay
     torch.manual_seed(config.seed)
@@ -330,7 +319,7 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
                 obs_dim=D, state_dim=S, num_agents=N, num_actions=H * C, action_heads=H,
                 action_choices=C, hrl=hrl, counts=list(getattr(envs, 'counts', ())),
                 credit=getattr(envs, 'credit', 'team'), actor='recurrent-q' if qmix else 'dueling', lstm=0,
-                algo=config.algo, deterministic=True)
+                algo=config.algo, joint_selection=bits is not None, deterministic=True)
     q_net = make_actor(meta['actor'], D, H * C, config.hidden, config.activation, meta)
     target_net = copy.deepcopy(q_net).requires_grad_(False)
     mixer = QMixer(S, N, config.mixer_embed) if qmix else None
@@ -361,7 +350,10 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
     masking = hrl and hasattr(envs, 'allowed_actions')
 
     def allowed_of(obs):   # (..., N, D) array or tensor -> (..., N, H, C) bool tensor, or None
-        return torch.from_numpy(envs.allowed_actions(np.asarray(obs))) if masking else None
+        if not masking:
+            return None
+        allowed = envs.allowed_actions(np.asarray(obs))
+        return torch.from_numpy(allowed if bits is None else joint_allowed(allowed[..., 1])[..., None, :])
 
     def checkpoint(path: Path) -> None:
         mixers = dict(mixer=mixer.state_dict(), target_mixer=target_mixer.state_dict()) if qmix else {}
@@ -393,7 +385,8 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
                 else:
                     q = q_net(torch.from_numpy(obs))
             action = epsilon_greedy(q.unflatten(-1, (H, C)), epsilon, rng, allowed_of(obs))      # (B, N, H)
-            next_obs, next_state, reward, done, truncated, info = envs.step(action if hrl else action[..., 0])
+            env_action = action[..., 0] if not hrl else action if bits is None else bits[action[..., 0]]
+            next_obs, next_state, reward, done, truncated, info = envs.step(env_action)
 
             # ---- store the step; an ended episode's own last observation is its next one
             landing = np.where(done[:, None, None], info['final_obs'], next_obs)

@@ -133,7 +133,10 @@ class TeamVecEnv:
     """B games, one trained team (`'camera'` or `'target'`), the other team a batched opponent (greedy by default).
 
     `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
-    `step(actions (B, N) int)` -> (obs, state, reward, done (B,), truncated (B,), info): reward (B,) the
+    `step(actions)` -> (obs, state, reward, done (B,), truncated (B,), info). Actions: (B, N) int indices of
+    the `levels` x `levels` grid of moves; (B, N, Nt) keep/ignore bits with `hrl`; or, with `levels=0`
+    (continuous, MADDPG), (B, N, 2) floats in [-1, 1], each agent's share of its own action bounds (values
+    outside are clipped to the bounds, as the env's action box would). Reward (B,) the
     team's, or (B, N) per camera with `credit='difference'`; done
     covers both ends of an episode, `truncated` the horizon/time-limit ones, and info holds
     `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean raw-step coverage of the
@@ -160,6 +163,11 @@ class TeamVecEnv:
         self.credit = credit
         if hrl and team is not Team.CAMERA:
             raise ValueError('HRL (target selection + rule executor) exists for cameras only')
+        if not (isinstance(levels, (int, np.integer)) and (levels == 0 or levels >= 2)):
+            raise ValueError(f'levels must be an integer >= 2 (discrete moves), or 0 for continuous actions; got {levels!r}')
+        if hrl and levels == 0:
+            raise ValueError('HRL selects targets (discrete); it has no continuous form (levels=0)')
+        self.continuous = levels == 0
         if memory and team is not Team.CAMERA:
             raise ValueError('the sighting memory exists for cameras only')
         if velocity and team is not Team.CAMERA:
@@ -183,8 +191,9 @@ class TeamVecEnv:
         self.counts = (nc, nt, no)
         self.num_agents = nc if team is Team.CAMERA else nt
         # the policy's action: `action_heads` independent choices among `action_choices` per agent
-        self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, levels ** 2)
-        self.num_actions = self.action_heads * self.action_choices     # logits per agent
+        # (continuous: `num_actions` = 2 action dimensions per agent)
+        self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, 2 if self.continuous else levels ** 2)
+        self.num_actions = self.action_heads * self.action_choices     # logits (or action dimensions) per agent
         self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
         self.memory = SightingMemory(num_envs, self.counts, memory) if memory else None
         if self.memory is not None:
@@ -298,6 +307,8 @@ class TeamVecEnv:
         actions = np.asarray(actions)
         if self.hrl:
             selection = actions.reshape(B, self.num_agents, self.action_heads)
+        elif self.continuous:
+            own_actions = np.clip(actions.reshape(B, self.num_agents, 2), -1.0, 1.0) * action_high(self._raw, self.team)
         else:
             own_actions = discrete_to_continuous(actions.reshape(B, self.num_agents), self._raw, self.team,
                                                  self.levels)

@@ -39,7 +39,7 @@ from ..messages import Team
 from ..vector import make_vec
 from .agents import LoadedPolicy, choose, load_policy, pretrained_path
 from .envs import action_high, as_team, discrete_to_continuous
-from .hrl import executor_actions
+from .hrl import executor_actions, selection_bits
 from .memory import SightingMemory
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
@@ -92,7 +92,9 @@ class PolicyTeam:
         self.heads = int(meta.get('action_heads', 1))
         self.rng = np.random.default_rng(seed)
         shape = (self.num_envs, self.num_agents)
-        self.held = np.zeros(shape + (self.heads,), dtype=np.int64)
+        self.continuous = bool(meta.get('continuous', False))       # MADDPG: held actions in [-1, 1]^2
+        self.held = (np.zeros(shape + (int(meta['num_actions']),)) if self.continuous
+                     else np.zeros(shape + (self.heads,), dtype=np.int64))
         self.countdown = np.zeros(self.num_envs, dtype=np.int64)
         period = int(meta.get('memory', 0))
         self.sightings = SightingMemory(self.num_envs, self.counts, period) if period else None
@@ -128,6 +130,9 @@ class PolicyTeam:
                 part[index] = value
         else:
             logits = self.policy.logits(processed)
+        if self.continuous:
+            self.held[rows] = logits.reshape(len(rows), self.num_agents, -1)
+            return
         logits = logits.reshape(len(rows), self.num_agents, self.heads, -1)
         self.held[rows] = choose(logits, self.deterministic, self.rng)
 
@@ -143,7 +148,12 @@ class PolicyTeam:
         self.countdown -= 1
         self.previous = observation.copy()
         if self.policy.meta.get('hrl'):
-            return executor_actions(observation, self.held, *self.counts)
+            selection = self.held
+            if self.policy.meta.get('joint_selection'):   # one index among 2^Nt selections
+                selection = selection_bits(self.counts[1])[self.held[..., 0]]
+            return executor_actions(observation, selection, *self.counts)
+        if self.continuous:
+            return self.held * action_high(observation, self.team)
         return discrete_to_continuous(self.held[..., 0], observation, self.team, self.policy.meta['levels'])
 
 

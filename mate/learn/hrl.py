@@ -9,6 +9,10 @@ raw step on the camera's fresh raw observation:
 * otherwise aim at the centroid of the valid targets: rotation = bearing - orientation wrapped to
   (-180, 180], zoom = the greedy camera's desired viewing angle for the centroid's distance - current
   angle; both clipped to the per-step limits.
+
+The spec's learners pick a selection as one of 2^Nt choices (Discrete(256) for 8 targets); `selection_bits`
+maps such an index to its bits (bit t of the index keeps target t) and `joint_allowed` lists the choices
+that keep only visible targets.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from ..messages import Team
 from ..spaces import observation_indices_of
 from .opponents import desired_viewing_angles
 
-__all__ = ['executor_actions']
+__all__ = ['executor_actions', 'joint_allowed', 'selection_bits']
 
 _OWN = PRESERVED_DIM
 
@@ -45,3 +49,14 @@ def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras
     zoom = desired_viewing_angles(np.where(count > 0, distance, 1.0), theta, np.hypot(rx, ry), max_range) - theta
     aimed = np.clip(np.stack([rotation, zoom], axis=-1), -high, high)
     return np.where((count > 0)[..., None], aimed, -high)
+
+
+def selection_bits(num_targets: int) -> np.ndarray:
+    """(2^Nt, Nt) int64: row k holds the keep bits of selection index k (bit t of k keeps target t)."""
+    return (np.arange(2 ** num_targets)[:, None] >> np.arange(num_targets)) & 1
+
+
+def joint_allowed(visible: np.ndarray) -> np.ndarray:
+    """(..., 2^Nt) bool from visibility flags (..., Nt): the selections that keep only visible targets."""
+    bits = selection_bits(visible.shape[-1]).astype(bool)
+    return ~(bits & ~np.asarray(visible, dtype=bool)[..., None, :]).any(-1)

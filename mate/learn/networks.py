@@ -7,6 +7,8 @@
 * `RecurrentActor`: MLP -> LSTM -> head, with per-row episode starts;
 * `DuelingQNetwork`: IQL's action values (value and advantage streams), one or several heads;
 * `RecurrentQNetwork`: QMIX's agent network (embedding -> GRU -> action values), one or several heads;
+* `AgentwiseMLP`, `IndependentActors`: N MLPs with their own weights evaluated at once (MADDPG's actors and
+  critics, one per agent);
 * `make_actor(kind, ...)`: one of them from a checkpoint's metadata;
 * `Critic`: a value MLP with one or more outputs.
 
@@ -25,7 +27,7 @@ from ..spaces import observation_indices_of, observation_space_of
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
-__all__ = ['ACTIVATIONS', 'Actor', 'Critic', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'RecurrentQNetwork',
+__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseMLP', 'Critic', 'IndependentActors', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'RecurrentQNetwork',
            'linear', 'make_actor', 'mlp']
 
 
@@ -354,16 +356,62 @@ class RecurrentQNetwork(nn.Module):
         return self.head(out).reshape(T, *lead, -1), h.reshape(*lead, self.width)
 
 
+class AgentwiseMLP(nn.Module):
+    """N independent MLPs (one per agent, no shared weights) evaluated in one batched call:
+    (..., N, inputs) -> (..., N, outputs). Each agent's layers are initialised as `linear` does (§1.5):
+    hidden rows to norm gain(activation), output rows to `out_scale`; zero biases."""
+
+    def __init__(self, agents: int, inputs: int, hidden, outputs: int, activation: str = 'tanh',
+                 out_scale: float = 1.0) -> None:
+        super().__init__()
+        act, gain = ACTIVATIONS[activation]
+        self.activation = act()
+        sizes = [inputs, *hidden, outputs]
+        self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
+        for layer, (n_in, n_out) in enumerate(zip(sizes[:-1], sizes[1:])):
+            last = layer == len(sizes) - 2
+            scale, layer_gain = (out_scale, 1.0) if last else (1.0, gain)
+            weight = torch.stack([linear(n_in, n_out, scale, layer_gain).weight.T for _ in range(agents)])
+            self.weights.append(nn.Parameter(weight.detach().clone()))               # (N, in, out)
+            self.biases.append(nn.Parameter(torch.zeros(agents, n_out)))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for layer, (weight, bias) in enumerate(zip(self.weights, self.biases)):
+            x = torch.einsum('...ni,nio->...no', x, weight) + bias
+            if layer < len(self.weights) - 1:
+                x = self.activation(x)
+        return x
+
+
+class IndependentActors(nn.Module):
+    """MADDPG's deterministic actors, one per agent (spec training.md §2.5): each agent's observation (..., N, D)
+    -> its own MLP -> tanh -> actions (..., N, A) in [-1, 1], the share of the agent's action bounds (the
+    original's low + (high - low) sigmoid(2x) on the same box). Deployment reads the outputs as the actions."""
+
+    continuous = True
+
+    def __init__(self, agents: int, obs_dim: int, action_dim: int = 2, hidden=(512, 256), activation: str = 'tanh') -> None:
+        super().__init__()
+        self.agents = int(agents)
+        self.body = AgentwiseMLP(agents, obs_dim, hidden, action_dim, activation, out_scale=0.01)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return torch.tanh(self.body(obs))
+
+
 def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: str, meta: dict,
                lstm: int = 0) -> nn.Module:
     """The policy network named `kind`: 'mlp' or 'per-target' (cameras only), wrapped in a `RecurrentActor`
     when `lstm` > 0 (PPO); 'dueling' (IQL's Q-network) or 'recurrent-q' (QMIX's agent network, width
-    `hidden[-1]`), whose Q-values are read as logits."""
+    `hidden[-1]`), whose Q-values are read as logits; 'independent' (MADDPG's per-agent actors, continuous
+    actions)."""
     heads = int(meta.get('action_heads', 1))
     if kind == 'dueling':
         return DuelingQNetwork(obs_dim, heads, num_actions // heads, hidden, activation)
     if kind == 'recurrent-q':
         return RecurrentQNetwork(obs_dim, heads, num_actions // heads, hidden[-1])
+    if kind == 'independent':
+        return IndependentActors(int(meta['num_agents']), obs_dim, num_actions, hidden, activation)
     if kind == 'mlp':
         actor = Actor(obs_dim, num_actions, hidden, activation, context_extra=lstm)
     elif kind == 'per-target':
@@ -373,7 +421,7 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
                                context_extra=lstm, memory=bool(meta.get('memory', 0)),
                                velocity=bool(meta.get('velocity', False)))
     else:
-        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target', 'dueling', 'recurrent-q'")
+        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target', 'dueling', 'recurrent-q', 'independent'")
     return RecurrentActor(actor, lstm) if lstm else actor
 
 

@@ -13,6 +13,7 @@ from mate.learn.dqn import (
     DQNConfig, QMixer, ReplayBuffer, SequenceReplay, double_q_targets, epsilon_greedy, qmix_loss, train_dqn,
 )
 from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+from mate.learn.hrl import joint_allowed, selection_bits
 from mate.learn.networks import DuelingQNetwork, RecurrentQNetwork
 
 from .toy import CueMatching, TwoStepGame
@@ -281,3 +282,29 @@ def test_mate_train_qmix_command(tmp_path, capsys):
     assert '--sequence-length is not an option of IQL' in capsys.readouterr().err
     assert main(['train', 'qmix', '--credit', 'difference']) == 2
     assert "credit must be 'team'" in capsys.readouterr().err
+
+
+def test_joint_selection_indices_and_their_allowed_set():
+    bits = selection_bits(3)
+    assert bits.shape == (8, 3) and bits[5].tolist() == [1, 0, 1] and bits[0].tolist() == [0, 0, 0]
+    visible = np.array([[True, False, True], [False, False, False]])
+    allowed = joint_allowed(visible)
+    assert np.flatnonzero(allowed[0]).tolist() == [0, 1, 4, 5]          # subsets of the visible {0, 2}
+    assert np.flatnonzero(allowed[1]).tolist() == [0]                    # nothing visible: keep nothing
+
+
+@pytest.mark.parametrize('algo', ['iql', 'qmix'])
+def test_hrl_joint_selection_trains_and_plays_one_of_2_to_the_nt_choices(tmp_path, algo):
+    config = DQNConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', hrl=True, joint_selection=True,
+                       total_steps=4 * 40, num_envs=4, update_every=4, buffer_size=1_000, batch_size=20,
+                       sequence_length=5, learning_starts=40, hidden=(16,), mixer_embed=8, report_every=40,
+                       epsilon_schedule=((0, 0.5), (1, 0.5)), seed=0)
+    row = train_dqn(config, tmp_path, progress=False)
+    assert np.isfinite(row['loss'])
+    policy = load_policy(tmp_path / 'final.pt', 'camera')
+    assert policy.meta['joint_selection'] and policy.meta['action_heads'] == 1 and policy.meta['num_actions'] == 16
+    results, _ = play_batch('MATE-2v4-0', lambda b, c: PolicyTeam(policy, 'camera', b, c),
+                            lambda b, c: make_team('greedy', 'target', b, c, seed=0), episodes=2, max_episode_steps=30)
+    assert [r.episode_length for r in results] == [30, 30]
+    with pytest.raises(ValueError, match='needs hrl=True'):
+        DQNConfig(joint_selection=True).resolved()

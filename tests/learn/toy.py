@@ -112,3 +112,36 @@ class TwoStepGame:
         info = dict(final_obs=final_obs, final_state=final_state, coverage=reward,
                     episodes=[dict(coverage=0.0, length=2, **{'return': float(r)}) for r in reward[done]])
         return obs, state, reward, done, np.zeros_like(done), info
+
+
+class ContinuousCue:
+    """B envs x N agents with continuous actions in [-1, 1]^2: each agent sees a random point (its cue) and is
+    paid, as a team, 1 - the mean distance of the agents' actions to their cues / 2; episodes of `length`
+    decisions (the last a truncation). A learner's team reward rises from ~0.4 (uniform actions) towards 1."""
+
+    team = 'target'
+    frame_skip = 1
+
+    def __init__(self, num_envs=16, num_agents=2, length=8, seed=0):
+        self.num_envs, self.num_agents, self.length = num_envs, num_agents, length
+        self.num_actions, self.obs_dim, self.state_dim = 2, 2, 2 * num_agents
+        self.counts = (1, num_agents, 0)
+        self.rng = np.random.default_rng(seed)
+
+    def _observe(self):
+        self.cue = self.rng.uniform(-0.8, 0.8, size=(self.num_envs, self.num_agents, 2)).astype(np.float32)
+        return self.cue.copy(), self.cue.reshape(self.num_envs, -1).copy()
+
+    def reset(self, seed=None):
+        self.t = 0
+        return self._observe()
+
+    def step(self, actions):
+        distance = np.linalg.norm(np.asarray(actions) - self.cue, axis=-1).mean(axis=1)
+        reward = 1.0 - distance / 2.0
+        self.t += 1
+        done = np.full(self.num_envs, self.t % self.length == 0)
+        obs, state = self._observe()
+        info = dict(final_obs=obs, final_state=state, coverage=reward,
+                    episodes=[dict(coverage=0.0, length=self.length, **{'return': 0.0})] if done[0] else [])
+        return obs, state, reward, done, done.copy(), info

@@ -1,0 +1,151 @@
+"""MADDPG / MA-TD3 (mate.learn.maddpg): the critic target by hand, really two critics, per-agent networks, the
+actor update's inputs, learning a continuous toy task, continuous TeamVecEnv actions, checkpoints that resume
+and play in mate evaluate, `mate train maddpg`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import mate
+from mate.learn.agents import PolicyTargetAgent, load_policy
+from mate.learn.checkpoint import CheckpointError, load_checkpoint
+from mate.learn.envs import TeamVecEnv, action_high
+from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+from mate.learn.maddpg import (
+    MADDPGConfig, TwinCritics, actor_inputs, critic_inputs, critic_targets, smoothed_actions, train_maddpg,
+)
+from mate.learn.networks import AgentwiseMLP
+
+from .toy import ContinuousCue
+
+
+def test_critic_target_with_smoothing_and_clipped_double_q_by_hand():
+    # target-policy smoothing: noise clipped at +-0.5, then the action clipped to [-1, 1]
+    actions = torch.tensor([[[0.9, -0.2], [0.0, 0.3]]])
+    noise = torch.tensor([[[0.7, 0.1], [-0.2, -2.0]]])
+    expected = torch.tensor([[[1.0, -0.1], [-0.2, -0.2]]])                    # 0.9 + 0.5 -> 1; 0.3 - 0.5
+    torch.testing.assert_close(smoothed_actions(actions, noise, 0.5), expected)
+    # clipped double-Q: the smaller of the two target critics, per agent; no bootstrap after a terminal
+    reward = torch.tensor([[1.0, 2.0], [0.5, 0.5]])
+    terminal = torch.tensor([0.0, 1.0])
+    q1 = torch.tensor([[10.0, 3.0], [7.0, 7.0]])
+    q2 = torch.tensor([[4.0, 8.0], [9.0, 9.0]])
+    torch.testing.assert_close(critic_targets(reward, terminal, q1, q2, 0.9),
+                               torch.tensor([[1.0 + 0.9 * 4.0, 2.0 + 0.9 * 3.0], [0.5, 0.5]]))
+
+
+def test_twin_critics_are_two_networks_and_agents_have_their_own_weights():
+    torch.manual_seed(0)
+    critics = TwinCritics(agents=3, inputs=6, hidden=(8,))
+    x = torch.randn(5, 3, 6)
+    q1, q2 = critics(x)
+    assert q1.shape == q2.shape == (5, 3) and not torch.allclose(q1, q2)
+    assert not set(map(id, critics.q1.parameters())) & set(map(id, critics.q2.parameters()))
+    # agent 1's critic on agent 0's input differs from agent 0's critic: independent weights
+    same = x[:, :1].expand(5, 3, 6)
+    values = critics.q1(same).squeeze(-1)
+    assert not torch.allclose(values[:, 0], values[:, 1])
+    mlp = AgentwiseMLP(2, 4, (8,), 3)
+    y = torch.randn(2, 4)
+    by_hand = torch.tanh(y[1] @ mlp.weights[0][1] + mlp.biases[0][1]) @ mlp.weights[1][1] + mlp.biases[1][1]
+    torch.testing.assert_close(mlp(y)[1], by_hand)
+
+
+def test_critic_and_actor_inputs():
+    state = torch.tensor([[1.0, 2.0]])                                        # (K=1, S=2)
+    joint = torch.tensor([[[0.1, 0.2], [0.3, 0.4]]])                          # (K, N=2, A=2)
+    own = torch.tensor([[[-1.0, -2.0], [-3.0, -4.0]]], requires_grad=True)
+    shared = critic_inputs(state, joint)
+    assert shared.shape == (1, 2, 6) and shared[0, 0].tolist() == shared[0, 1].tolist() == pytest.approx([1, 2, .1, .2, .3, .4])
+    mixed = actor_inputs(state, joint, own)
+    assert mixed[0, 0].tolist() == pytest.approx([1, 2, -1, -2, 0.3, 0.4])    # agent 0's own action replaced
+    assert mixed[0, 1].tolist() == pytest.approx([1, 2, 0.1, 0.2, -3, -4])
+    mixed[0, 0].sum().backward()                                              # agent 0's critic input ...
+    assert own.grad[0, 0].tolist() == [1, 1] and own.grad[0, 1].tolist() == [0, 0]   # ... reaches only agent 0
+
+
+def test_maddpg_learns_a_continuous_cue_task(tmp_path):
+    # a one-step task (gamma 0): the critics learn the reward of a joint action, the actors its argmax; with the
+    # exploration noise (0.1 of the bounds) the best expected team reward is ~0.94, uniform actions earn ~0.6
+    config = MADDPGConfig(total_steps=16 * 300, num_envs=16, buffer_size=20_000, batch_size=128, update_every=4,
+                          learning_starts=400, random_steps=400, hidden=(32, 32), actor_lr=3e-3, critic_lr=3e-3,
+                          tau=0.05, gamma=0.0, report_every=800, seed=0)
+    rows = []
+    train_maddpg(config, tmp_path, progress=False, envs=ContinuousCue(num_envs=16), callback=rows.append)
+    assert rows[0]['rollout_coverage'] < 0.7 and rows[-1]['rollout_coverage'] > 0.85     # the reward
+    assert np.isfinite(rows[-1]['critic_loss']) and np.isfinite(rows[-1]['actor_loss'])
+
+
+def test_team_env_takes_continuous_actions_as_shares_of_the_bounds():
+    env = TeamVecEnv('target', num_envs=2, env_id='MATE-2v4-0-v0', levels=0, frame_skip=1, seed=0)
+    assert env.continuous and env.num_actions == 2 and env.action_heads == 1
+    env.reset(seed=3)
+    high = action_high(env.raw_observations, env.team)
+    vec = mate.make_vec('MATE-2v4-0-v0', num_envs=2, observation_dtype=np.float32)
+    with pytest.raises(ValueError, match='levels must be an integer >= 2'):
+        TeamVecEnv('target', num_envs=1, levels=1)
+    with pytest.raises(ValueError, match='no continuous form'):
+        TeamVecEnv('camera', num_envs=1, levels=0, hrl=True)
+    # the same game stepped by hand with the scaled actions
+    share = np.array([[[0.5, -1.0]] * 4, [[-0.25, 0.75]] * 4], dtype=np.float32)
+    obs, *_ = env.step(share)
+    assert high.shape == (2, 4, 2) and np.isfinite(obs).all()
+    del vec
+
+
+def test_maddpg_checkpoints_resume_and_play_in_mate_evaluate(tmp_path):
+    config = MADDPGConfig(team='target', env_id='MATE-2v4-0-v0', total_steps=4 * 60, num_envs=4, buffer_size=2_000,
+                          batch_size=32, update_every=8, learning_starts=80, random_steps=80, hidden=(16,),
+                          report_every=80, seed=1)
+    first = train_maddpg(config, tmp_path, progress=False)
+    assert first['env_steps'] == 240 and np.isfinite(first['critic_loss'])
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    assert saved['meta']['continuous'] and set(saved) >= {'actor', 'critics', 'target_actor', 'target_critics'}
+    longer = MADDPGConfig(**{**config.__dict__, 'total_steps': 4 * 100})
+    resumed = train_maddpg(longer, tmp_path, progress=False)
+    assert resumed['env_steps'] == 400 and resumed['iteration'] == 5
+    policy = load_policy(tmp_path / 'final.pt', 'target')
+    assert policy.meta['num_actions'] == 2 and policy.meta['actor'] == 'independent'
+    results, _ = play_batch('MATE-2v4-0', lambda b, c: make_team('greedy', 'camera', b, c, seed=0),
+                            lambda b, c: PolicyTeam(policy, 'target', b, c), episodes=2, max_episode_steps=50)
+    assert [r.episode_length for r in results] == [50, 50]
+    # a deployed agent acts with its own actor: the batched team's action for its row
+    env = mate.make('MATE-2v4-0-v0')
+    env = mate.MultiTarget(env, camera_agent=mate.GreedyCameraAgent(seed=0))
+    observations, _ = env.reset(seed=5)
+    agents = [PolicyTargetAgent(policy, seed=0) for _ in range(4)]
+    mate.group_reset(agents, observations)
+    actions = np.array([agent.act(o) for agent, o in zip(agents, observations)])
+    team = PolicyTeam(policy, 'target', 1, (2, 4, 0))
+    team.reset(observations[None], np.ones(1, dtype=bool))
+    np.testing.assert_allclose(actions, team.act(observations[None])[0], rtol=1e-5)
+    assert len({tuple(a) for a in np.round(actions / action_high(observations, 'target'), 4)}) > 1
+    with pytest.raises(CheckpointError, match='does not match this experiment'):
+        train_maddpg(MADDPGConfig(**{**longer.__dict__, 'hidden': (8,)}), tmp_path, progress=False)
+
+
+def test_maddpg_settings_errors():
+    with pytest.raises(ValueError, match='tau must be in'):
+        MADDPGConfig(tau=0).resolved()
+    with pytest.raises(ValueError, match='policy_delay must be >= 1'):
+        MADDPGConfig(policy_delay=0).resolved()
+
+
+def test_mate_train_maddpg_command(tmp_path, capsys):
+    from mate.cli import main
+
+    run_dir = tmp_path / 'maddpg'
+    args = ['train', 'maddpg', '--team', 'target', '--config', 'MATE-2v4-0', '--steps', '160', '--num-envs', '4',
+            '--learning-starts', '80', '--buffer-size', '400', '--batch-size', '16', '--update-every', '40',
+            '--run-dir', str(run_dir), '--no-progress']
+    assert main(args) == 0
+    assert 'training MADDPG targets on MATE-2v4-0-v0 (an actor and twin critics per agent' in capsys.readouterr().out
+    saved = load_checkpoint(run_dir / 'final.pt')
+    assert saved['config']['buffer_size'] == 400 and saved['meta']['continuous']
+    assert main(args) == 0 and 'run already done' in capsys.readouterr().out
+    assert main(['train', 'maddpg', '--team', 'camera', '--hrl']) == 2
+    assert '--hrl is not an option of MADDPG' in capsys.readouterr().err
+    assert main(['train', 'maddpg', '--epochs', '2']) == 2
+    assert '--epochs is not an option of MADDPG' in capsys.readouterr().err
