@@ -54,8 +54,8 @@ from torch import nn
 from .checkpoint import save_checkpoint, load_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .hrl import joint_allowed, selection_bits
-from .logging import RunReport
-from .networks import RecurrentQNetwork, make_actor
+from .logging import RunReport, mean_or_nan
+from .networks import make_actor
 from .replay import TransitionRing
 from .schedules import piecewise
 
@@ -435,17 +435,13 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
                 next_report += config.report_every
                 iteration += 1
                 elapsed = time.perf_counter() - start
-                row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
-                           wall_seconds=round(wall_before + elapsed, 2),
-                           steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
-                           rollout_coverage=float(np.mean(coverage)),
-                           **report.episode_means(), epsilon=epsilon,
-                           lr=piecewise(config.lr_schedule, env_steps, interpolate=False),
-                           loss=float(np.mean(losses)) if losses else math.nan,
-                           q_mean=float(np.mean(q_means)) if q_means else math.nan, buffer=replay.size)
+                row = report.iteration_row(
+                    iteration, env_steps, config.frame_skip, wall_before + elapsed,
+                    (env_steps - start_steps) / max(elapsed, 1e-9), coverage, epsilon=epsilon,
+                    lr=piecewise(config.lr_schedule, env_steps, interpolate=False), loss=mean_or_nan(losses),
+                    q_mean=mean_or_nan(q_means), buffer=replay.size)
                 coverage, losses, q_means = [], [], []
-                report.write(row, f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                                  f"return {row['episode_return']:.1f}  epsilon {epsilon:.2f}")
+                report.write(row, report.status(row, f'epsilon {epsilon:.2f}'))
                 if iteration % config.checkpoint_every == 0:
                     checkpoint(checkpoint_path)
         checkpoint(checkpoint_path)

@@ -13,10 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['EPISODE_WINDOW', 'Logger', 'RunReport', 'training_bar']
+__all__ = ['EPISODE_WINDOW', 'Logger', 'RunReport', 'mean_or_nan', 'training_bar']
 
 EPISODE_WINDOW = 25
 """Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
+
+
+def mean_or_nan(values) -> float:
+    """The mean of `values`, NaN when there are none (a log column of an iteration without updates)."""
+    return float(np.mean(values)) if len(values) else math.nan
 
 
 class RunReport:
@@ -46,6 +51,20 @@ class RunReport:
 
         return dict(episode_coverage=mean('coverage'), episode_return=mean('return'),
                     episode_normalized_target_return=mean('raw_return'), episodes=len(recent))
+
+    def iteration_row(self, iteration: int, env_steps: int, frame_skip: int, wall_seconds: float,
+                      steps_per_second: float, coverage, **columns) -> dict:
+        """A log row: the columns every trainer starts with (iteration, decision and raw steps, wall seconds,
+        decisions per second, the iteration's mean rollout coverage), the episode window's means, then `columns`."""
+        return dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * frame_skip,
+                    wall_seconds=round(wall_seconds, 2), steps_per_second=steps_per_second,
+                    rollout_coverage=float(np.mean(coverage)), **self.episode_means(), **columns)
+
+    @staticmethod
+    def status(row: dict, extra: str = '') -> str:
+        """The progress bar's status text of a row: speed, coverage, return (and `extra`)."""
+        return (f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
+                f"return {row['episode_return']:.1f}" + (f'  {extra}' if extra else ''))
 
     def write(self, row: dict, status: str) -> None:
         self.logger.write(row)

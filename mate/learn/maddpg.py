@@ -44,7 +44,7 @@ from torch import nn
 
 from .checkpoint import load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
-from .logging import RunReport
+from .logging import RunReport, mean_or_nan
 from .networks import AgentwiseMLP, IndependentActors
 from .replay import TransitionRing
 
@@ -280,16 +280,12 @@ def train_maddpg(config: MADDPGConfig, run_dir: str | os.PathLike, resume: bool 
                 next_report += config.report_every
                 iteration += 1
                 elapsed = time.perf_counter() - start
-                row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
-                           wall_seconds=round(wall_before + elapsed, 2),
-                           steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
-                           rollout_coverage=float(np.mean(coverage)), **report.episode_means(),
-                           critic_loss=float(np.mean(critic_losses)) if critic_losses else math.nan,
-                           actor_loss=float(np.mean(actor_losses)) if actor_losses else math.nan,
-                           q_mean=float(np.mean(q_means)) if q_means else math.nan, buffer=replay.size)
+                row = report.iteration_row(
+                    iteration, env_steps, config.frame_skip, wall_before + elapsed,
+                    (env_steps - start_steps) / max(elapsed, 1e-9), coverage, critic_loss=mean_or_nan(critic_losses),
+                    actor_loss=mean_or_nan(actor_losses), q_mean=mean_or_nan(q_means), buffer=replay.size)
                 coverage, critic_losses, actor_losses, q_means = [], [], [], []
-                report.write(row, f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                                  f"return {row['episode_return']:.1f}")
+                report.write(row, report.status(row))
                 if iteration % config.checkpoint_every == 0:
                     checkpoint(checkpoint_path)
         checkpoint(checkpoint_path)

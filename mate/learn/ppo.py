@@ -28,7 +28,6 @@ import os
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 from torch import nn
 
@@ -444,14 +443,12 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
             # ---- log
             elapsed = time.perf_counter() - start
-            row = dict(iteration=iteration, env_steps=env_steps, raw_steps=env_steps * config.frame_skip,
-                       wall_seconds=round(wall_before + elapsed, 2), steps_per_second=(env_steps - start_steps) / max(elapsed, 1e-9),
-                       collect_share=collect_seconds / max(time.perf_counter() - t_collect, 1e-9),
-                       rollout_coverage=float(np.mean(coverage)),
-                       **report.episode_means(), lr=lr, entropy_coef=entropy_coef,
-                       **{k: v / updates for k, v in stats.items()}, kl_coeff=row_kl_coeff)
-            report.write(row, f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                              f"return {row['episode_return']:.1f}  entropy {row['entropy']:.2f}")
+            row = report.iteration_row(
+                iteration, env_steps, config.frame_skip, wall_before + elapsed,
+                (env_steps - start_steps) / max(elapsed, 1e-9), coverage,
+                collect_share=collect_seconds / max(time.perf_counter() - t_collect, 1e-9), lr=lr,
+                entropy_coef=entropy_coef, **{k: v / updates for k, v in stats.items()}, kl_coeff=row_kl_coeff)
+            report.write(row, report.status(row, f"entropy {row['entropy']:.2f}"))
             if iteration % config.checkpoint_every == 0:
                 checkpoint(checkpoint_path)
             if config.snapshot_every and iteration % config.snapshot_every == 0:

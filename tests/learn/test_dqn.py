@@ -190,7 +190,7 @@ def test_qmix_loss_by_hand():
     torch.set_grad_enabled(False)
     errors = []
     for k in range(K):
-        h_on, h_tg = batch['h0'][k], batch['h0'][k]
+        h_on, h_tg, previous = batch['h0'][k], batch['h0'][k], None
         for t in range(L + 1):
             q_on, (h_on,) = online.step(batch['obs'][k, t], (h_on,))
             q_tg, (h_tg,) = target.step(batch['obs'][k, t], (h_tg,))
