@@ -3,7 +3,9 @@
 A policy agent preprocesses its raw observation exactly as in training (relative coordinates, then
 rescaling to [-1, 1]), picks one of the `levels**2` discrete actions, maps it onto the grid of
 `DiscreteCamera` / `DiscreteTarget` scaled by its own step bounds, and holds the decision for
-`frame_skip` env steps (the training frame skip). It does not communicate.
+`frame_skip` env steps (the training frame skip). Policies trained with learned messages (TarMAC,
+`meta['comm']`) are refused here for now (`refuse_communicating`): they play batched
+(`mate.learn.evaluate.PolicyTeam`, `mate evaluate --batched`), where the agents of a game decide together.
 
 Value-based policies (IQL, QMIX) are read the same way, their Q-values taken as logits and acted on greedily
 (QMIX's GRU state carried like an LSTM's). MADDPG policies (`meta['continuous']`) hold one actor per agent:
@@ -93,6 +95,11 @@ class LoadedPolicy:
     def recurrent(self) -> bool:
         return bool(getattr(self.actor, 'recurrent', False))
 
+    @property
+    def communicates(self) -> bool:
+        """Its agents exchange learned messages (TarMAC): a decision needs the whole team of a game at once."""
+        return bool(getattr(self.actor, 'communicates', False))
+
     def initial_memory(self, *shape: int):
         """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
         return self.actor.initial_state(*shape) if self.recurrent else None
@@ -162,6 +169,14 @@ def export_policy(checkpoint, out, note: str = '', deterministic: bool = False) 
                                      env_steps=data.get('env_steps', 0), note=note))
 
 
+def refuse_communicating(policy: LoadedPolicy) -> None:
+    """CheckpointError for a policy whose agents exchange learned messages: single agents cannot play it yet."""
+    if policy.communicates:
+        raise CheckpointError(f'policy {policy.source!r} communicates ({policy.meta.get("comm")}): TarMAC policies '
+                              'play batched (mate evaluate --batched) until the message exchange through the env '
+                              'channel lands')
+
+
 class _PolicyAgentMixin:
     """Shared logic of the camera and target policy agents."""
 
@@ -170,6 +185,7 @@ class _PolicyAgentMixin:
         if policy.meta['team'] != self.TEAM.name.lower():
             raise CheckpointError(f'policy {policy.source!r} was trained for the {policy.meta["team"]} team; '
                                   f'{type(self).__name__} needs a {self.TEAM.name.lower()} policy')
+        refuse_communicating(policy)
         self.policy = policy
         # None: the policy file's default (exported policies: the way they were scored), else sampling
         self.deterministic = bool(policy.meta.get('deterministic', False) if deterministic is None else deterministic)
@@ -292,4 +308,5 @@ def load_agent(spec: str, team):
         raise ValueError(f"agent spec {spec!r}: expected 'checkpoint:PATH' or 'pretrained:NAME'")
     path = Path(value).expanduser() if kind == 'checkpoint' else pretrained_path(value)
     policy = load_policy(path, team)
+    refuse_communicating(policy)
     return functools.partial(AGENT_CLASSES[team], policy)

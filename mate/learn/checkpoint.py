@@ -2,7 +2,7 @@
 
 Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
 'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
-observation/state dims, agent and action counts, algo, observability)}. Loaded with `weights_only=True`.
+observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication)}. Loaded with `weights_only=True`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ __all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_chec
 
 CHECKPOINT_FORMAT = 'mate.learn/1'
 REQUIRED = ('actor', 'meta', 'config')
-META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team'}
+META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team', 'comm': 'none'}
 """Values of meta keys added after the first checkpoints were written (files without them have these)."""
 
 

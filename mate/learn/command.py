@@ -40,6 +40,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "0.001 @4M -> 0 @10M); explicit options still win")
     parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
                         help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
+    parser.add_argument('--comm', choices=('none', 'tarmac'), default='none',
+                        help="'tarmac': the agents exchange learned messages (key 32 + value 32), read one decision "
+                             "later through attention (the spec's TarMAC on the MLP body, LSTM of --lstm or 256 cells, "
+                             "differentiable messages); such policies play batched (mate evaluate --batched); "
+                             "default 'none'")
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
@@ -112,7 +117,7 @@ def _env(config: str | None) -> dict:
 
 PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=False, lstm=0, full_observability=False,
                 memory=0, velocity=False, gae_lambda=0.95, kl_coeff=None, kl_target=0.01, entropy_schedule=None,
-                snapshot_every=0, init_from=None)
+                snapshot_every=0, init_from=None, comm='none')
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
 DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
                 sequence_length=25, joint_selection=False)
@@ -198,14 +203,17 @@ def config_from_args(args: argparse.Namespace):
         raise CommandError('--velocity (motion of the seen targets) exists for cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
         raise CommandError("--actor per-target reads a camera's target slots; it needs --team camera")
+    if args.comm != 'none' and args.actor == 'per-target':
+        raise CommandError(f'--comm {args.comm} builds its actor on the MLP body; --actor per-target does not '
+                           'combine with it')
     return PPOConfig(algo=args.algo, team=args.team, total_steps=int(args.steps), seed=args.seed,
                      time_limit=60.0 * args.minutes,
                      num_envs=args.num_envs or 64, rollout_length=args.rollout_length, epochs=args.epochs,
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
-                     lstm=args.lstm, hrl=args.hrl, full_observability=args.full_observability, memory=args.memory,
-                     velocity=args.velocity, credit=args.credit, init_from=args.init_from, **_env(args.config), **extra)
+                     lstm=args.lstm, comm=args.comm, hrl=args.hrl, full_observability=args.full_observability,
+                     memory=args.memory, velocity=args.velocity, credit=args.credit, init_from=args.init_from, **_env(args.config), **extra)
 
 
 def run(args: argparse.Namespace, console) -> int:
@@ -221,7 +229,8 @@ def run(args: argparse.Namespace, console) -> int:
     with resolving_arguments():
         config = config_from_args(args)
         resolved = config.resolved()
-    name = (f'hrl-{args.algo}' if args.hrl else args.algo) + ('-full-obs' if args.full_observability else '')
+    name = ((f'hrl-{args.algo}' if args.hrl else args.algo) + ('-tarmac' if args.comm == 'tarmac' else '')
+            + ('-full-obs' if args.full_observability else ''))
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     checkpoint_path = run_dir / 'checkpoint.pt'
     resuming = checkpoint_path.exists() and not args.fresh
@@ -239,7 +248,8 @@ def run(args: argparse.Namespace, console) -> int:
             load_checkpoint(config.init_from)
         except CheckpointError as exc:
             raise CommandError(f'--init-from: {exc}') from None
-    network = (f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
+    network = (f'TarMAC actor, LSTM {resolved.lstm}' if getattr(resolved, 'comm', 'none') == 'tarmac' else
+               f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
                {'qmix': 'GRU agent network, mixer', 'iql': 'dueling Q-network',
                 'maddpg': 'an actor and twin critics per agent, continuous actions'}[args.algo])
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({network}, frame skip '

@@ -4,12 +4,12 @@
 * `Actor`: observation -> MLP -> logits (`num_actions` per agent);
 * `PerTargetActor`: cameras; the same small network applied to every target slot (HRL: one keep/ignore
   pair per slot; flat: pooled into 25 moves), see its docstring;
-* `RecurrentActor`: MLP -> LSTM -> head, with per-row episode starts;
+* `RecurrentActor`: MLP -> LSTM -> head, with per-row episode starts (`restarted` zeroes a state's rows);
 * `DuelingQNetwork`: IQL's action values (value and advantage streams), one or several heads;
 * `RecurrentQNetwork`: QMIX's agent network (embedding -> GRU -> action values), one or several heads;
 * `AgentwiseMLP`, `IndependentActors`: N MLPs with their own weights evaluated at once (MADDPG's actors and
   critics, one per agent);
-* `make_actor(kind, ...)`: one of them from a checkpoint's metadata;
+* `make_actor(kind, ...)`: one of them (or `mate.learn.comm.TarMACActor`, meta `comm`) from a checkpoint's metadata;
 * `Critic`: a value MLP with one or more outputs.
 
 Shapes: inputs (..., D) float32, outputs (..., A); the recurrent actor's sequences are (T, B, N, D).
@@ -28,19 +28,20 @@ from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
 __all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseMLP', 'Critic', 'IndependentActors', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'RecurrentQNetwork',
-           'linear', 'make_actor', 'mlp']
+           'linear', 'make_actor', 'mlp', 'restarted']
 
 
 ACTIVATIONS = {'tanh': (nn.Tanh, 5.0 / 3.0), 'relu': (nn.ReLU, math.sqrt(2.0))}
 
 
-def linear(inputs: int, outputs: int, scale: float, gain: float) -> nn.Linear:
-    """Orthogonal weights with every output row rescaled to L2 norm `scale * gain`; zero bias (§1.5)."""
-    layer = nn.Linear(inputs, outputs)
+def linear(inputs: int, outputs: int, scale: float, gain: float, bias: bool = True) -> nn.Linear:
+    """Orthogonal weights with every output row rescaled to L2 norm `scale * gain`; zero bias (§1.5), or none."""
+    layer = nn.Linear(inputs, outputs, bias=bias)
     with torch.no_grad():
         nn.init.orthogonal_(layer.weight)
         layer.weight.mul_(scale * gain / layer.weight.norm(dim=1, keepdim=True).clamp_min(1e-8))
-        layer.bias.zero_()
+        if bias:
+            layer.bias.zero_()
     return layer
 
 
@@ -233,6 +234,13 @@ class PerTargetActor(nn.Module):
         return pooled + (weights * aim[..., :-1]).sum(-2)
 
 
+def restarted(state: tuple, starts: torch.Tensor) -> tuple:
+    """A recurrent state tuple with the rows where `starts` is true zeroed (an episode begins there).
+    `starts` (E...) bool covers the leading axes of every part (..., X): one flag per env, shared by its agents."""
+    return tuple(part * (~starts).to(part.dtype).reshape(*starts.shape, *[1] * (part.dim() - starts.dim()))
+                 for part in state)
+
+
 class RecurrentActor(nn.Module):
     """The paper's recurrent policy around a feed-forward actor: its MLP body -> LSTM -> its head on
     [MLP features, LSTM output] (skip-concat). The inner actor is built with `context_extra = lstm`.
@@ -404,8 +412,12 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
     """The policy network named `kind`: 'mlp' or 'per-target' (cameras only), wrapped in a `RecurrentActor`
     when `lstm` > 0 (PPO); 'dueling' (IQL's Q-network) or 'recurrent-q' (QMIX's agent network, width
     `hidden[-1]`), whose Q-values are read as logits; 'independent' (MADDPG's per-agent actors, continuous
-    actions)."""
+    actions). A PPO actor that communicates (meta `comm` 'tarmac') is a `mate.learn.comm.TarMACActor` on the
+    'mlp' body with an LSTM of `lstm` cells."""
     heads = int(meta.get('action_heads', 1))
+    if meta.get('comm', 'none') != 'none':
+        from .comm import make_communicating_actor     # (comm.py builds on this module's blocks)
+        return make_communicating_actor(meta['comm'], kind, obs_dim, num_actions, hidden, activation, lstm)
     if kind == 'dueling':
         return DuelingQNetwork(obs_dim, heads, num_actions // heads, hidden, activation)
     if kind == 'recurrent-q':

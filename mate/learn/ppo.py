@@ -14,6 +14,11 @@ camera's own share of the coverage (MAPPO's critic then gives one value per agen
 (running mean/std, "value normalisation"). Schedules (learning rate, entropy coefficient) are
 piecewise functions of decision steps, as in spec training.md §1.6.
 
+With `comm='tarmac'` the actor is a TarMAC actor (`mate.learn.comm`): the agents of an env exchange learned
+messages, read one decision later through attention, and the update backpropagates through them. In this
+first slice the critic is unchanged (global state for MAPPO, local observation for IPPO); the spec's TarMAC
+critic also reads all N messages (§4.1), which is left for the next slice.
+
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
 is a flag away), no adaptive KL penalty unless `kl_coeff` > 0 (`--paper` turns on RLlib's 0.2 / target
@@ -33,9 +38,10 @@ from torch import nn
 
 from ..core.engine import NUM_THREADS
 from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
+from .comm import TARMAC_LSTM
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .logging import RunReport
-from .networks import Critic, make_actor
+from .networks import Critic, make_actor, restarted
 from .schedules import piecewise
 
 __all__ = [
@@ -71,6 +77,7 @@ class PPOConfig:
     credit: str = 'team'                 # cameras: 'team' coverage reward, or 'difference' (each camera's own share)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
+    comm: str = 'none'                   # 'tarmac': learned messages between the agents (comm.py; lstm 0 -> 256)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
     num_envs: int = 64
@@ -95,12 +102,15 @@ class PPOConfig:
     init_from: str | None = None         # warm start: network weights of this checkpoint/policy file, steps from 0
 
     def resolved(self) -> PPOConfig:
-        """A copy with the team's defaults filled in (paper preset, frame skip and horizon; actor)."""
+        """A copy with the team's defaults filled in (paper preset, frame skip and horizon; actor, the MLP for
+        a communicating team (`make_actor` refuses another); a TarMAC actor's LSTM size)."""
         defaults = PAPER_SETTINGS[self.team]
         frame_skip = self.frame_skip or defaults['frame_skip']
+        talking = self.comm != 'none'
         return dataclasses.replace(self, env_id=self.env_id or defaults['env_id'], frame_skip=frame_skip,
                                    horizon=self.horizon or 500 * frame_skip,
-                                   actor=self.actor or ('per-target' if self.team == 'camera' else 'mlp'))
+                                   actor=self.actor or ('per-target' if self.team == 'camera' and not talking else 'mlp'),
+                                   lstm=self.lstm or (TARMAC_LSTM if talking else 0))
 
     def to_dict(self) -> dict:
         return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
@@ -277,7 +287,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 full_observability=bool(getattr(envs, 'full_observability', False)),
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
                 velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
-                actor=config.actor, lstm=config.lstm)
+                actor=config.actor, lstm=config.lstm, comm=config.comm)
     per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
@@ -360,8 +370,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             for t in range(T):
                 with torch.no_grad():
                     if recurrent:
-                        keep = (~starting).float()[:, None, None]
-                        logits, memory = actor.step(obs, (memory[0] * keep, memory[1] * keep))
+                        logits, memory = actor.step(obs, restarted(memory, starting))
                     else:
                         logits = actor(obs)
                     dist = action_distribution(logits, H, C, allowed_of(obs))
@@ -400,7 +409,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 if not recurrent:
                     return actor(b_obs[rows])
                 envs_ = rows[:len(rows) // T]          # rows are t-major: the first T-th are t = 0, i.e. the envs
-                first = (memory_at_start[0][envs_], memory_at_start[1][envs_])
+                first = tuple(part[envs_] for part in memory_at_start)
                 seq = actor(obs_buf[:, envs_], first, start_buf[:, envs_])
                 return seq.reshape(-1, *seq.shape[2:])
 
@@ -461,7 +470,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
 
 WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',
-                   'full_observability', 'memory', 'velocity')
+                   'full_observability', 'memory', 'velocity', 'comm')
 """Metadata a warm-start file must share with the experiment (the actor's shape and meaning)."""
 
 

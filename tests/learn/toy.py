@@ -1,4 +1,5 @@
-"""A trivial batched task for the learner: every agent sees a one-hot cue and is paid for matching it."""
+"""Trivial batched tasks for the learners (the TeamVecEnv interface): cues to match, remember or exchange, a
+matrix game, continuous targets."""
 
 import numpy as np
 
@@ -59,6 +60,20 @@ class CueRecall(CueMatching):
             self.cue = self.rng.integers(self.num_actions, size=(self.num_envs, self.num_agents))
         return self._show(self.t % self.length == 0)
 
+
+class CueExchange(CueMatching):
+    """Each agent's cue is drawn at an episode's start and kept for the whole episode, but it is shown, at every
+    decision, only to a teammate: agent i sees the cue of agent i + 1 (mod N). The team reward is the fraction
+    of agents whose action equals their own cue. An agent's observation says nothing about its own cue, so a
+    policy without communication scores chance, 1 / A, whatever its memory; with messages read one decision
+    later every decision but an episode's first can match: at best (1 / A + length - 1) / length."""
+
+    def _observe(self):
+        if self.t % self.length == 0:
+            self.cue = self.rng.integers(self.num_actions, size=(self.num_envs, self.num_agents))
+        shown = np.roll(self.cue, -1, axis=1)                      # shown[:, i] = cue[:, i + 1]
+        obs = np.eye(self.num_actions, dtype=np.float32)[shown]
+        return obs, obs.reshape(self.num_envs, -1).copy()
 
 
 class OwnCueMatching(CueMatching):
