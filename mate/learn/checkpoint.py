@@ -2,7 +2,8 @@
 
 Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
 'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
-observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication)}. Loaded with `weights_only=True`.
+observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication)}.
+Loaded with `weights_only=True`.
 """
 
 from __future__ import annotations

@@ -213,7 +213,8 @@ def config_from_args(args: argparse.Namespace):
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
                      lstm=args.lstm, comm=args.comm, hrl=args.hrl, full_observability=args.full_observability,
-                     memory=args.memory, velocity=args.velocity, credit=args.credit, init_from=args.init_from, **_env(args.config), **extra)
+                     memory=args.memory, velocity=args.velocity, credit=args.credit, init_from=args.init_from,
+                     **_env(args.config), **extra)
 
 
 def run(args: argparse.Namespace, console) -> int:

@@ -15,8 +15,8 @@ Batched teams here:
   `mate.learn.agents` apply it: the same preprocessing, sighting memory, velocity columns and
   recurrent state, a decision per row every `frame_skip` steps (all rows and agents deciding at a step
   in one forward pass), the HRL executor re-aiming at every step. The whole team of a row decides together
-  (inputs (R, N, D)), so the agents of a TarMAC policy read each other's last messages, as in training. Sampling (the default of a
-  checkpoint) uses the team's own generator, so it matches the agents in distribution, not draw by draw.
+  (inputs (R, N, D)), so the agents of a TarMAC policy read each other's last messages, as in training.
+  Sampling (the default of a checkpoint) uses the team's own generator, so it matches the agents in distribution, not draw by draw.
 * `RandomTeam`: `RandomCameraAgent` / `RandomTargetAgent` (uniform in each agent's action box, held
   20 steps).
 * `GreedyTeam`: the batched greedy rules of `mate.learn.opponents` (their documented differences from
@@ -100,7 +100,7 @@ class PolicyTeam:
         period = int(meta.get('memory', 0))
         self.sightings = SightingMemory(self.num_envs, self.counts, period) if period else None
         self.previous = None                                        # velocity: last step's observations
-        self.memory = self.policy.initial_memory(*shape)           # recurrent state (h, c), (h,), TarMAC's (h, c, messages), or None
+        self.memory = self.policy.initial_memory(*shape)   # recurrent state: (h, c), (h,), (h, c, messages) or None
 
     def reset(self, observation: np.ndarray, rows: np.ndarray) -> None:
         rows = np.asarray(rows, dtype=bool)

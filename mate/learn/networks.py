@@ -27,7 +27,8 @@ from ..spaces import observation_indices_of, observation_space_of
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
-__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseMLP', 'Critic', 'IndependentActors', 'DuelingQNetwork', 'PerTargetActor', 'RecurrentActor', 'RecurrentQNetwork',
+__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseMLP', 'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
+           'RecurrentActor', 'RecurrentQNetwork',
            'linear', 'make_actor', 'mlp', 'restarted']
 
 
