@@ -3,9 +3,18 @@
 A policy agent preprocesses its raw observation exactly as in training (relative coordinates, then
 rescaling to [-1, 1]), picks one of the `levels**2` discrete actions, maps it onto the grid of
 `DiscreteCamera` / `DiscreteTarget` scaled by its own step bounds, and holds the decision for
-`frame_skip` env steps (the training frame skip). Policies trained with learned messages (TarMAC,
-`meta['comm']`) are refused here for now (`refuse_communicating`): they play batched
-(`mate.learn.evaluate.PolicyTeam`, `mate evaluate --batched`), where the agents of a game decide together.
+`frame_skip` env steps (the training frame skip).
+
+Policies trained with learned messages (TarMAC, `meta['comm']`) exchange them as `mate.Message`s through
+the env's channel, so the communication wrappers (RandomMessageDropout, RestrictedCommunicationRange,
+ExtraCommunicationDelays, NoCommunication, ...) act on them. An agent keeps its LSTM state and its own last
+message; at a decision it reads N messages (spec §2.8): its own (kept locally, never lost) and, per teammate,
+the last `{'tarmac': float32 array (64,)}` message from that sender that arrived since its previous decision,
+zeros when none did (dropped, out of range, not yet released by a delay, silenced), as after a reset.
+After the decision it broadcasts its new message once, in the response round of the next env step (the
+first round after `act`), so it is read at the teammates' next decision: the one-decision delay of
+training. With a hold of `frame_skip` > 1 steps a delay of up to `frame_skip - 1` steps still arrives in
+time; a later message is read at the first decision after it arrives.
 
 Value-based policies (IQL, QMIX) are read the same way, their Q-values taken as logits and acted on greedily
 (QMIX's GRU state carried like an LSTM's). MADDPG policies (`meta['continuous']`) hold one actor per agent:
@@ -97,7 +106,7 @@ class LoadedPolicy:
 
     @property
     def communicates(self) -> bool:
-        """Its agents exchange learned messages (TarMAC): a decision needs the whole team of a game at once."""
+        """Its agents exchange learned messages (TarMAC): a decision reads the team's last messages."""
         return bool(getattr(self.actor, 'communicates', False))
 
     def initial_memory(self, *shape: int):
@@ -169,12 +178,9 @@ def export_policy(checkpoint, out, note: str = '', deterministic: bool = False) 
                                      env_steps=data.get('env_steps', 0), note=note))
 
 
-def refuse_communicating(policy: LoadedPolicy) -> None:
-    """CheckpointError for a policy whose agents exchange learned messages: single agents cannot play it yet."""
-    if policy.communicates:
-        raise CheckpointError(f'policy {policy.source!r} communicates ({policy.meta.get("comm")}): TarMAC policies '
-                              'play batched (mate evaluate --batched) until the message exchange through the env '
-                              'channel lands')
+MESSAGE_KEY = 'tarmac'
+"""Content key of a TarMAC agent's broadcast: `{'tarmac': float32 array (key + value,)}` (a copy, compared by
+value as every message content is: `mate.messages.values_equal`)."""
 
 
 class _PolicyAgentMixin:
@@ -185,7 +191,6 @@ class _PolicyAgentMixin:
         if policy.meta['team'] != self.TEAM.name.lower():
             raise CheckpointError(f'policy {policy.source!r} was trained for the {policy.meta["team"]} team; '
                                   f'{type(self).__name__} needs a {self.TEAM.name.lower()} policy')
-        refuse_communicating(policy)
         self.policy = policy
         # None: the policy file's default (exported policies: the way they were scored), else sampling
         self.deterministic = bool(policy.meta.get('deterministic', False) if deterministic is None else deterministic)
@@ -206,7 +211,9 @@ class _PolicyAgentMixin:
             raise ValueError(f'policy {self.policy.source!r} was trained with (cameras, targets, obstacles) = '
                              f'{tuple(self.policy.meta["counts"])}; this environment has {counts}')
         self._held, self._countdown = None, 0
-        self._memory = self.policy.initial_memory(1)
+        self._memory = self.policy.initial_memory(1)     # TarMAC: (h, c, own last message), each (1, size)
+        self._heard = {}                                 # TarMAC: sender -> its message since my last decision
+        self._outbox = None                              # TarMAC: my new message, until the next response round
         period = int(self.policy.meta.get('memory', 0))
         self._sightings = SightingMemory(1, counts, period) if period else None
         self._seen_now = []
@@ -236,6 +243,7 @@ class _PolicyAgentMixin:
 
     def receive_requests(self, messages) -> None:
         super().receive_requests(messages)
+        self._hear(messages)              # a delayed TarMAC message may be released in the requests round
         if self._sightings is None:
             return
         seen = np.zeros((1, self.num_targets), dtype=bool)
@@ -245,6 +253,41 @@ class _PolicyAgentMixin:
                 if 0 <= t < self.num_targets:
                     seen[0, t], location[0, t] = True, (x, y)
         self._sightings.see(seen, location)
+
+    def send_responses(self):
+        """TarMAC: the message of my last decision, once, to the whole team (my own copy is ignored)."""
+        if self._outbox is None:
+            return ()
+        message, self._outbox = self.pack_message({MESSAGE_KEY: self._outbox}), None
+        return [message]
+
+    def receive_responses(self, messages) -> None:
+        super().receive_responses(messages)
+        self._hear(messages)
+
+    def _hear(self, messages) -> None:
+        """Keep each teammate's latest TarMAC message (a malformed one, or one of mine, is ignored)."""
+        if not self.policy.communicates:
+            return
+        size = self._memory[2].shape[-1]
+        for message in messages:
+            content, sender = message.content, message.sender
+            if not isinstance(content, dict) or MESSAGE_KEY not in content or sender == self.index:
+                continue
+            vector = np.asarray(content[MESSAGE_KEY], dtype=np.float32)
+            if vector.shape == (size,) and 0 <= sender < self.num_teammates:
+                self._heard[sender] = vector
+
+    def _team_memory(self):
+        """TarMAC: the actor's state for this agent's decision: (h, c) (1, lstm) and the N messages it reads
+        (N, key + value), its own last one in its row, zeros for teammates not heard from; forgets them."""
+        h, c, own = self._memory
+        messages = torch.zeros(self.num_teammates, own.shape[-1])
+        for sender, vector in self._heard.items():
+            messages[sender] = torch.from_numpy(vector)
+        messages[self.index] = own[0]
+        self._heard = {}
+        return h, c, messages
 
     def act(self, observation, info=None, deterministic=None):
         observation = self._accept(observation)
@@ -259,7 +302,10 @@ class _PolicyAgentMixin:
                 team_input[self.index] = processed
                 self._held = self.policy.logits(team_input)[self.index]
             else:
-                if self.policy.recurrent:
+                if self.policy.communicates:   # one receiver (1, ...) reading N senders (N, 64)
+                    logits, self._memory = self.policy.logits(processed[None], self._team_memory())
+                    self._outbox = self._memory[2][0].numpy().copy()
+                elif self.policy.recurrent:
                     logits, self._memory = self.policy.logits(processed[None], self._memory)
                 else:
                     logits = self.policy.logits(processed[None])
@@ -308,5 +354,4 @@ def load_agent(spec: str, team):
         raise ValueError(f"agent spec {spec!r}: expected 'checkpoint:PATH' or 'pretrained:NAME'")
     path = Path(value).expanduser() if kind == 'checkpoint' else pretrained_path(value)
     policy = load_policy(path, team)
-    refuse_communicating(policy)
     return functools.partial(AGENT_CLASSES[team], policy)

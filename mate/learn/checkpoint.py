@@ -2,7 +2,8 @@
 
 Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
 'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
-observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication)}.
+observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication and,
+for TarMAC, `critic_messages` (the critic reads the messages; slice-1 TarMAC checkpoints lack it))}.
 Loaded with `weights_only=True`.
 """
 
@@ -17,7 +18,8 @@ __all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_chec
 
 CHECKPOINT_FORMAT = 'mate.learn/1'
 REQUIRED = ('actor', 'meta', 'config')
-META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team', 'comm': 'none'}
+META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team', 'comm': 'none',
+                 'critic_messages': False}
 """Values of meta keys added after the first checkpoints were written (files without them have these)."""
 
 

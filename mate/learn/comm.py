@@ -21,6 +21,13 @@ deviation (docs/differences.md): the original's messages were deterministic acti
 gradient, so its message head kept its initial weights. All outputs (logits included) are initialised
 with orthogonal rows of norm 1, as the spec says for TarMAC.
 
+The PPO critic of a TarMAC run (`mate.learn.ppo`) reads the N messages the agents read at each decision,
+appended to the global state (MAPPO) or to each agent's observation (IPPO), as the spec's critic does.
+
+At deployment the batched `mate.learn.evaluate.PolicyTeam` steps the whole team at once, exactly as here;
+single agents (`mate.learn.agents`) step one receiver on the N messages they got through the env's channel
+(`mate.Message`s, so the communication wrappers act on them; a message that did not arrive reads as zeros).
+
 Units: observations are the processed ones of `TeamVecEnv` (rescaled to [-1, 1]); messages are in [-1, 1].
 """
 
@@ -45,6 +52,9 @@ class TarMACActor(nn.Module):
     """Shared TarMAC policy of a team; see the module docstring for the computation.
 
     `step(obs (B, N, D), state)` -> (logits (B, N, A), new state); the N agents of a row talk to each other.
+    The receivers may be fewer than the senders: with obs (..., M, D), (h, c) (..., M, lstm) and messages
+    (..., N, key + value), M receivers read the N messages and the new state's messages are the M receivers'
+    own (a single deployment agent: M = 1, `mate.learn.agents`).
     `forward(obs (T, B, N, D), state, starts (T, B) bool)` -> logits (T, B, N, A): zeroes the state of the envs
     where `starts[t]` before decision t, then steps; differentiable through the messages.
     """

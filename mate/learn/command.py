@@ -43,8 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--comm', choices=('none', 'tarmac'), default='none',
                         help="'tarmac': the agents exchange learned messages (key 32 + value 32), read one decision "
                              "later through attention (the spec's TarMAC on the MLP body, LSTM of --lstm or 256 cells, "
-                             "differentiable messages); such policies play batched (mate evaluate --batched); "
-                             "default 'none'")
+                             "differentiable messages; the critic reads them too); deployed agents exchange them "
+                             "through the env's channel; default 'none'")
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')

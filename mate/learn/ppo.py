@@ -15,9 +15,10 @@ camera's own share of the coverage (MAPPO's critic then gives one value per agen
 piecewise functions of decision steps, as in spec training.md §1.6.
 
 With `comm='tarmac'` the actor is a TarMAC actor (`mate.learn.comm`): the agents of an env exchange learned
-messages, read one decision later through attention, and the update backpropagates through them. In this
-first slice the critic is unchanged (global state for MAPPO, local observation for IPPO); the spec's TarMAC
-critic also reads all N messages (§4.1), which is left for the next slice.
+messages, read one decision later through attention, and the update backpropagates through them. The critic
+also reads all N messages of the decision (spec §4.1): the ones the agents read at it (those of the previous
+decision, zeros at an episode's first), stored with the rollout as data, appended flat (N x 64) to the global
+state (MAPPO) or to each agent's observation (IPPO).
 
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
@@ -157,15 +158,23 @@ def action_distribution(logits: torch.Tensor, heads: int, choices: int, allowed:
     return torch.distributions.Categorical(logits=logits)
 
 
-def critic_inputs(algo: str, obs: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+def critic_inputs(algo: str, obs: torch.Tensor, state: torch.Tensor, messages: torch.Tensor | None = None):
     """What the critic reads: the global state (..., S) for MAPPO (one value per env: the reward is
     shared, so every agent's value is the same, as in the paper's critic), the local observations
-    (..., N, D) for IPPO (one value per agent)."""
-    return obs if algo == 'ippo' else state
+    (..., N, D) for IPPO (one value per agent). TarMAC: `messages` (..., N, M), the N messages the agents
+    read at the decision, flattened and appended (..., S + N M) or (..., N, D + N M)."""
+    inputs = obs if algo == 'ippo' else state
+    if messages is None:
+        return inputs
+    flat = messages.flatten(-2)
+    if algo == 'ippo':
+        flat = flat.unsqueeze(-2).expand(*obs.shape[:-1], flat.shape[-1])
+    return torch.cat([inputs, flat], dim=-1)
 
 
-def critic_input_dim(algo: str, obs_dim: int, state_dim: int) -> int:
-    return obs_dim if algo == 'ippo' else state_dim
+def critic_input_dim(algo: str, obs_dim: int, state_dim: int, messages_dim: int = 0) -> int:
+    """Size of `critic_inputs`; `messages_dim`: N x M for a TarMAC critic, else 0."""
+    return (obs_dim if algo == 'ippo' else state_dim) + messages_dim
 
 
 def per_agent(algo: str, values: torch.Tensor, num_agents: int, shared: bool = True) -> torch.Tensor:
@@ -288,10 +297,14 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
                 velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
                 actor=config.actor, lstm=config.lstm, comm=config.comm)
+    talking = config.comm != 'none'       # TarMAC: the critic reads the N messages of every decision too
+    if talking:
+        meta['critic_messages'] = True    # slice-1 TarMAC checkpoints (critic without them) do not resume
     per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
-    critic = Critic(critic_input_dim(config.algo, D, S), config.hidden, config.activation,
+    M = actor.key_size + actor.value_size if talking else 0          # message size
+    critic = Critic(critic_input_dim(config.algo, D, S, N * M), config.hidden, config.activation,
                     outputs=N if per_agent_rewards and config.algo == 'mappo' else 1)
     value_norm = ValueNormalizer()
     optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
@@ -329,9 +342,12 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     def allowed_of(obs_t):   # (..., N, H, C) choices the policy may take, or None (all)
         return torch.from_numpy(envs.allowed_actions(obs_t.numpy())) if masking else None
 
-    def values_of(obs_t, state_t):   # (..., N) values of every agent, in return units
-        return per_agent(config.algo, value_norm.denormalize(critic(critic_inputs(config.algo, obs_t, state_t))), N,
-                         shared=not per_agent_rewards)
+    def values_of(obs_t, state_t, messages_t=None):   # (..., N) values of every agent, in return units
+        inputs = critic_inputs(config.algo, obs_t, state_t, messages_t)
+        return per_agent(config.algo, value_norm.denormalize(critic(inputs)), N, shared=not per_agent_rewards)
+
+    def read(state):   # TarMAC: the messages (B, N, M) the agents read at a decision from this memory, else None
+        return state[2] if talking else None
 
     # ---- rollout storage: T decisions x B envs x N agents
     T = config.rollout_length
@@ -343,6 +359,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     reward_buf = torch.zeros(T, B, N)
     done_buf = torch.zeros(T, B)
     start_buf = torch.zeros(T, B, dtype=torch.bool)      # an episode begins at this decision (recurrent actor)
+    message_buf = torch.zeros(T, B, N, M)                # TarMAC: the messages read at each decision (critic input)
     memory = actor.initial_state(B, N) if recurrent else None
     starting = torch.ones(B, dtype=torch.bool)
 
@@ -370,24 +387,29 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             for t in range(T):
                 with torch.no_grad():
                     if recurrent:
-                        logits, memory = actor.step(obs, restarted(memory, starting))
+                        memory = restarted(memory, starting)
+                        heard = read(memory)
+                        logits, memory = actor.step(obs, memory)
                     else:
-                        logits = actor(obs)
+                        logits, heard = actor(obs), None
                     dist = action_distribution(logits, H, C, allowed_of(obs))
                     action = torch.multinomial(dist.probs.reshape(-1, C), 1, generator=generator).reshape(B, N, H)
-                    value = values_of(obs, state)
+                    value = values_of(obs, state, heard)
                 next_obs, next_state, reward, done, truncated, info = envs.step(action.numpy()[..., 0] if H == 1 else action.numpy())
                 reward = torch.from_numpy(reward).float()
                 reward = reward if per_agent_rewards else reward[:, None].expand(B, N)     # (B, N)
                 if truncated.any():   # horizon cut: bootstrap from the critic's value of the last observation
                     with torch.no_grad():
-                        final = values_of(torch.from_numpy(info['final_obs']), torch.from_numpy(info['final_state']))
+                        final = values_of(torch.from_numpy(info['final_obs']), torch.from_numpy(info['final_state']),
+                                          read(memory))   # the episode's next decision would read these messages
                     final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # team: one value per env
                     reward = reward + config.gamma * torch.from_numpy(truncated).float()[:, None] * final
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
                 reward_buf[t], done_buf[t] = reward, torch.from_numpy(done).float()
                 start_buf[t], starting = starting, torch.from_numpy(done).clone()
+                if talking:
+                    message_buf[t] = heard
                 obs, state = torch.from_numpy(next_obs), torch.from_numpy(next_state)
                 coverage.append(float(info['coverage'].mean()))
                 report.add_episodes(info['episodes'])
@@ -396,7 +418,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
             # ---- advantages (per agent: the team reward repeated, or each agent's own)
             with torch.no_grad():
-                last_values = values_of(obs, state)
+                last_values = values_of(obs, state, read(restarted(memory, starting)) if talking else None)
             dones = done_buf.unsqueeze(-1).expand(T, B, N)
             advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
                                               config.gae_lambda)
@@ -415,6 +437,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
 
             flat = lambda x: x.reshape(T * B, *x.shape[2:])
             b_obs, b_state, b_action, b_logp = flat(obs_buf), flat(state_buf), flat(action_buf), flat(logp_buf)
+            b_messages = flat(message_buf) if talking else None
             b_adv, b_ret = flat(advantages), value_norm.normalize(flat(returns))
             b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
             stats = dict(policy_loss=0.0, value_loss=0.0, entropy=0.0, approx_kl=0.0, clip_fraction=0.0)
@@ -424,8 +447,9 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     dist = action_distribution(logits_of(idx), H, C, allowed_of(b_obs[idx]))
                     new_logp = dist.log_prob(b_action[idx]).sum(-1)
                     policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
-                    predicted = per_agent(config.algo, critic(critic_inputs(config.algo, b_obs[idx], b_state[idx])), N,
-                                          shared=not per_agent_rewards)
+                    inputs = critic_inputs(config.algo, b_obs[idx], b_state[idx],
+                                           b_messages[idx] if talking else None)
+                    predicted = per_agent(config.algo, critic(inputs), N, shared=not per_agent_rewards)
                     value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
                     entropy = dist.entropy().sum(-1).mean()
                     kl = sampled_kl(new_logp, b_logp[idx])
@@ -482,7 +506,8 @@ def _warm_start(path, meta: dict, actor: nn.Module, critic: nn.Module, value_nor
         actor.load_state_dict(saved['actor'])
     except RuntimeError as exc:
         raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: {str(exc).splitlines()[0]}') from None
-    same_critic = all(saved['meta'].get(k, META_DEFAULTS.get(k)) == meta[k] for k in ('algo', 'credit'))
-    if 'critic' in saved and same_critic:   # the critic's inputs and outputs depend on both
+    same_critic = all(saved['meta'].get(k, META_DEFAULTS.get(k)) == meta.get(k, META_DEFAULTS.get(k))
+                      for k in ('algo', 'credit', 'critic_messages'))
+    if 'critic' in saved and same_critic:   # the critic's inputs and outputs depend on these
         critic.load_state_dict(saved['critic'])
         value_norm.load_state_dict(saved['value_norm'])
