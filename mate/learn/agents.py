@@ -50,7 +50,7 @@ from ..agents.base import CameraAgentBase, TargetAgentBase
 from ..messages import Team
 from .checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from .envs import action_high, as_team, discrete_to_continuous, preprocess_observation
-from .hrl import executor_actions, selection_bits
+from .hrl import executor_actions, masked_selection_logits, selection_bits
 from .memory import SightingMemory, camera_sightings
 from .networks import Actor, make_actor
 from .velocity import target_displacements
@@ -310,6 +310,9 @@ class _PolicyAgentMixin:
                 else:
                     logits = self.policy.logits(processed[None])
                 logits = logits[0].reshape(self.policy.meta.get('action_heads', 1), -1)
+                if self.policy.meta.get('joint_selection'):   # only selections of visible targets, as in training
+                    logits = masked_selection_logits(logits, observation, self.num_cameras, self.num_targets,
+                                                     self.num_obstacles)
                 greedy = self.deterministic if deterministic is None else deterministic
                 self._held = choose(logits, greedy, self.np_random)
             self._countdown = self.frame_skip

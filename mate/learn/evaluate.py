@@ -40,7 +40,7 @@ from ..messages import Team
 from ..vector import make_vec
 from .agents import LoadedPolicy, choose, load_policy, pretrained_path
 from .envs import action_high, as_team, discrete_to_continuous
-from .hrl import executor_actions, selection_bits
+from .hrl import executor_actions, masked_selection_logits, selection_bits
 from .memory import SightingMemory
 from .opponents import VecGreedyCamera, VecGreedyTarget
 
@@ -135,6 +135,8 @@ class PolicyTeam:
             self.held[rows] = logits.reshape(len(rows), self.num_agents, -1)
             return
         logits = logits.reshape(len(rows), self.num_agents, self.heads, -1)
+        if self.policy.meta.get('joint_selection'):   # only selections of visible targets, as in training
+            logits = masked_selection_logits(logits[..., 0, :], raw, *self.counts)[..., None, :]
         self.held[rows] = choose(logits, self.deterministic, self.rng)
 
     def act(self, observation: np.ndarray) -> np.ndarray:

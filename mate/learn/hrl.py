@@ -24,9 +24,24 @@ from ..messages import Team
 from ..spaces import observation_indices_of
 from .opponents import desired_viewing_angles
 
-__all__ = ['executor_actions', 'joint_allowed', 'selection_bits']
+__all__ = ['executor_actions', 'joint_allowed', 'masked_selection_logits', 'selection_bits', 'target_records']
 
 _OWN = PRESERVED_DIM
+
+
+def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int) -> np.ndarray:
+    """The target slots (..., Nt, 5) of raw camera observations (..., D): relative location (2), sight range,
+    loaded flag and the visibility flag (index 4)."""
+    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
+    return observation[..., begin:begin + 5 * num_targets].reshape(observation.shape[:-1] + (num_targets, 5))
+
+
+def masked_selection_logits(logits: np.ndarray, observation: np.ndarray, num_cameras: int, num_targets: int,
+                            num_obstacles: int) -> np.ndarray:
+    """Logits (..., 2^Nt) of one-choice (`joint_selection`) HRL policies with the selections that keep an
+    invisible target set to -inf, as in training: such choices were never taken, so their values are untrained."""
+    visible = target_records(np.asarray(observation), num_cameras, num_targets, num_obstacles)[..., 4] > 0.5
+    return np.where(joint_allowed(visible), logits, -np.inf)
 
 
 def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras: int, num_targets: int,
@@ -34,8 +49,7 @@ def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras
     """Continuous camera actions (..., 2) in degrees from raw observations (..., D) and selection bits
     (..., Nt). Also returns nothing else: the valid-selection statistics are cheap to recompute."""
     observation = np.asarray(observation, dtype=np.float64)
-    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
-    records = observation[..., begin:begin + 5 * num_targets].reshape(observation.shape[:-1] + (num_targets, 5))
+    records = target_records(observation, num_cameras, num_targets, num_obstacles)
     valid = (np.asarray(selection) > 0.5) & (records[..., 4] > 0.5)                  # (..., Nt)
     count = valid.sum(axis=-1)
     centroid = (records[..., :2] * valid[..., None]).sum(axis=-2) / np.maximum(count, 1)[..., None]

@@ -7,13 +7,15 @@ import numpy as np
 import pytest
 import torch
 
-from mate.learn.agents import load_policy
+import mate
+
+from mate.learn.agents import PolicyCameraAgent, load_policy
 from mate.learn.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.dqn import (
     DQNConfig, QMixer, ReplayBuffer, SequenceReplay, double_q_targets, epsilon_greedy, qmix_loss, train_dqn,
 )
 from mate.learn.evaluate import PolicyTeam, make_team, play_batch
-from mate.learn.hrl import joint_allowed, selection_bits
+from mate.learn.hrl import joint_allowed, selection_bits, target_records
 from mate.learn.networks import DuelingQNetwork, RecurrentQNetwork
 
 from .toy import CueMatching, TwoStepGame
@@ -306,5 +308,21 @@ def test_hrl_joint_selection_trains_and_plays_one_of_2_to_the_nt_choices(tmp_pat
     results, _ = play_batch('MATE-2v4-0', lambda b, c: PolicyTeam(policy, 'camera', b, c),
                             lambda b, c: make_team('greedy', 'target', b, c, seed=0), episodes=2, max_episode_steps=30)
     assert [r.episode_length for r in results] == [30, 30]
+    # deployed, a one-choice policy only takes selections of visible targets (as in training), batched and single
+    vec = mate.make_vec('MATE-2v4-0-v0', num_envs=3)
+    (camera_obs, _), _ = vec.reset(seed=2)
+    team = PolicyTeam(policy, 'camera', 3, (2, 4, 0))
+    team.reset(camera_obs, np.ones(3, dtype=bool))
+    team.act(camera_obs)
+    visible = target_records(camera_obs, 2, 4, 0)[..., 4] > 0.5
+    assert not (selection_bits(4)[team.held[..., 0]].astype(bool) & ~visible).any()
+    agent = PolicyCameraAgent(policy, seed=0)
+    env = mate.MultiCamera(mate.make('MATE-2v4-0-v0'), target_agent=mate.GreedyTargetAgent(seed=0))
+    observations, _ = env.reset(seed=2)
+    agents = [agent] + [PolicyCameraAgent(policy, seed=1)]
+    mate.group_reset(agents, observations)
+    for a, o in zip(agents, observations):
+        a.act(o)
+        assert not (selection_bits(4)[a._held[0]].astype(bool) & ~(target_records(o, 2, 4, 0)[..., 4] > 0.5)).any()
     with pytest.raises(ValueError, match='needs hrl=True'):
         DQNConfig(joint_selection=True).resolved()
