@@ -41,9 +41,9 @@ EXPERIMENTS = {
     # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
     'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'], 'cameras-4v8-9',
                          'rollout_coverage', 'mean coverage rate'),
-    # value-based HRL with the spec's Discrete(256) selection instead of a keep/ignore head per target slot
-    'hrl-joint-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--joint-selection'],
-                               'cameras-4v8-9', 'rollout_coverage', 'mean coverage rate'),
+    # value-based HRL with a keep/ignore head per target slot instead of the spec's Discrete(256) (the default)
+    'hrl-per-target-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--selection', 'per-target'],
+                                    'cameras-4v8-9', 'rollout_coverage', 'mean coverage rate'),
     'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], ('targets-2v4-0', 'targets-2v4-0-observability'),
                      'episode_normalized_target_return', 'normalised target episode reward'),
     # the paper's Fig. 6 ablation: the same, with the targets seeing everything (EnhancedObservation)
@@ -143,7 +143,7 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
                 mean, std = ys.mean(0), ys.std(0)
                 prefix = 'HRL-' if name.startswith('hrl') else ''
                 suffix = (', full obs.' if name.endswith('full-obs') else ', partial obs.') if 'observability' in figure else ''
-                suffix += ', Discrete(256)' if 'joint' in name else ''
+                suffix += ', per-target heads' if 'per-target' in name else ''
                 ax.plot(grid, mean, label=f'{prefix}{algo.upper()}{suffix} ({len(ys)} seed{"s" * (len(ys) > 1)})')
                 ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
                 drawn = True
@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds
                  if not (algo == 'maddpg' and name.startswith('hrl'))      # HRL selects targets: no continuous form
-                 and not (algo not in ('iql', 'qmix') and 'joint' in name)]
+                 and not (algo not in ('iql', 'qmix') and 'per-target' in name)]
         with ThreadPoolExecutor(args.jobs) as pool:
             codes = list(pool.map(lambda t: run_one(args.out, *t, args.steps, args.train_args.split()), tasks))
         if any(codes):

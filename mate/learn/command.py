@@ -90,9 +90,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help='decision steps stored before the first update (default 5,000)')
     value.add_argument('--epsilon-schedule', default=None, metavar='JSON',
                        help='IQL, QMIX: [[step, epsilon], ...] piecewise linear (default 1.0 -> 0.02 @50k)')
-    value.add_argument('--joint-selection', action='store_true',
-                       help="IQL, QMIX with --hrl: one choice among the 2^Nt target selections (the spec's "
-                            "Discrete(256)) instead of a keep/ignore head per target slot")
+    value.add_argument('--selection', choices=('joint', 'per-target'), default='joint',
+                       help="IQL, QMIX with --hrl: 'joint' (default, the spec's Discrete(256)): one choice among the "
+                            "2^Nt target subsets; 'per-target': a keep/ignore head per target slot")
     value.add_argument('--sequence-length', type=positive_int, default=25,
                        help='QMIX: decision steps per replay chunk of the recurrent agents (default 25)')
     parser.add_argument('--run-dir', default=None, help='output directory (default runs/ALGO-TEAM-seedN)')
@@ -120,11 +120,11 @@ PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=Fa
                 snapshot_every=0, init_from=None, comm='none')
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
 DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
-                sequence_length=25, joint_selection=False)
+                sequence_length=25, selection='joint')
 """The options only the value-based trainers (IQL, QMIX) take, with their defaults."""
 QMIX_ONLY = dict(sequence_length=25)
 """The value-based options only QMIX takes."""
-NOT_MADDPG = dict(epsilon_schedule=None, sequence_length=25, lr_schedule=None, hrl=False, joint_selection=False)
+NOT_MADDPG = dict(epsilon_schedule=None, sequence_length=25, lr_schedule=None, hrl=False, selection='joint')
 """Options MADDPG does not take (it has no epsilon, sequences, schedules or target selection)."""
 VALUE_BASED = ('iql', 'qmix')
 
@@ -176,7 +176,7 @@ def config_from_args(args: argparse.Namespace):
                          horizon=args.horizon, hrl=args.hrl, credit=args.credit, buffer_size=args.buffer_size,
                          batch_size=args.batch_size, update_every=args.update_every,
                          sequence_length=args.sequence_length, learning_starts=args.learning_starts,
-                         joint_selection=args.joint_selection,
+                         selection=args.selection,
                          torch_threads=args.threads or 1, **_env(args.config), **extra)
     from .ppo import PAPER_HYPERPARAMETERS, PPOConfig
 

@@ -28,11 +28,11 @@ that ends early leaves the rest of its chunk masked), each with the GRU state th
 first step; the original stored whole episodes of up to 500 decisions. At the spec's 2,000 episodes
 (1,000,000 decision steps) the HRL MATE-4v8-9 camera buffer takes 3.25 GB, filled as it is used.
 
-HRL cameras (`hrl=True`) choose keep/ignore for every target slot; the Q-value of a selection is the sum of
-the slots' values (one head per slot: the argmax of the sum is each slot's own argmax), instead of the
-original's one output per selection (Discrete(2^Nt), `joint_selection=True`). Targets a camera does not see are
-never selected (the
-executor would ignore them), as in the PPO trainer.
+HRL cameras (`hrl=True`) choose a subset of the target slots. `selection='joint'` (the spec's Discrete(2^Nt),
+the default): one choice among the 2^Nt subsets, those keeping an invisible target never taken (the executor
+would ignore such a target; at deployment too, since their values are untrained). `selection='per-target'`: a
+keep/ignore head per slot, the value of a subset being the sum of its slots' values (the argmax of the sum is
+each slot's own argmax). The spec's form is the default (docs/training.md compares the two).
 
 Resuming: the replay is not saved (at the spec's sizes it is 1-3 GB); a resumed run refills it with
 `learning_starts` decision steps before it updates again, with the exploration rate of its step count.
@@ -63,6 +63,7 @@ __all__ = ['DQNConfig', 'QMixer', 'ReplayBuffer', 'SequenceReplay', 'double_q_ta
            'epsilon_greedy', 'iql_loss', 'qmix_loss', 'train_dqn']
 
 ALGORITHMS = ('iql', 'qmix')
+SELECTIONS = ('joint', 'per-target')
 
 
 # ============================================================================ configuration
@@ -77,7 +78,7 @@ class DQNConfig:
     horizon: int | None = None           # raw steps per training episode; None: 500 decisions
     levels: int = 5                      # discrete levels per action axis (25 actions)
     hrl: bool = False                    # cameras only: keep/ignore per target slot, rule executor aims
-    joint_selection: bool = False        # HRL: one choice among 2^Nt selections (the spec's Discrete(256))
+    selection: str = 'joint'             # HRL: 'joint', one of 2^Nt selections (spec: Discrete(256)), or 'per-target'
     credit: str = 'team'                 # cameras: 'team' or 'difference' rewards (IQL only)
     total_steps: int = 1_000_000         # decision steps (per env, summed over envs)
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
@@ -104,8 +105,8 @@ class DQNConfig:
         network widths, learning rates and buffer size)."""
         if self.algo not in ALGORITHMS:
             raise ValueError(f'unknown value-based algorithm {self.algo!r}; valid: {", ".join(ALGORITHMS)}')
-        if self.joint_selection and not self.hrl:
-            raise ValueError('joint_selection is a form of the HRL target selection: it needs hrl=True')
+        if self.selection not in SELECTIONS:
+            raise ValueError(f'selection must be one of {", ".join(SELECTIONS)} (HRL cameras), got {self.selection!r}')
         if self.algo == 'qmix' and self.credit != 'team':
             raise ValueError(f"QMIX learns from the team reward: credit must be 'team', not {self.credit!r}")
         for name in ('sequence_length', 'update_every', 'batch_size', 'num_envs'):
@@ -310,7 +311,7 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
     C = getattr(envs, 'action_choices', envs.num_actions)
     hrl = bool(getattr(envs, 'hrl', False))
     bits = None
-    if hrl and config.joint_selection:   # one choice among 2^Nt selections instead of Nt keep/ignore heads
+    if hrl and config.selection == 'joint':   # one choice among 2^Nt selections, not Nt keep/ignore heads
         bits, H, C = selection_bits(H), 1, 2 ** H
 
     # ---- networks, optimiser, replay

@@ -38,7 +38,7 @@ def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, 
 
 def masked_selection_logits(logits: np.ndarray, observation: np.ndarray, num_cameras: int, num_targets: int,
                             num_obstacles: int) -> np.ndarray:
-    """Logits (..., 2^Nt) of one-choice (`joint_selection`) HRL policies with the selections that keep an
+    """Logits (..., 2^Nt) of one-choice (`selection='joint'`) HRL policies with the selections that keep an
     invisible target set to -inf, as in training: such choices were never taken, so their values are untrained."""
     visible = target_records(np.asarray(observation), num_cameras, num_targets, num_obstacles)[..., 4] > 0.5
     return np.where(joint_allowed(visible), logits, -np.inf)

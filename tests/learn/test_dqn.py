@@ -110,7 +110,8 @@ def test_hrl_iql_selects_only_visible_targets(tmp_path):
     def record(row):
         seen.append(row)
 
-    config = DQNConfig(algo='iql', team='camera', env_id='MATE-2v4-0-v0', hrl=True, total_steps=4 * 30, num_envs=4, update_every=4,
+    config = DQNConfig(algo='iql', team='camera', env_id='MATE-2v4-0-v0', hrl=True, selection='per-target',
+                       total_steps=4 * 30, num_envs=4, update_every=4,
                        buffer_size=1_000, batch_size=16, learning_starts=40, hidden=(16,), report_every=40, seed=0)
     train_dqn(config, tmp_path, progress=False, callback=record)
     policy = load_policy(tmp_path / 'final.pt', 'camera')
@@ -241,7 +242,8 @@ def test_qmix_solves_the_two_step_game_that_iql_does_not(tmp_path, seed):
 
 
 def test_qmix_checkpoints_resume_and_play_in_mate_evaluate(tmp_path):
-    config = DQNConfig(algo='qmix', team='camera', env_id='MATE-2v4-0-v0', hrl=True, total_steps=4 * 60, num_envs=4,
+    config = DQNConfig(algo='qmix', team='camera', env_id='MATE-2v4-0-v0', hrl=True, selection='per-target',
+                       total_steps=4 * 60, num_envs=4,
                        buffer_size=2_000, batch_size=40, sequence_length=10, learning_starts=80, update_every=40,
                        hidden=(16,), mixer_embed=8, report_every=80, seed=1)
     first = train_dqn(config, tmp_path, progress=False)
@@ -297,7 +299,7 @@ def test_joint_selection_indices_and_their_allowed_set():
 
 @pytest.mark.parametrize('algo', ['iql', 'qmix'])
 def test_hrl_joint_selection_trains_and_plays_one_of_2_to_the_nt_choices(tmp_path, algo):
-    config = DQNConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', hrl=True, joint_selection=True,
+    config = DQNConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', hrl=True,
                        total_steps=4 * 40, num_envs=4, update_every=4, buffer_size=1_000, batch_size=20,
                        sequence_length=5, learning_starts=40, hidden=(16,), mixer_embed=8, report_every=40,
                        epsilon_schedule=((0, 0.5), (1, 0.5)), seed=0)
@@ -324,5 +326,5 @@ def test_hrl_joint_selection_trains_and_plays_one_of_2_to_the_nt_choices(tmp_pat
     for a, o in zip(agents, observations):
         a.act(o)
         assert not (selection_bits(4)[a._held[0]].astype(bool) & ~(target_records(o, 2, 4, 0)[..., 4] > 0.5)).any()
-    with pytest.raises(ValueError, match='needs hrl=True'):
-        DQNConfig(joint_selection=True).resolved()
+    with pytest.raises(ValueError, match="selection must be one of joint, per-target"):
+        DQNConfig(selection='pairs').resolved()
