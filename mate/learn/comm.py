@@ -224,9 +224,9 @@ class I2CActor(nn.Module):
 
     def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
         features = self.features(obs)                      # no recurrence before the LSTM: all decisions at once
-        hidden = []
+        gates, hidden = self.cell.input_gates(features), []
         for t in range(obs.shape[0]):
-            state = self.cell(features[t], restarted(state, starts[t]))
+            state = self.cell.recur(gates[t], restarted(state, starts[t]))
             hidden.append(state[0])
         return self.head(torch.cat([features, torch.stack(hidden)], dim=-1))
 

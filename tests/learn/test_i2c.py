@@ -207,6 +207,19 @@ def test_i2c_checkpoints_resume_and_play_batched(tmp_path):
     assert [r.episode_length for r in results] == [30, 30]
     assert targets.memory[0].shape == (2, 4, 16) and targets.memory[0].abs().sum() > 0
 
+    from mate.cli import main      # `mate evaluate` plays it: single agents through the channel, and batched
+    for batched in ([], ['--batched']):
+        assert main(['evaluate', '--config', 'MATE-2v4-0', '--target-agent', f'checkpoint:{tmp_path / "final.pt"}',
+                     '--episodes', '1', '--max-episode-steps', '12', '--no-render', *batched]) == 0
+
+
+def test_i2c_trains_flat_cameras(tmp_path):
+    row = train(_config(team='camera', env_id='MATE-2v4-0-v0', num_envs=2, rollout_length=3, total_steps=2 * 3),
+                tmp_path, progress=False)
+    assert row['env_steps'] == 6 and math.isfinite(row['prior_loss'])
+    policy = load_policy(tmp_path / 'final.pt', 'camera')
+    assert isinstance(policy.actor, I2CActor) and policy.actor.num_agents == 2 and policy.meta['actor'] == 'mlp'
+
 
 def test_i2c_refuses_what_it_does_not_support(tmp_path):
     with pytest.raises(ValueError, match="comm 'i2c' is a MAPPO add-on"):
