@@ -21,7 +21,8 @@ an agent sends an empty request `{'i2c': None}` in the request round to each tea
 selects (from its current observation); a teammate answers every request it received in that step's
 response round with its raw current observation `{'i2c': float64 array (D_raw,)}`; the agent preprocesses the
 replies as its own observation and reads them in the teammates' slots, zeros for a reply that did not come
-(dropped, out of range, delayed past the decision), which is `I2CActor.step` on its own row.
+(dropped, out of range, delayed past the decision), which is `I2CActor.step` on its own row. Only replies
+from the teammates it asked, in the response round of its decision step, are read (a late reply is ignored).
 
 Value-based policies (IQL, QMIX) are read the same way, their Q-values taken as logits and acted on greedily
 (QMIX's GRU state carried like an LSTM's). MADDPG policies (`meta['continuous']`) hold one actor per agent:
@@ -239,6 +240,7 @@ class _PolicyAgentMixin:
         self._outbox = None                              # TarMAC: my new message, until the next response round
         self._current = None                             # I2C: this step's observation (observe), until act
         self._askers = []                                # I2C: teammates that asked for it in this step
+        self._asked = ()                                 # I2C: teammates I asked at this step's decision
         self._replies = {}                               # I2C: sender -> its raw observation, for my decision
         period = int(self.policy.meta.get('memory', 0))
         self._sightings = SightingMemory(1, counts, period) if period else None
@@ -279,8 +281,8 @@ class _PolicyAgentMixin:
         if not self._deciding() or self._current is None:
             return ()
         self._replies = {}
-        asked = self.policy.requests(self.policy.inputs(self._current), self.index)
-        return [self.pack_message({I2C_KEY: None}, recipient=int(j)) for j in asked]
+        self._asked = tuple(int(j) for j in self.policy.requests(self.policy.inputs(self._current), self.index))
+        return [self.pack_message({I2C_KEY: None}, recipient=j) for j in self._asked]
 
     def receive_requests(self, messages) -> None:
         super().receive_requests(messages)
@@ -318,7 +320,7 @@ class _PolicyAgentMixin:
             for message in messages:
                 content = message.content
                 if (isinstance(content, dict) and isinstance(content.get(I2C_KEY), np.ndarray)
-                        and content[I2C_KEY].shape == self._observation_shape and message.sender != self.index):
+                        and content[I2C_KEY].shape == self._observation_shape and message.sender in self._asked):
                     self._replies[message.sender] = content[I2C_KEY]
 
     def _hear(self, messages) -> None:
@@ -353,7 +355,7 @@ class _PolicyAgentMixin:
             reply = self._replies.get((self.index + 1 + k) % n)
             if reply is not None:
                 slots[k] = torch.as_tensor(self.policy.inputs(reply), dtype=torch.float32)
-        self._replies = {}
+        self._replies, self._asked = {}, ()
         return slots
 
     def act(self, observation, info=None, deterministic=None):

@@ -258,7 +258,8 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
     """Single I2C targets (argmax) driven by `mate.group_step` against greedy cameras. At every decision each
     agent must act as its row of `I2CActor.step` fed the replies that reached it (zeros for the others);
     without wrappers that is the training computation, one step of the team on its N observations.
-    Returns (requests delivered, requests the priors made, replies delivered, decisions)."""
+    Returns (requests delivered, requests the priors made, replies delivered, decisions); requests and replies
+    are those of the decision steps, `late` counts messages delivered at other steps (a delay wrapper)."""
     env = mate.make('MATE-2v4-0-v0', wrappers=wrappers)
     policy = load_policy(path, 'target')
     actor = policy.actor
@@ -270,20 +271,26 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
     mate.group_reset(targets, target_obs)
     N = env.num_targets
     team_memory, rows_memory = actor.initial_state(1, N), actor.initial_state(N)
-    requests = asked = replies = decisions = 0
+    requests = asked = replies = decisions = late = 0
     for step in range(steps):
         camera_action = mate.group_step(env, cameras, camera_obs, camera_infos)
         target_action = mate.group_step(env, targets, target_obs, target_infos)
         if step % frame_skip == 0:
             processed = torch.as_tensor(policy.inputs(target_obs), dtype=torch.float32)      # (N, D)
             arrived = torch.zeros(N, N - 1, processed.shape[-1])
+            with torch.no_grad():
+                selected = actor.request_logits(processed) >= 0                              # (N, K)
             for i, agent in enumerate(targets):
                 requests += sum(1 for m in agent.last_requests if m.content == {'i2c': None})
                 for message in agent.last_responses:
                     replies += 1
-                    arrived[i, (message.sender - i - 1) % N] = processed[message.sender]
+                    slot = (message.sender - i - 1) % N
+                    if selected[i, slot]:                # (only the asked answer, unless a delay mixes steps)
+                        reply = torch.as_tensor(policy.inputs(message.content['i2c']), dtype=torch.float32)
+                        torch.testing.assert_close(reply, processed[message.sender]) if not wrappers else None
+                        arrived[i, slot] = reply
             with torch.no_grad():
-                asked += int((actor.request_logits(processed) >= 0).sum())
+                asked += int(selected.sum())
                 logits, rows_memory = actor.step(processed, rows_memory, teammates=arrived,
                                                  agents=torch.arange(N))
                 if not wrappers:
@@ -295,9 +302,11 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
                 torch.testing.assert_close(agent._memory[1][0], rows_memory[1][i], rtol=0, atol=1e-5)
             decisions += 1
         else:
-            assert all(not a.last_requests and not a.last_responses for a in targets)   # only at decisions
+            late += sum(len(a.last_requests) + len(a.last_responses) for a in targets)
         (camera_obs, target_obs), _, _, _, (camera_infos, target_infos) = env.step((camera_action, target_action))
-    return requests, asked, replies, decisions
+    if not wrappers:
+        assert late == 0                                 # nobody asks between decisions
+    return (requests, asked, replies, decisions) + ((late,) if wrappers else ())
 
 
 def test_single_agents_ask_and_answer_through_the_env_channel_as_in_training(target_policy):
@@ -310,11 +319,19 @@ def test_single_agents_ask_and_answer_through_the_env_channel_as_in_training(tar
 
 @pytest.mark.parametrize('wrapper', [mate.NoCommunication, lambda env: mate.RandomMessageDropout(env, 1.0)])
 def test_unanswered_requests_read_as_zeros(target_policy, wrapper):
-    requests, asked, replies, _ = _play_targets(target_policy, wrappers=[wrapper])
-    assert requests == replies == 0 and asked > 0
+    requests, asked, replies, _, late = _play_targets(target_policy, wrappers=[wrapper])
+    assert requests == replies == late == 0 and asked > 0
 
 
 def test_each_reply_that_was_lost_reads_as_zeros(target_policy):
-    requests, asked, replies, _ = _play_targets(target_policy,
-                                                wrappers=[lambda env: mate.RandomMessageDropout(env, 0.5)])
+    requests, asked, replies, _, _ = _play_targets(target_policy,
+                                                   wrappers=[lambda env: mate.RandomMessageDropout(env, 0.5)])
     assert replies < requests < asked
+
+
+def test_late_replies_are_not_read(target_policy):
+    """Delayed by one step, a request reaches its teammate after the asker's decision and the reply comes a step
+    later still: every decision reads zeros in the asked slots (the reference gets no reply at a decision)."""
+    requests, asked, replies, _, late = _play_targets(target_policy,
+                                                      wrappers=[lambda env: mate.ExtraCommunicationDelays(env, 1)])
+    assert requests == replies == 0 and asked > 0 and late > asked
