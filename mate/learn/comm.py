@@ -168,7 +168,8 @@ class I2CActor(nn.Module):
         if agents < 2:
             raise ValueError(f'I2C needs a team of at least 2 agents, got {agents}')
         n, d = int(agents), int(obs_dim)
-        self.num_agents, self.num_actions, self.lstm_size, self.message_size = n, int(num_actions), int(lstm), int(message)
+        self.num_agents, self.num_actions = n, int(num_actions)
+        self.lstm_size, self.message_size = int(lstm), int(message)
         self.prior = AgentwiseMLP(n, d + n - 1, hidden, 1, activation)          # one request logit per slot
         self.query, self.key, self.value, self.attended = (AgentwiseMLP(n, d, (), d) for _ in range(4))
         self.message = AgentwiseMLP(n, d, (), self.message_size)
@@ -239,7 +240,8 @@ class JointActionValue(nn.Module):
     action with the teammates' as given; `paired_action_values` -> (..., N, N - 1, A, A), every pair (own
     action, action of the teammate of a slot) with the others as given."""
 
-    def __init__(self, agents: int, state_dim: int, num_actions: int, hidden=(512, 256), activation: str = 'tanh') -> None:
+    def __init__(self, agents: int, state_dim: int, num_actions: int, hidden=(512, 256),
+                 activation: str = 'tanh') -> None:
         super().__init__()
         self.num_agents, self.num_actions, self.state_dim = int(agents), int(num_actions), int(state_dim)
         self.net = AgentwiseMLP(self.num_agents, self.state_dim + self.num_agents * self.num_actions, hidden, 1,

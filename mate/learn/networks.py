@@ -27,7 +27,8 @@ from ..spaces import observation_indices_of, observation_space_of
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
-__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseLSTMCell', 'AgentwiseMLP', 'agentwise_matmul', 'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
+__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseLSTMCell', 'AgentwiseMLP', 'agentwise_matmul',
+           'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
            'RecurrentActor', 'RecurrentQNetwork',
            'linear', 'make_actor', 'mlp', 'restarted']
 
@@ -423,7 +424,9 @@ class AgentwiseLSTMCell(nn.Module):
         self.bias = nn.Parameter(torch.empty(agents, 4 * hidden).uniform_(-bound, bound))
 
     def input_gates(self, x: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
-        w_in, bias = (self.input_weight, self.bias) if agents is None else (self.input_weight[agents], self.bias[agents])
+        w_in, bias = self.input_weight, self.bias
+        if agents is not None:
+            w_in, bias = w_in[agents], bias[agents]
         return agentwise_matmul(x, w_in) + bias
 
     def forward(self, x: torch.Tensor, state, agents: torch.Tensor | None = None):

@@ -531,11 +531,13 @@ def check_i2c(config: PPOConfig) -> None:
     """ValueError unless an I2C run is one it supports: MAPPO, flat discrete actions, no memory/velocity columns
     (a deployed agent asks its teammates for their raw observations and must rebuild what training read)."""
     if config.algo != 'mappo':
-        raise ValueError(f"comm 'i2c' is a MAPPO add-on (its Q-networks and critic read the global state); algo {config.algo!r} is not")
+        raise ValueError(f"comm 'i2c' is a MAPPO add-on (its Q-networks and critic read the global state); "
+                         f"algo {config.algo!r} is not")
     if config.hrl:
         raise ValueError("comm 'i2c' needs the flat discrete actions (25 moves); HRL selections do not combine with it")
     if config.memory or config.velocity:
-        raise ValueError("comm 'i2c' exchanges raw observations; --memory and --velocity columns do not combine with it")
+        raise ValueError("comm 'i2c' exchanges raw observations; --memory and --velocity columns do not combine "
+                         "with it")
 
 
 WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',
