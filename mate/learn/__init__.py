@@ -26,6 +26,7 @@ _LAZY = {
     'CheckpointError': 'checkpoint', 'save_checkpoint': 'checkpoint', 'load_checkpoint': 'checkpoint',
     'PolicyCameraAgent': 'agents', 'PolicyTargetAgent': 'agents', 'load_agent': 'agents',
     'load_policy': 'agents', 'pretrained_path': 'agents', 'export_policy': 'agents', 'TarMACActor': 'comm',
+    'I2CActor': 'comm',
 }
 
 __all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'VecGreedyCamera', 'VecGreedyTarget', 'discrete_to_continuous',  # noqa: PLE0604

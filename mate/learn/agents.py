@@ -16,6 +16,14 @@ first round after `act`), so it is read at the teammates' next decision: the one
 training. With a hold of `frame_skip` > 1 steps a delay of up to `frame_skip - 1` steps still arrives in
 time; a later message is read at the first decision after it arrives.
 
+I2C policies (`meta['comm'] == 'i2c'`) use the two rounds of one step, no delay (spec §2.8): at a decision,
+an agent sends an empty request `{'i2c': None}` in the request round to each teammate its prior network
+selects (from its current observation); a teammate answers every request it received in that step's
+response round with its raw current observation `{'i2c': float64 array (D_raw,)}`; the agent preprocesses the
+replies as its own observation and reads them in the teammates' slots, zeros for a reply that did not come
+(dropped, out of range, delayed past the decision), which is `I2CActor.step` on its own row. Only replies
+from the teammates it asked, in the response round of its decision step, are read (a late reply is ignored).
+
 Value-based policies (IQL, QMIX) are read the same way, their Q-values taken as logits and acted on greedily
 (QMIX's GRU state carried like an LSTM's). MADDPG policies (`meta['continuous']`) hold one actor per agent:
 an agent feeds its own network (by its index in the team) and holds the continuous action it returns, a share
@@ -106,8 +114,13 @@ class LoadedPolicy:
 
     @property
     def communicates(self) -> bool:
-        """Its agents exchange learned messages (TarMAC): a decision reads the team's last messages."""
+        """Its agents exchange messages (TarMAC or I2C, `comm`)."""
         return bool(getattr(self.actor, 'communicates', False))
+
+    @property
+    def comm(self) -> str:
+        """The communication scheme of its actor: 'none', 'tarmac' or 'i2c'."""
+        return getattr(self.actor, 'scheme', 'none')
 
     def initial_memory(self, *shape: int):
         """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
@@ -128,14 +141,23 @@ class LoadedPolicy:
         return np.concatenate(columns, axis=-1) if len(columns) > 1 else columns[0]
 
     @torch.no_grad()
-    def logits(self, processed: np.ndarray, memory=None):
-        """Logits (..., A) of processed observations (..., D); with a recurrent actor also the next memory."""
+    def logits(self, processed: np.ndarray, memory=None, **inputs):
+        """Logits (..., A) of processed observations (..., D); with a recurrent actor also the next memory.
+        `inputs`: more arguments of the recurrent actor's `step` (I2C: `teammates`, `agents`)."""
         obs = torch.as_tensor(processed, dtype=torch.float32)
         with torch_threads(self.threads):
             if not self.recurrent:
                 return self.actor(obs).numpy()
-            logits, memory = self.actor.step(obs, memory)
+            logits, memory = self.actor.step(obs, memory, **inputs)
         return logits.numpy(), memory
+
+    @torch.no_grad()
+    def requests(self, processed: np.ndarray, agent: int) -> np.ndarray:
+        """I2C: the teammates (indices in the team) that agent `agent` asks, from its processed observation (D,)."""
+        with torch_threads(self.threads):
+            logits = self.actor.request_logits(torch.as_tensor(processed[None], dtype=torch.float32),
+                                               torch.tensor([agent]))[0]
+        return (agent + 1 + np.flatnonzero(logits.numpy() >= 0)) % self.actor.num_agents
 
 
 def choose(logits: np.ndarray, deterministic: bool, rng: np.random.Generator) -> np.ndarray:
@@ -181,6 +203,8 @@ def export_policy(checkpoint, out, note: str = '', deterministic: bool = False) 
 MESSAGE_KEY = 'tarmac'
 """Content key of a TarMAC agent's broadcast: `{'tarmac': float32 array (key + value,)}` (a copy, compared by
 value as every message content is: `mate.messages.values_equal`)."""
+I2C_KEY = 'i2c'
+"""Content key of I2C messages: a request `{'i2c': None}`, a reply `{'i2c': float64 array (D_raw,)}` (a copy)."""
 
 
 class _PolicyAgentMixin:
@@ -214,6 +238,10 @@ class _PolicyAgentMixin:
         self._memory = self.policy.initial_memory(1)     # TarMAC: (h, c, own last message), each (1, size)
         self._heard = {}                                 # TarMAC: sender -> its message since my last decision
         self._outbox = None                              # TarMAC: my new message, until the next response round
+        self._current = None                             # I2C: this step's observation (observe), until act
+        self._askers = []                                # I2C: teammates that asked for it in this step
+        self._asked = ()                                 # I2C: teammates I asked at this step's decision
+        self._replies = {}                               # I2C: sender -> its raw observation, for my decision
         period = int(self.policy.meta.get('memory', 0))
         self._sightings = SightingMemory(1, counts, period) if period else None
         self._seen_now = []
@@ -233,17 +261,35 @@ class _PolicyAgentMixin:
 
     def observe(self, observation, info=None) -> None:
         super().observe(observation, info)
+        self._current = self.last_observation
         if self._sightings is not None:
             self._remember(self._accept(observation))
 
     def send_requests(self):
+        if self.policy.comm == 'i2c':
+            return self._i2c_requests()
         if self._sightings is None or not self._seen_now:
             return ()
         return [self.pack_message({'sightings': list(self._seen_now)})]
 
+    def _deciding(self) -> bool:
+        """Whether this step's `act` makes a new decision (else it holds the last one)."""
+        return self._countdown <= 0 or self._held is None
+
+    def _i2c_requests(self):
+        """I2C: at a decision, an empty request to each teammate my prior selects from my current observation."""
+        if not self._deciding() or self._current is None:
+            return ()
+        self._replies = {}
+        self._asked = tuple(int(j) for j in self.policy.requests(self.policy.inputs(self._current), self.index))
+        return [self.pack_message({I2C_KEY: None}, recipient=j) for j in self._asked]
+
     def receive_requests(self, messages) -> None:
         super().receive_requests(messages)
         self._hear(messages)              # a delayed TarMAC message may be released in the requests round
+        if self.policy.comm == 'i2c':
+            self._askers += [m.sender for m in messages if isinstance(m.content, dict)
+                             and I2C_KEY in m.content and m.content[I2C_KEY] is None and m.sender != self.index]
         if self._sightings is None:
             return
         seen = np.zeros((1, self.num_targets), dtype=bool)
@@ -255,7 +301,13 @@ class _PolicyAgentMixin:
         self._sightings.see(seen, location)
 
     def send_responses(self):
-        """TarMAC: the message of my last decision, once, to the whole team (my own copy is ignored)."""
+        """TarMAC: the message of my last decision, once, to the whole team (my own copy is ignored).
+        I2C: my raw current observation to each teammate that asked in this step."""
+        if self.policy.comm == 'i2c':
+            askers, self._askers = self._askers, []
+            if self._current is None:
+                return ()
+            return [self.pack_message({I2C_KEY: self._current.copy()}, recipient=int(j)) for j in askers]
         if self._outbox is None:
             return ()
         message, self._outbox = self.pack_message({MESSAGE_KEY: self._outbox}), None
@@ -264,10 +316,16 @@ class _PolicyAgentMixin:
     def receive_responses(self, messages) -> None:
         super().receive_responses(messages)
         self._hear(messages)
+        if self.policy.comm == 'i2c':
+            for message in messages:
+                content = message.content
+                if (isinstance(content, dict) and isinstance(content.get(I2C_KEY), np.ndarray)
+                        and content[I2C_KEY].shape == self._observation_shape and message.sender in self._asked):
+                    self._replies[message.sender] = content[I2C_KEY]
 
     def _hear(self, messages) -> None:
         """Keep each teammate's latest TarMAC message (a malformed one, or one of mine, is ignored)."""
-        if not self.policy.communicates:
+        if self.policy.comm != 'tarmac':
             return
         size = self._memory[2].shape[-1]
         for message in messages:
@@ -289,7 +347,19 @@ class _PolicyAgentMixin:
         self._heard = {}
         return h, c, messages
 
+    def _teammates(self, processed: np.ndarray) -> torch.Tensor:
+        """I2C: (N - 1, D) the processed replies in my cyclic teammate slots (zeros where none came); forgets them."""
+        n = self.num_teammates
+        slots = torch.zeros(n - 1, processed.shape[-1])
+        for k in range(n - 1):
+            reply = self._replies.get((self.index + 1 + k) % n)
+            if reply is not None:
+                slots[k] = torch.as_tensor(self.policy.inputs(reply), dtype=torch.float32)
+        self._replies, self._asked = {}, ()
+        return slots
+
     def act(self, observation, info=None, deterministic=None):
+        self._current = None
         observation = self._accept(observation)
         if self._sightings is not None and not self._observed:
             self._remember(observation)
@@ -302,9 +372,13 @@ class _PolicyAgentMixin:
                 team_input[self.index] = processed
                 self._held = self.policy.logits(team_input)[self.index]
             else:
-                if self.policy.communicates:   # one receiver (1, ...) reading N senders (N, 64)
+                if self.policy.comm == 'tarmac':   # one receiver (1, ...) reading N senders (N, 64)
                     logits, self._memory = self.policy.logits(processed[None], self._team_memory())
                     self._outbox = self._memory[2][0].numpy().copy()
+                elif self.policy.comm == 'i2c':     # my row, reading the replies in my teammates' slots
+                    logits, self._memory = self.policy.logits(processed[None], self._memory,
+                                                              teammates=self._teammates(processed)[None],
+                                                              agents=torch.tensor([self.index]))
                 elif self.policy.recurrent:
                     logits, self._memory = self.policy.logits(processed[None], self._memory)
                 else:

@@ -3,7 +3,8 @@
 Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
 'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
 observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication and,
-for TarMAC, `critic_messages` (the critic reads the messages; slice-1 TarMAC checkpoints lack it))}.
+for TarMAC, `critic_messages` (the critic reads the messages; slice-1 TarMAC checkpoints lack it)), and for
+I2C 'comm_training' (its joint action-value networks and the FIFO of KL values of its labels)}.
 Loaded with `weights_only=True`.
 """
 

@@ -1,6 +1,7 @@
-"""Learned communication between the agents of a team: TarMAC (spec training.md §2.6, §4.1).
+"""Learned communication between the agents of a team: TarMAC (spec training.md §2.6, §4.1) and I2C
+(§2.7, §4.2, after the TarMAC part below).
 
-Every agent broadcasts a message at each decision; every agent (the sender included) reads all N
+TarMAC. Every agent broadcasts a message at each decision; every agent (the sender included) reads all N
 messages at the next decision through soft attention, one round per decision:
 
     decision t, for each receiver i of an env (N agents, shared weights):
@@ -28,7 +29,26 @@ At deployment the batched `mate.learn.evaluate.PolicyTeam` steps the whole team 
 single agents (`mate.learn.agents`) step one receiver on the N messages they got through the env's channel
 (`mate.Message`s, so the communication wrappers act on them; a message that did not arrive reads as zeros).
 
-Units: observations are the processed ones of `TeamVecEnv` (rescaled to [-1, 1]); messages are in [-1, 1].
+I2C ("individually inferred communication"): independent networks per agent, no delay, peer to peer.
+
+    decision t, for each agent i of an env (N agents, each with its own weights), K = N - 1 teammate slots
+    k = 0..K-1 holding teammate j = (i + 1 + k) mod N (`cyclic_teammates`):
+        r_ik  = prior_i([obs_i, one_hot(k)])                  request logit; i asks j iff r_ik >= 0
+        q_i   = Q_i obs_i,  k_ij = K_i obs_j,  v_ij = V_i obs_j   (learned projections, bias, obs dim wide)
+        w_i   = softmax over [q_i . k_ij / sqrt(D) for the asked j, 0 for an all-zero key]
+        m_i   = M_i O_i (sum_j w_ij v_ij)                     the message (64), O_i the attention's output layer
+        x_i   = MLP_i([obs_i, m_i]);  (h_i, c_i) = LSTM_i(x_i, (h_i, c_i));  logits_i = head_i([x_i, h_i])
+
+`I2CActor.step` computes it for the whole team from the N current observations (the ideal channel of
+training); a deployment agent computes its own row from its observation and the replies of the teammates it
+asked (zeros for a reply that did not arrive), `step(obs, state, teammates=..., agents=...)`.
+Its training signals (`I2CTraining`): a joint action-value network per agent Q_i(s, a_i, a_-i) regressed onto
+the PPO value targets; causal-influence labels for the prior (`causal_influence`, `InfluenceThreshold`); the
+policy-correlation regulariser KL(pi_i || softmax(Q_i(s, ., a_-i) / tau)) over the actions
+(`policy_correlation`).
+
+Units: observations are the processed ones of `TeamVecEnv` (rescaled to [-1, 1]); messages are in [-1, 1]
+(TarMAC) or unbounded (I2C); Q-values are in the critic's normalised return units.
 """
 
 from __future__ import annotations
@@ -36,13 +56,16 @@ from __future__ import annotations
 import math
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
-from .networks import linear, mlp, restarted
+from .networks import AgentwiseLSTMCell, AgentwiseMLP, linear, mlp, restarted
 
-__all__ = ['COMMUNICATION', 'TARMAC_LSTM', 'TarMACActor', 'make_communicating_actor']
+__all__ = ['COMMUNICATION', 'I2C_MESSAGE', 'I2C_REGULARISER', 'I2C_TEMPERATURE', 'I2CActor', 'I2CTraining',
+           'InfluenceThreshold', 'JointActionValue', 'TARMAC_LSTM', 'TarMACActor', 'causal_influence',
+           'cyclic_teammates', 'make_communicating_actor', 'policy_correlation']
 
-COMMUNICATION = ('none', 'tarmac')
+COMMUNICATION = ('none', 'tarmac', 'i2c')
 """Values of `PPOConfig.comm` (`mate train --comm`)."""
 TARMAC_LSTM = 256
 """LSTM cells of a TarMAC actor when the run asks for none (`lstm` 0): the paper's size."""
@@ -61,6 +84,7 @@ class TarMACActor(nn.Module):
 
     recurrent = True
     communicates = True
+    scheme = 'tarmac'
 
     def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh', lstm: int = 256,
                  key: int = 32, value: int = 32) -> None:
@@ -105,13 +129,244 @@ class TarMACActor(nn.Module):
         return torch.stack(logits)
 
 
+# ============================================================================ I2C
+
+I2C_MESSAGE = 64
+"""Width of an I2C message (the attention's output projected by `Linear(obs dim -> 64)`)."""
+I2C_TEMPERATURE = 0.1
+"""tau of the softmaxes over Q-values (labels and regulariser)."""
+I2C_REGULARISER = 0.01
+"""Coefficient of the policy-correlation regulariser in the total loss."""
+I2C_LABEL_BUFFER = 100_000
+"""KL values kept (first in, first out) for the labels' threshold, their median."""
+
+
+def cyclic_teammates(x: torch.Tensor) -> torch.Tensor:
+    """(..., N, F) -> (..., N, N - 1, F): row i holds its teammates' rows in cyclic order i+1, ..., i+N-1 (mod N)."""
+    n = x.shape[-2]
+    index = (torch.arange(n)[:, None] + torch.arange(1, n)[None, :]) % n
+    return x[..., index, :]
+
+
+class I2CActor(nn.Module):
+    """I2C policies of a team, one per agent (no shared weights); see the module docstring.
+
+    `step(obs (..., N, D), state)` -> (logits (..., N, A), state (h, c) each (..., N, lstm)): the team, every
+    agent reading its teammates' current observations. With `teammates` (..., n, N - 1, D) and `agents` (n,)
+    long, the n rows of obs are those agents and read those teammates' observations instead (a deployment
+    agent: its replies, zeros where none came). `forward(obs (T, B, N, D), state, starts (T, B))` unrolls
+    sequences (the state of the envs where `starts[t]` zeroed before decision t).
+    """
+
+    recurrent = True
+    communicates = True
+    scheme = 'i2c'
+
+    def __init__(self, agents: int, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh',
+                 lstm: int = 256, message: int = I2C_MESSAGE) -> None:
+        super().__init__()
+        if agents < 2:
+            raise ValueError(f'I2C needs a team of at least 2 agents, got {agents}')
+        n, d = int(agents), int(obs_dim)
+        self.num_agents, self.num_actions = n, int(num_actions)
+        self.lstm_size, self.message_size = int(lstm), int(message)
+        self.prior = AgentwiseMLP(n, d + n - 1, hidden, 1, activation)          # one request logit per slot
+        self.query, self.key, self.value, self.attended = (AgentwiseMLP(n, d, (), d) for _ in range(4))
+        self.message = AgentwiseMLP(n, d, (), self.message_size)
+        self.body = AgentwiseMLP(n, d + self.message_size, hidden, None, activation)
+        self.cell = AgentwiseLSTMCell(n, self.body.width, self.lstm_size)
+        self.head = AgentwiseMLP(n, self.body.width + self.lstm_size, (), self.num_actions, out_scale=0.01)
+
+    def initial_state(self, *shape: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Zero (h, c) for `shape` = (B, N) agents."""
+        return torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size)
+
+    def request_logits(self, obs: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
+        """(..., n, D) -> (..., n, N - 1): each agent's logit of asking the teammate of each cyclic slot."""
+        slots = self.num_agents - 1
+        one_hot = torch.eye(slots, dtype=obs.dtype).expand(*obs.shape[:-1], slots, slots)
+        x = torch.cat([obs.unsqueeze(-2).expand(*obs.shape[:-1], slots, obs.shape[-1]), one_hot], dim=-1)
+        return self.prior(x.transpose(-2, -3), agents).squeeze(-1).transpose(-1, -2)
+
+    def _per_slot(self, layer: AgentwiseMLP, x: torch.Tensor, agents) -> torch.Tensor:
+        """An agentwise layer on (..., n, K, F): agent i's weights on each of its K slots."""
+        return layer(x.transpose(-2, -3), agents).transpose(-2, -3)
+
+    def attention_weights(self, obs: torch.Tensor, teammates: torch.Tensor, selected: torch.Tensor,
+                          agents: torch.Tensor | None = None) -> torch.Tensor:
+        """(..., n, N - 1 + 1): each agent's softmax over its teammate slots and the all-zero key (last),
+        unselected slots (`selected` (..., n, N - 1) false) at weight 0."""
+        query = self.query(obs, agents)                                              # (..., n, D)
+        keys = self._per_slot(self.key, teammates, agents)                           # (..., n, K, D)
+        scores = (keys @ query.unsqueeze(-1)).squeeze(-1) / math.sqrt(obs.shape[-1])
+        scores = scores.masked_fill(~selected, float('-inf'))
+        return torch.softmax(torch.cat([scores, scores.new_zeros(*scores.shape[:-1], 1)], dim=-1), dim=-1)
+
+    def messages(self, obs: torch.Tensor, teammates: torch.Tensor, selected: torch.Tensor,
+                 agents: torch.Tensor | None = None) -> torch.Tensor:
+        """obs (..., n, D), teammates (..., n, N - 1, D), selected (..., n, N - 1) bool -> messages (..., n, 64)."""
+        weights = self.attention_weights(obs, teammates, selected, agents)[..., :-1]   # the zero value adds nothing
+        heard = (weights.unsqueeze(-1) * self._per_slot(self.value, teammates, agents)).sum(-2)
+        return self.message(self.attended(heard, agents), agents)
+
+    def features(self, obs: torch.Tensor, teammates: torch.Tensor | None = None,
+                 agents: torch.Tensor | None = None) -> torch.Tensor:
+        """The MLP body's output (..., n, width) on [obs, message], the prior choosing whom to read."""
+        if teammates is None:
+            teammates = cyclic_teammates(obs)
+        selected = self.request_logits(obs, agents) >= 0
+        return self.body(torch.cat([obs, self.messages(obs, teammates, selected, agents)], dim=-1), agents)
+
+    def step(self, obs: torch.Tensor, state, teammates: torch.Tensor | None = None,
+             agents: torch.Tensor | None = None):
+        features = self.features(obs, teammates, agents)
+        h, c = self.cell(features, state, agents)
+        return self.head(torch.cat([features, h], dim=-1), agents), (h, c)
+
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
+        features = self.features(obs)                      # no recurrence before the LSTM: all decisions at once
+        gates, hidden = self.cell.input_gates(features), []
+        for t in range(obs.shape[0]):
+            state = self.cell.recur(gates[t], restarted(state, starts[t]))
+            hidden.append(state[0])
+        return self.head(torch.cat([features, torch.stack(hidden)], dim=-1))
+
+
+class JointActionValue(nn.Module):
+    """Q_i(s, a_i, a_-i) of every agent i, its own network each (spec §4.2): MLP on [state, the teammates'
+    one-hot actions in cyclic order ((N - 1) A), its own one-hot action (A)] -> a scalar.
+
+    `forward(state (..., S), actions (..., N) long)` -> (..., N); `own_action_values` -> (..., N, A), every own
+    action with the teammates' as given; `paired_action_values` -> (..., N, N - 1, A, A), every pair (own
+    action, action of the teammate of a slot) with the others as given."""
+
+    def __init__(self, agents: int, state_dim: int, num_actions: int, hidden=(512, 256),
+                 activation: str = 'tanh') -> None:
+        super().__init__()
+        self.num_agents, self.num_actions, self.state_dim = int(agents), int(num_actions), int(state_dim)
+        self.net = AgentwiseMLP(self.num_agents, self.state_dim + self.num_agents * self.num_actions, hidden, 1,
+                                activation)
+
+    def inputs(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """(..., S), (..., N) -> (..., N, S + N A)."""
+        one_hot = F.one_hot(actions, self.num_actions).to(state.dtype)                      # (..., N, A)
+        shared = state.unsqueeze(-2).expand(*one_hot.shape[:-1], state.shape[-1])
+        return torch.cat([shared, cyclic_teammates(one_hot).flatten(-2), one_hot], dim=-1)
+
+    def forward(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        return self.net(self.inputs(state, actions)).squeeze(-1)
+
+    def own_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        a = self.num_actions
+        x = self.inputs(state, actions).unsqueeze(-3)                                       # (..., 1, N, I)
+        x = x.expand(*x.shape[:-3], a, *x.shape[-2:]).clone()                               # (..., A own, N, I)
+        x[..., -a:] = torch.eye(a, dtype=x.dtype)[:, None, :]
+        return self.net(x).squeeze(-1).transpose(-1, -2)
+
+    def paired_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        a, s = self.num_actions, self.state_dim
+        x = self.inputs(state, actions)[..., None, None, :, :]                              # (..., 1, 1, N, I)
+        x = x.expand(*x.shape[:-4], a, a, *x.shape[-2:]).clone()                            # (..., A own, A mate, N, I)
+        x[..., -a:] = torch.eye(a, dtype=x.dtype)[:, None, None, :]
+        values = []
+        for slot in range(self.num_agents - 1):
+            y = x.clone()
+            y[..., s + slot * a:s + (slot + 1) * a] = torch.eye(a, dtype=x.dtype)[None, :, None, :]
+            values.append(self.net(y).squeeze(-1))                                          # (..., A, A, N)
+        return torch.stack(values, dim=-1).movedim((-4, -3), (-2, -1))                      # (..., N, K, A, A)
+
+
+def causal_influence(own_values: torch.Tensor, paired_values: torch.Tensor,
+                     temperature: float = I2C_TEMPERATURE) -> torch.Tensor:
+    """KL_ij = KL(p_full || p_marg) (..., N, N - 1) of every agent i and teammate slot j (spec §4.2):
+    p_full(a_i) = softmax_a_i Q(s, a_i, a_-i) / tau from `own_values` (..., N, A); p_marg(a_i) = softmax_a_i
+    log sum_a_j exp(Q(s, a_i, a_j, a_-ij) / tau) from `paired_values` (..., N, N - 1, A own, A teammate)."""
+    log_full = torch.log_softmax(own_values / temperature, dim=-1).unsqueeze(-2)            # (..., N, 1, A)
+    log_marginal = torch.log_softmax(torch.logsumexp(paired_values / temperature, dim=-1), dim=-1)
+    return (log_full.exp() * (log_full - log_marginal)).sum(-1)
+
+
+def policy_correlation(logits: torch.Tensor, own_values: torch.Tensor,
+                       temperature: float = I2C_TEMPERATURE) -> torch.Tensor:
+    """KL(pi || softmax(Q(s, ., a_-i) / tau)) (...,) over the actions (the last axis of logits and own_values
+    (..., A)); the original took its log-softmax over time, which we read as a bug (docs/differences.md)."""
+    log_policy = torch.log_softmax(logits, dim=-1)
+    log_target = torch.log_softmax(own_values / temperature, dim=-1)
+    return (log_policy.exp() * (log_policy - log_target)).sum(-1)
+
+
+class InfluenceThreshold(nn.Module):
+    """The last `capacity` KL values (first in, first out; buffers, so they travel in checkpoints) and the
+    label threshold, their median (`torch.quantile` 0.5: the mean of the two middle values of an even count)."""
+
+    def __init__(self, capacity: int = I2C_LABEL_BUFFER) -> None:
+        super().__init__()
+        self.capacity = int(capacity)
+        self.register_buffer('values', torch.zeros(self.capacity))
+        self.register_buffer('count', torch.zeros((), dtype=torch.long))       # values held, <= capacity
+        self.register_buffer('position', torch.zeros((), dtype=torch.long))    # next slot to write
+
+    def push(self, kl: torch.Tensor) -> None:
+        flat = kl.detach().reshape(-1).to(self.values.dtype)[-self.capacity:]
+        slots = (self.position + torch.arange(len(flat))) % self.capacity
+        self.values[slots] = flat
+        self.position.copy_((self.position + len(flat)) % self.capacity)
+        self.count.copy_(torch.clamp(self.count + len(flat), max=self.capacity))
+
+    def threshold(self) -> float:
+        if int(self.count) == 0:
+            raise ValueError('no KL values yet: push some before asking for the threshold')
+        return float(torch.quantile(self.values[:int(self.count)], 0.5))
+
+    def labels(self, kl: torch.Tensor) -> torch.Tensor:
+        """Push `kl`, then label it: kl >= the median of the buffer (bool, the shape of kl)."""
+        self.push(kl)
+        return kl >= self.threshold()
+
+
+class I2CTraining(nn.Module):
+    """The training-only parts of I2C (spec §4.2): the joint action-value networks and the label buffer.
+
+    `labels(state (R, S), actions (R, N))` -> (labels (R, N, N - 1) bool, KL (R, N, N - 1)), without gradient;
+    `losses(logits (R, N, A), state, actions, returns (R, N))` -> (Q regression MSE, policy-correlation
+    regulariser), both means over rows and agents; `prior_loss(actor, obs (R, N, D), labels)` -> BCE.
+    """
+
+    def __init__(self, agents: int, state_dim: int, num_actions: int, hidden=(512, 256), activation: str = 'tanh',
+                 temperature: float = I2C_TEMPERATURE, capacity: int = I2C_LABEL_BUFFER, chunk: int = 8) -> None:
+        super().__init__()
+        self.value = JointActionValue(agents, state_dim, num_actions, hidden, activation)
+        self.threshold = InfluenceThreshold(capacity)
+        self.temperature, self.chunk = float(temperature), int(chunk)   # chunk: rows per pass of the A x A pairs
+
+    @torch.no_grad()
+    def labels(self, state: torch.Tensor, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        kl = torch.cat([causal_influence(self.value.own_action_values(s, a), self.value.paired_action_values(s, a),
+                                         self.temperature)
+                        for s, a in zip(state.split(self.chunk), actions.split(self.chunk))])
+        return self.threshold.labels(kl), kl
+
+    def losses(self, logits: torch.Tensor, state: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor):
+        own = self.value.own_action_values(state, actions)                                  # (R, N, A)
+        taken = own.gather(-1, actions.unsqueeze(-1)).squeeze(-1)
+        regression = (taken - returns).pow(2).mean()
+        return regression, policy_correlation(logits, own.detach(), self.temperature).mean()
+
+    @staticmethod
+    def prior_loss(actor: I2CActor, obs: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+        return F.binary_cross_entropy_with_logits(actor.request_logits(obs), labels.to(obs.dtype))
+
+
 def make_communicating_actor(comm: str, kind: str, obs_dim: int, num_actions: int, hidden, activation: str,
-                             lstm: int) -> nn.Module:
-    """The actor of `comm` ('tarmac'): ValueError for another scheme, a body other than 'mlp' or no LSTM."""
-    if comm != 'tarmac':
+                             lstm: int, agents: int = 0) -> nn.Module:
+    """The actor of `comm` ('tarmac' or 'i2c', the latter for `agents` agents): ValueError for another scheme, a
+    body other than 'mlp' or no LSTM."""
+    if comm not in COMMUNICATION[1:]:
         raise ValueError(f'unknown comm {comm!r}; valid: {", ".join(map(repr, COMMUNICATION))}')
     if kind != 'mlp':
-        raise ValueError(f"comm 'tarmac' builds its actor on the MLP body; actor {kind!r} does not combine with it")
+        raise ValueError(f"comm {comm!r} builds its actor on the MLP body; actor {kind!r} does not combine with it")
     if lstm <= 0:
-        raise ValueError(f"comm 'tarmac' needs a recurrent actor (lstm > 0), got lstm {lstm}")
+        raise ValueError(f"comm {comm!r} needs a recurrent actor (lstm > 0), got lstm {lstm}")
+    if comm == 'i2c':
+        return I2CActor(agents, obs_dim, num_actions, hidden, activation, lstm)
     return TarMACActor(obs_dim, num_actions, hidden, activation, lstm)

@@ -40,11 +40,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "0.001 @4M -> 0 @10M); explicit options still win")
     parser.add_argument('--lstm', type=int, default=0, metavar='SIZE',
                         help='recurrent actor: MLP -> LSTM(SIZE) -> head, as in the paper (256); default 0, feed-forward')
-    parser.add_argument('--comm', choices=('none', 'tarmac'), default='none',
+    parser.add_argument('--comm', choices=('none', 'tarmac', 'i2c'), default='none',
                         help="'tarmac': the agents exchange learned messages (key 32 + value 32), read one decision "
                              "later through attention (the spec's TarMAC on the MLP body, LSTM of --lstm or 256 cells, "
-                             "differentiable messages; the critic reads them too); deployed agents exchange them "
-                             "through the env's channel; default 'none'")
+                             "differentiable messages; the critic reads them too); 'i2c' (mappo, flat actions): one "
+                             "network per agent, each asks the teammates its prior network selects for their current "
+                             "observations and attends to them (prior trained on causal-influence labels of joint "
+                             "action-value networks); deployed agents exchange messages through the env's channel; "
+                             "default 'none'")
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
@@ -203,6 +206,15 @@ def config_from_args(args: argparse.Namespace):
         raise CommandError('--velocity (motion of the seen targets) exists for cameras only')
     if args.actor == 'per-target' and args.team != 'camera':
         raise CommandError("--actor per-target reads a camera's target slots; it needs --team camera")
+    if args.comm == 'i2c':
+        for flag, given, reason in (('--hrl', args.hrl, 'needs the flat discrete actions'),
+                                    ('--memory', args.memory, 'exchanges raw observations'),
+                                    ('--velocity', args.velocity, 'exchanges raw observations')):
+            if given:
+                raise CommandError(f'--comm i2c {reason}; {flag} does not combine with it')
+        if args.algo != 'mappo':
+            raise CommandError(f'--comm i2c is a MAPPO add-on (its Q-networks read the global state); '
+                               f'use mate train mappo, not {args.algo}')
     if args.comm != 'none' and args.actor == 'per-target':
         raise CommandError(f'--comm {args.comm} builds its actor on the MLP body; --actor per-target does not '
                            'combine with it')
@@ -230,7 +242,7 @@ def run(args: argparse.Namespace, console) -> int:
     with resolving_arguments():
         config = config_from_args(args)
         resolved = config.resolved()
-    name = ((f'hrl-{args.algo}' if args.hrl else args.algo) + ('-tarmac' if args.comm == 'tarmac' else '')
+    name = ((f'hrl-{args.algo}' if args.hrl else args.algo) + (f'-{args.comm}' if args.comm != 'none' else '')
             + ('-full-obs' if args.full_observability else ''))
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     checkpoint_path = run_dir / 'checkpoint.pt'
@@ -249,7 +261,9 @@ def run(args: argparse.Namespace, console) -> int:
             load_checkpoint(config.init_from)
         except CheckpointError as exc:
             raise CommandError(f'--init-from: {exc}') from None
-    network = (f'TarMAC actor, LSTM {resolved.lstm}' if getattr(resolved, 'comm', 'none') == 'tarmac' else
+    comm = getattr(resolved, 'comm', 'none')
+    network = (f'TarMAC actor, LSTM {resolved.lstm}' if comm == 'tarmac' else
+               f'I2C actors, LSTM {resolved.lstm}, one per agent' if comm == 'i2c' else
                f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
                {'qmix': 'GRU agent network, mixer', 'iql': 'dueling Q-network',
                 'maddpg': 'an actor and twin critics per agent, continuous actions'}[args.algo])

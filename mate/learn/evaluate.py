@@ -15,7 +15,8 @@ Batched teams here:
   `mate.learn.agents` apply it: the same preprocessing, sighting memory, velocity columns and
   recurrent state, a decision per row every `frame_skip` steps (all rows and agents deciding at a step
   in one forward pass), the HRL executor re-aiming at every step. The whole team of a row decides together
-  (inputs (R, N, D)), so the agents of a TarMAC policy read each other's last messages, as in training.
+  (inputs (R, N, D)), so the agents of a TarMAC policy read each other's last messages, and those of an
+  I2C policy the current observations of the teammates their priors ask, as in training.
   Sampling (the default of a checkpoint) uses the team's own generator, so it matches the agents in distribution, not draw by draw.
 * `RandomTeam`: `RandomCameraAgent` / `RandomTargetAgent` (uniform in each agent's action box, held
   20 steps).

@@ -7,8 +7,8 @@
 * `RecurrentActor`: MLP -> LSTM -> head, with per-row episode starts (`restarted` zeroes a state's rows);
 * `DuelingQNetwork`: IQL's action values (value and advantage streams), one or several heads;
 * `RecurrentQNetwork`: QMIX's agent network (embedding -> GRU -> action values), one or several heads;
-* `AgentwiseMLP`, `IndependentActors`: N MLPs with their own weights evaluated at once (MADDPG's actors and
-  critics, one per agent);
+* `AgentwiseMLP`, `AgentwiseLSTMCell`, `IndependentActors`: N MLPs (LSTM cells) with their own weights
+  evaluated at once (MADDPG's actors and critics, I2C's networks, one per agent);
 * `make_actor(kind, ...)`: one of them (or `mate.learn.comm.TarMACActor`, meta `comm`) from a checkpoint's metadata;
 * `Critic`: a value MLP with one or more outputs.
 
@@ -27,7 +27,8 @@ from ..spaces import observation_indices_of, observation_space_of
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES
 
-__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseMLP', 'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
+__all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseLSTMCell', 'AgentwiseMLP', 'agentwise_matmul',
+           'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
            'RecurrentActor', 'RecurrentQNetwork',
            'linear', 'make_actor', 'mlp', 'restarted']
 
@@ -365,31 +366,79 @@ class RecurrentQNetwork(nn.Module):
         return self.head(out).reshape(T, *lead, -1), h.reshape(*lead, self.width)
 
 
+def agentwise_matmul(x: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """x (..., n, i) @ weight (n, i, o) per agent -> (..., n, o), as one `bmm` (torch.einsum took up to 10x
+    longer on small batches, forward and backward)."""
+    lead, n = x.shape[:-2], x.shape[-2]
+    rows = x.reshape(-1, n, x.shape[-1]).transpose(0, 1)                                # (n, R, i)
+    return torch.bmm(rows, weight).transpose(0, 1).reshape(*lead, n, weight.shape[-1])
+
+
 class AgentwiseMLP(nn.Module):
     """N independent MLPs (one per agent, no shared weights) evaluated in one batched call:
     (..., N, inputs) -> (..., N, outputs). Each agent's layers are initialised as `linear` does (§1.5):
-    hidden rows to norm gain(activation), output rows to `out_scale`; zero biases."""
+    hidden rows to norm gain(activation), output rows to `out_scale`; zero biases.
 
-    def __init__(self, agents: int, inputs: int, hidden, outputs: int, activation: str = 'tanh',
+    `outputs=None`: no output layer, the last hidden layer (activated) is the output, width `self.width`.
+    `forward(x, agents)`: with `agents` (n,) long, the rows of x (..., n, inputs) are those agents (the
+    networks of a subset of the team, e.g. a single deployment agent)."""
+
+    def __init__(self, agents: int, inputs: int, hidden, outputs: int | None, activation: str = 'tanh',
                  out_scale: float = 1.0) -> None:
         super().__init__()
         act, gain = ACTIVATIONS[activation]
         self.activation = act()
-        sizes = [inputs, *hidden, outputs]
+        sizes = [inputs, *hidden] + ([] if outputs is None else [outputs])
+        self.width, self.activated = sizes[-1], outputs is None        # (no layers at all: the identity)
         self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
         for layer, (n_in, n_out) in enumerate(zip(sizes[:-1], sizes[1:])):
-            last = layer == len(sizes) - 2
+            last = layer == len(sizes) - 2 and outputs is not None
             scale, layer_gain = (out_scale, 1.0) if last else (1.0, gain)
             weight = torch.stack([linear(n_in, n_out, scale, layer_gain).weight.T for _ in range(agents)])
             self.weights.append(nn.Parameter(weight.detach().clone()))               # (N, in, out)
             self.biases.append(nn.Parameter(torch.zeros(agents, n_out)))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
+        layers = len(self.weights)
         for layer, (weight, bias) in enumerate(zip(self.weights, self.biases)):
-            x = torch.einsum('...ni,nio->...no', x, weight) + bias
-            if layer < len(self.weights) - 1:
+            if agents is not None:
+                weight, bias = weight[agents], bias[agents]
+            x = agentwise_matmul(x, weight) + bias
+            if layer < layers - 1 or self.activated:
                 x = self.activation(x)
         return x
+
+
+class AgentwiseLSTMCell(nn.Module):
+    """N independent LSTM cells (one per agent) stepped at once, PyTorch's gate order (i, f, g, o) and
+    default init (uniform in +-1/sqrt(hidden)). `forward(x (..., n, inputs), (h, c) (..., n, hidden), agents)`
+    -> (h, c); `agents` (n,) long as in `AgentwiseMLP` (None: all N, in order). A sequence computes the input
+    part of its gates at once (`input_gates` (T, ..., n, 4 hidden)) and then `recur`s step by step."""
+
+    def __init__(self, agents: int, inputs: int, hidden: int) -> None:
+        super().__init__()
+        bound = 1.0 / math.sqrt(hidden)
+        self.hidden = int(hidden)
+        self.input_weight = nn.Parameter(torch.empty(agents, inputs, 4 * hidden).uniform_(-bound, bound))
+        self.hidden_weight = nn.Parameter(torch.empty(agents, hidden, 4 * hidden).uniform_(-bound, bound))
+        self.bias = nn.Parameter(torch.empty(agents, 4 * hidden).uniform_(-bound, bound))
+
+    def input_gates(self, x: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
+        w_in, bias = self.input_weight, self.bias
+        if agents is not None:
+            w_in, bias = w_in[agents], bias[agents]
+        return agentwise_matmul(x, w_in) + bias
+
+    def forward(self, x: torch.Tensor, state, agents: torch.Tensor | None = None):
+        return self.recur(self.input_gates(x, agents), state, agents)
+
+    def recur(self, input_gates: torch.Tensor, state, agents: torch.Tensor | None = None):
+        """(h, c) after one step from the input part of the gates (..., n, 4 hidden) and the state."""
+        h, c = state
+        w_h = self.hidden_weight if agents is None else self.hidden_weight[agents]
+        i, f, g, o = (input_gates + agentwise_matmul(h, w_h)).chunk(4, dim=-1)
+        c = torch.sigmoid(f) * c + torch.sigmoid(i) * torch.tanh(g)
+        return torch.sigmoid(o) * torch.tanh(c), c
 
 
 class IndependentActors(nn.Module):
@@ -413,12 +462,13 @@ def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: st
     """The policy network named `kind`: 'mlp' or 'per-target' (cameras only), wrapped in a `RecurrentActor`
     when `lstm` > 0 (PPO); 'dueling' (IQL's Q-network) or 'recurrent-q' (QMIX's agent network, width
     `hidden[-1]`), whose Q-values are read as logits; 'independent' (MADDPG's per-agent actors, continuous
-    actions). A PPO actor that communicates (meta `comm` 'tarmac') is a `mate.learn.comm.TarMACActor` on the
-    'mlp' body with an LSTM of `lstm` cells."""
+    actions). A PPO actor that communicates (meta `comm` 'tarmac' or 'i2c') is a `mate.learn.comm.TarMACActor`
+    or `I2CActor` on the 'mlp' body with an LSTM of `lstm` cells."""
     heads = int(meta.get('action_heads', 1))
     if meta.get('comm', 'none') != 'none':
         from .comm import make_communicating_actor     # (comm.py builds on this module's blocks)
-        return make_communicating_actor(meta['comm'], kind, obs_dim, num_actions, hidden, activation, lstm)
+        return make_communicating_actor(meta['comm'], kind, obs_dim, num_actions, hidden, activation, lstm,
+                                        agents=int(meta.get('num_agents', 0)))
     if kind == 'dueling':
         return DuelingQNetwork(obs_dim, heads, num_actions // heads, hidden, activation)
     if kind == 'recurrent-q':

@@ -20,6 +20,12 @@ also reads all N messages of the decision (spec §4.1): the ones the agents read
 decision, zeros at an episode's first), stored with the rollout as data, appended flat (N x 64) to the global
 state (MAPPO) or to each agent's observation (IPPO).
 
+With `comm='i2c'` (MAPPO, flat discrete actions) the actor is an `I2CActor` (one network per agent; each
+agent attends to the current observations of the teammates its prior network asks) and the loss adds, with
+one optimiser (spec §4.2): the joint action-value networks' regression onto the value targets, the prior's
+binary cross-entropy on causal-influence labels (computed without gradient, once per iteration, on
+`influence_samples` random decisions of the rollout) and 0.01 x the policy-correlation regulariser.
+
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
 is a flag away), no adaptive KL penalty unless `kl_coeff` > 0 (`--paper` turns on RLlib's 0.2 / target
@@ -39,7 +45,7 @@ from torch import nn
 
 from ..core.engine import NUM_THREADS
 from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
-from .comm import TARMAC_LSTM
+from .comm import I2C_REGULARISER, TARMAC_LSTM, I2CTraining
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .logging import RunReport
 from .networks import Critic, make_actor, restarted
@@ -78,7 +84,8 @@ class PPOConfig:
     credit: str = 'team'                 # cameras: 'team' coverage reward, or 'difference' (each camera's own share)
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
-    comm: str = 'none'                   # 'tarmac': learned messages between the agents (comm.py; lstm 0 -> 256)
+    comm: str = 'none'                   # 'tarmac' or 'i2c': learned communication (comm.py; lstm 0 -> 256)
+    influence_samples: int = 32          # I2C: decisions per iteration whose prior labels are computed (A x A Q's each)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
     num_envs: int = 64
@@ -276,6 +283,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     toy tasks). Returns the last log row.
     """
     config = config.resolved()
+    if config.comm == 'i2c':
+        check_i2c(config)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     learn_threads = config.torch_threads or NUM_THREADS
@@ -287,6 +296,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                       velocity=config.velocity, credit=config.credit)
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
+    i2c = config.comm == 'i2c'
 
     # ---- networks and optimiser
     torch.manual_seed(config.seed)
@@ -297,7 +307,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
                 velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
                 actor=config.actor, lstm=config.lstm, comm=config.comm)
-    talking = config.comm != 'none'       # TarMAC: the critic reads the N messages of every decision too
+    talking = config.comm == 'tarmac'     # TarMAC: the critic reads the N messages of every decision too
     if talking:
         meta['critic_messages'] = True    # slice-1 TarMAC checkpoints (critic without them) do not resume
     per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
@@ -307,7 +317,10 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     critic = Critic(critic_input_dim(config.algo, D, S, N * M), config.hidden, config.activation,
                     outputs=N if per_agent_rewards and config.algo == 'mappo' else 1)
     value_norm = ValueNormalizer()
-    optimizer = torch.optim.Adam([*actor.parameters(), *critic.parameters()], lr=config.lr_schedule[0][1], eps=1e-5)
+    # I2C: joint action-value networks and the labels' KL buffer (training only; in the checkpoint as `comm_training`)
+    signals = I2CTraining(N, S, A, config.hidden, config.activation) if i2c else None
+    learned = [*actor.parameters(), *critic.parameters(), *(signals.parameters() if i2c else ())]
+    optimizer = torch.optim.Adam(learned, lr=config.lr_schedule[0][1], eps=1e-5)
     env_steps, iteration, wall_before = 0, 0, 0.0     # wall_before: training seconds of earlier sessions
     kl_coeff = config.kl_coeff                          # adapts every iteration (`adapt_kl_coeff`)
     best_return = -math.inf                             # of best.pt
@@ -317,6 +330,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
         actor.load_state_dict(saved['actor'])
         critic.load_state_dict(saved['critic'])
         value_norm.load_state_dict(saved['value_norm'])
+        if i2c:
+            signals.load_state_dict(saved['comm_training'])
         optimizer.load_state_dict(saved['optimizer'])
         env_steps, iteration = saved['env_steps'], saved['iteration']
         kl_coeff = float(saved.get('kl_coeff', config.kl_coeff))
@@ -331,7 +346,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                                    value_norm=value_norm.state_dict(), optimizer=optimizer.state_dict(),
                                    env_steps=env_steps, iteration=iteration, config=config.to_dict(),
                                    kl_coeff=kl_coeff, wall_seconds=wall_before + time.perf_counter() - start,
-                                   best_return=report.best_return, meta=dict(meta, algo=config.algo)))
+                                   best_return=report.best_return, meta=dict(meta, algo=config.algo),
+                                   **(dict(comm_training=signals.state_dict()) if i2c else {})))
 
     def snapshot(path: Path) -> None:   # the acting part only (the format of `export_policy`): small files
         save_checkpoint(path, dict(actor=actor.state_dict(), meta=dict(meta, algo=config.algo),
@@ -442,9 +458,15 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
             b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
             stats = dict(policy_loss=0.0, value_loss=0.0, entropy=0.0, approx_kl=0.0, clip_fraction=0.0)
             updates = 0
+            if i2c:   # the prior's labels, once per iteration, on a sample of the rollout's decisions
+                label_rows = torch.randperm(T * B, generator=generator)[:config.influence_samples]
+                labels, influence = signals.labels(b_state[label_rows], b_action[label_rows, :, 0])
+                label_obs = b_obs[label_rows]
+                stats.update(q_loss=0.0, prior_loss=0.0, regulariser=0.0)
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, recurrent, generator):
-                    dist = action_distribution(logits_of(idx), H, C, allowed_of(b_obs[idx]))
+                    logits = logits_of(idx)
+                    dist = action_distribution(logits, H, C, allowed_of(b_obs[idx]))
                     new_logp = dist.log_prob(b_action[idx]).sum(-1)
                     policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
                     inputs = critic_inputs(config.algo, b_obs[idx], b_state[idx],
@@ -456,10 +478,17 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
                     if kl_coeff > 0:
                         loss = loss + kl_coeff * kl
+                    if i2c:
+                        q_loss, regulariser = signals.losses(logits, b_state[idx], b_action[idx][..., 0], b_ret[idx])
+                        prior_loss = signals.prior_loss(actor, label_obs, labels)
+                        loss = loss + q_loss + prior_loss + I2C_REGULARISER * regulariser
+                        stats['q_loss'] += q_loss.item()
+                        stats['prior_loss'] += prior_loss.item()
+                        stats['regulariser'] += regulariser.item()
                     optimizer.zero_grad()
                     loss.backward()
                     if config.max_grad_norm:
-                        nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters()], config.max_grad_norm)
+                        nn.utils.clip_grad_norm_(learned, config.max_grad_norm)
                     optimizer.step()
                     with torch.no_grad():
                         log_ratio = new_logp - b_logp[idx]
@@ -475,6 +504,11 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 kl_coeff = adapt_kl_coeff(kl_coeff, stats['approx_kl'] / updates, config.kl_target)
 
             # ---- log
+            if i2c:   # the iteration's means of the loss terms; edges: teammates asked per agent; labels' KL
+                with torch.no_grad():
+                    edges = (actor.request_logits(label_obs) >= 0).float().sum(-1).mean()
+                stats.update(edges=float(edges) * updates, influence_kl=float(influence.mean()) * updates,
+                             influence_threshold=signals.threshold.threshold() * updates)
             elapsed = time.perf_counter() - start
             row = report.iteration_row(
                 iteration, env_steps, config.frame_skip, wall_before + elapsed,
@@ -491,6 +525,19 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     finally:
         report.close()
     return row
+
+
+def check_i2c(config: PPOConfig) -> None:
+    """ValueError unless an I2C run is one it supports: MAPPO, flat discrete actions, no memory/velocity columns
+    (a deployed agent asks its teammates for their raw observations and must rebuild what training read)."""
+    if config.algo != 'mappo':
+        raise ValueError(f"comm 'i2c' is a MAPPO add-on (its Q-networks and critic read the global state); "
+                         f"algo {config.algo!r} is not")
+    if config.hrl:
+        raise ValueError("comm 'i2c' needs the flat discrete actions (25 moves); HRL selections do not combine with it")
+    if config.memory or config.velocity:
+        raise ValueError("comm 'i2c' exchanges raw observations; --memory and --velocity columns do not combine "
+                         "with it")
 
 
 WARM_START_KEYS = ('team', 'env_id', 'obs_dim', 'num_actions', 'action_heads', 'hrl', 'actor', 'lstm',

@@ -131,8 +131,8 @@ def test_make_actor_builds_tarmac_from_the_metadata_and_refuses_other_bodies():
     assert isinstance(actor, TarMACActor) and actor.lstm_size == 8 and actor.key_size + actor.value_size == 64
     with pytest.raises(ValueError, match="actor 'per-target' does not combine"):
         make_actor('per-target', 10, 25, (16,), 'tanh', meta, lstm=8)
-    with pytest.raises(ValueError, match="unknown comm 'i2c'"):
-        make_actor('mlp', 10, 25, (16,), 'tanh', dict(meta, comm='i2c'), lstm=8)
+    with pytest.raises(ValueError, match="unknown comm 'commnet'; valid: 'none', 'tarmac', 'i2c'"):
+        make_actor('mlp', 10, 25, (16,), 'tanh', dict(meta, comm='commnet'), lstm=8)
     resolved = PPOConfig(team='camera', comm='tarmac').resolved()               # cameras' default actor is per-target
     assert (resolved.actor, resolved.lstm) == ('mlp', 256)
     assert PPOConfig(team='camera', comm='tarmac', lstm=64).resolved().lstm == 64
