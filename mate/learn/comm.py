@@ -88,7 +88,9 @@ class TarMACActor(nn.Module):
     where `starts[t]` before decision t, then steps; differentiable through the messages.
     Both take `delivered` ((..., M, N) bool, (T, B, N, N) for `forward`; None: every message arrives): the
     perturbed channel of training (`Channel`); receiver i reads sender j's message as zeros where it is false,
-    as a deployment agent reads a message that did not reach it.
+    as a deployment agent reads a message that did not reach it. With `delay` K > 0 (training only, the whole
+    team: M = N) every receiver reads its own last message but its teammates' messages of K decisions earlier
+    (sent at t - 1 - K, read at t), kept in the state's queue, which episode starts zero like the rest.
     """
 
     recurrent = True
@@ -96,38 +98,59 @@ class TarMACActor(nn.Module):
     scheme = 'tarmac'
 
     def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh', lstm: int = 256,
-                 key: int = 32, value: int = 32) -> None:
+                 key: int = 32, value: int = 32, delay: int = 0) -> None:
         super().__init__()
         self.num_actions, self.lstm_size = int(num_actions), int(lstm)
+        # training's channel delay in decisions (not in the weights: at deployment the env's channel delays)
+        self.delay = int(delay)
         self.key_size, self.value_size = int(key), int(value)
         self.body, self.width = mlp(obs_dim + self.value_size, hidden, activation)
         self.cell = nn.LSTMCell(self.width, self.lstm_size)                                  # PyTorch's default init
         self.query = linear(2 * self.lstm_size, self.key_size, 1.0, 1.0, bias=False)
         self.head = linear(self.width + self.lstm_size, self.num_actions + self.key_size + self.value_size, 1.0, 1.0)
 
-    def initial_state(self, *shape: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Zero (h, c, messages) for `shape` = (B, N) agents."""
-        return (torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size),
-                torch.zeros(*shape, self.key_size + self.value_size))
+    def initial_state(self, *shape: int) -> tuple[torch.Tensor, ...]:
+        """Zero (h, c, messages) for `shape` = (B, N) agents; with a `delay` K, also the queue (B, K, N, key +
+        value) of the messages of the K decisions before the last, oldest first."""
+        size = self.key_size + self.value_size
+        state = (torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, size))
+        return state + ((torch.zeros(*shape[:-1], self.delay, shape[-1], size),) if self.delay else ())
+
+    def _late(self, state) -> torch.Tensor | None:
+        """With a delay: (..., N, N) bool, true where receiver i reads sender j's message from the queue's oldest
+        decision (every teammate), false on the diagonal (an agent's own last message is kept locally)."""
+        if not self.delay:
+            return None
+        n = state[2].shape[-2]
+        return ~torch.eye(n, dtype=torch.bool)
 
     def attention_weights(self, state, delivered: torch.Tensor | None = None) -> torch.Tensor:
         """(..., N receivers, N senders): each receiver's softmax over the senders, from its query (its h, c in
         `state`) and the keys of the messages in `state`. Rows sum to one. `delivered` (..., N receivers,
         N senders) bool: a message that did not reach a receiver reads as zeros (its score is 0)."""
-        h, c, messages = state
+        h, c, messages = state[:3]
         query = self.query(torch.cat([h, c], dim=-1))                                   # (..., N, key)
         keys = messages[..., :self.key_size]                                            # (..., N, key)
         scores = query @ keys.transpose(-1, -2) / math.sqrt(self.key_size)
+        late = self._late(state)
+        if late is not None:                           # teammates' keys of `delay` decisions earlier
+            old_keys = state[3][..., 0, :, :self.key_size]
+            scores = torch.where(late, query @ old_keys.transpose(-1, -2) / math.sqrt(self.key_size), scores)
         if delivered is not None:
             scores = scores * delivered
         return torch.softmax(scores, dim=-1)
 
     def step(self, obs: torch.Tensor, state, delivered: torch.Tensor | None = None):
-        h, c, messages = state
+        h, c, messages = state[:3]
         weights = self.attention_weights(state, delivered)
         if delivered is not None:                       # a lost message's value reads as zeros too
             weights = weights * delivered
-        heard = weights @ messages[..., self.key_size:]                                 # (..., N, value)
+        late = self._late(state)
+        if late is None:
+            heard = weights @ messages[..., self.key_size:]                             # (..., N, value)
+        else:                                           # own value: the last; teammates': the queue's oldest
+            heard = ((weights * ~late) @ messages[..., self.key_size:]
+                     + (weights * late) @ state[3][..., 0, :, self.key_size:])
         features = self.body(torch.cat([obs, heard], dim=-1))                           # (..., N, width)
         lead = features.shape[:-1]
         h, c = self.cell(features.reshape(-1, self.width),
@@ -135,6 +158,9 @@ class TarMACActor(nn.Module):
         h, c = h.reshape(*lead, self.lstm_size), c.reshape(*lead, self.lstm_size)
         out = self.head(torch.cat([features, h], dim=-1))
         logits, message = out[..., :self.num_actions], torch.tanh(out[..., self.num_actions:])
+        if self.delay:                                  # the queue moves on: the last messages join it
+            queue = torch.cat([state[3][..., 1:, :, :], messages.unsqueeze(-3)], dim=-3)
+            return logits, (h, c, message, queue)
         return logits, (h, c, message)
 
     def forward(self, obs: torch.Tensor, state, starts: torch.Tensor, delivered: torch.Tensor | None = None) -> torch.Tensor:
@@ -388,18 +414,24 @@ class I2CTraining(nn.Module):
 
 # ============================================================================ the perturbed channel of training
 
-def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac') -> None:
-    """ValueError (one line, naming the valid range) unless `dropout` is a probability in [0, 1] and `range_limit`
-    None or a distance > 0; a perturbed channel needs a communicating team (`comm` 'tarmac' or 'i2c')."""
+def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac', delay: int = 0) -> None:
+    """ValueError (one line, naming the valid range) unless `dropout` is a probability in [0, 1], `range_limit`
+    None or a distance > 0 and `delay` a whole number of decisions >= 0; a perturbed channel needs a communicating
+    team (`comm` 'tarmac' or 'i2c'), a delay TarMAC (an I2C reply that comes after its decision is never read)."""
     if isinstance(dropout, bool) or not isinstance(dropout, (int, float)) or not 0.0 <= dropout <= 1.0:
         raise ValueError(f'message_dropout must be a probability in [0, 1], got {dropout!r}')
     if range_limit is not None and (isinstance(range_limit, bool) or not isinstance(range_limit, (int, float))
                                     or not range_limit > 0):
         raise ValueError(f'communication_range must be a distance > 0 in world units (None: unlimited), '
                          f'got {range_limit!r}')
-    if (dropout > 0 or range_limit is not None) and comm not in COMMUNICATION[1:]:
-        raise ValueError(f"message_dropout and communication_range perturb learned messages; they need comm "
-                         f"'tarmac' or 'i2c', not {comm!r}")
+    if isinstance(delay, bool) or not isinstance(delay, int) or delay < 0:
+        raise ValueError(f'message_delay must be a whole number of decisions >= 0, got {delay!r}')
+    if (dropout > 0 or range_limit is not None or delay > 0) and comm not in COMMUNICATION[1:]:
+        raise ValueError(f"message_dropout, communication_range and message_delay perturb learned messages; they "
+                         f"need comm 'tarmac' or 'i2c', not {comm!r}")
+    if delay > 0 and comm != 'tarmac':
+        raise ValueError(f"message_delay is a TarMAC option: an I2C reply later than its decision is never read "
+                         f"(train that with message_dropout 1), comm {comm!r}")
 
 
 class Channel:

@@ -33,6 +33,8 @@ range, read from `TeamVecEnv.positions`); a lost message reads as zeros (TarMAC:
 I2C: the asked teammate's slot), as at deployment. The masks are stored with the rollout and the update's
 unroll replays them; their draws come from a generator of their own, so the actions drawn are those of an
 unperturbed run. The critic still reads every message sent (centralised, like the global state).
+`message_delay` K (TarMAC): teammates' messages are read K decisions later than without (own: the last), the
+actor's state carrying a queue of the K message sets before the last (`TarMACActor.delay`).
 
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
@@ -95,6 +97,7 @@ class PPOConfig:
     comm: str = 'none'                   # 'tarmac' or 'i2c': learned communication (comm.py; lstm 0 -> 256)
     message_dropout: float = 0.0         # comm: each sender -> receiver delivery lost with this probability (Channel)
     communication_range: float | None = None   # comm: deliveries only within this many world units; None: any
+    message_delay: int = 0               # TarMAC: teammates' messages read this many decisions late (besides the 1)
     influence_samples: int = 32          # I2C: decisions per iteration whose prior labels are computed (A x A Q's each)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
@@ -295,7 +298,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     config = config.resolved()
     if config.comm == 'i2c':
         check_i2c(config)
-    check_channel(config.message_dropout, config.communication_range, config.comm)
+    check_channel(config.message_dropout, config.communication_range, config.comm, config.message_delay)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     learn_threads = config.torch_threads or NUM_THREADS
@@ -324,13 +327,16 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
                 actor=config.actor, lstm=config.lstm, comm=config.comm,
                 message_dropout=float(config.message_dropout),
-                communication_range=None if config.communication_range is None else float(config.communication_range))
+                communication_range=None if config.communication_range is None else float(config.communication_range),
+                message_delay=int(config.message_delay))
     talking = config.comm == 'tarmac'     # TarMAC: the critic reads the N messages of every decision too
     if talking:
         meta['critic_messages'] = True    # slice-1 TarMAC checkpoints (critic without them) do not resume
     per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
+    if config.message_delay:          # TarMAC: a queue of late messages in the carried state (not in the weights)
+        actor.delay = int(config.message_delay)
     M = actor.key_size + actor.value_size if talking else 0          # message size
     critic = Critic(critic_input_dim(config.algo, D, S, N * M), config.hidden, config.activation,
                     outputs=N if per_agent_rewards and config.algo == 'mappo' else 1)

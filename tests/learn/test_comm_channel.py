@@ -293,3 +293,75 @@ def test_mate_train_under_a_perturbed_channel(tmp_path, capsys):
     assert 'channel: message dropout 0.5, communication range 300.0' in out
     meta = load_checkpoint(run_dir / 'final.pt')['meta']
     assert (meta['message_dropout'], meta['communication_range']) == (0.5, 300.0)
+
+
+# ---------------------------------------------------------------------------- delay (TarMAC)
+
+def _delayed(delay: int, seed=5) -> TarMACActor:
+    actor = _tarmac(seed)
+    actor.delay = delay
+    return actor
+
+
+def test_a_delay_makes_teammates_read_older_messages_and_the_own_message_the_last():
+    actor, plain = _delayed(1), _tarmac(5)
+    obs = torch.randn(4, 2, 3, 5)                                            # T=4, B=2, N=3
+    state = actor.initial_state(2, 3)
+    assert len(state) == 4 and state[3].shape == (2, 1, 3, 16)
+    sent, memories = [], []
+    for t in range(4):
+        memories.append(state)
+        logits, state = actor.step(obs[t], state)
+        sent.append(state[2])
+    # at t = 3: receiver i reads its own message of t = 2 and its teammates' of t = 1
+    h, c = memories[3][0], memories[3][1]
+    for i in range(3):
+        read = sent[1].clone()
+        read[:, i] = sent[2][:, i]
+        torch.testing.assert_close(logits[:, i], plain.step(obs[3], (h, c, read))[0][:, i])
+    # a teammate's observation at t reaches a receiver's logits at t + 2, not at t + 1 (its own: at t + 1)
+    x = obs.clone().requires_grad_(True)
+    out = actor(x, actor.initial_state(2, 3), torch.zeros(4, 2, dtype=torch.bool))
+    grad = lambda t, receiver: torch.autograd.grad(out[t, :, receiver].sum(), x, retain_graph=True)[0]
+    assert grad(1, 0)[0, :, 1].abs().max() == 0 and grad(2, 0)[0, :, 1].abs().max() > 0
+    assert grad(1, 0)[0, :, 0].abs().max() > 0
+    # delay 0 is the plain actor; sequences with episode starts inside equal the steps (the queue restarts too)
+    torch.testing.assert_close(_delayed(0)(obs, plain.initial_state(2, 3), torch.zeros(4, 2, dtype=torch.bool)),
+                               plain(obs, plain.initial_state(2, 3), torch.zeros(4, 2, dtype=torch.bool)))
+    from mate.learn.networks import restarted
+
+    starts = torch.tensor([[False, False], [False, True], [True, False], [False, False]])
+    start_state = tuple(torch.randn_like(part) for part in actor.initial_state(2, 3))
+    stepped, memory = [], start_state
+    for t in range(4):
+        step_logits, memory = actor.step(obs[t], restarted(memory, starts[t]))
+        stepped.append(step_logits)
+    torch.testing.assert_close(actor(obs, start_state, starts), torch.stack(stepped))
+
+
+def test_delay_in_training_replays_and_is_in_the_checkpoint(tmp_path):
+    rows = []
+    train(_config(lr_schedule=((0, 0.0),), message_delay=2, message_dropout=0.3), tmp_path, progress=False,
+          callback=rows.append, envs=_envs())
+    assert all(row['approx_kl'] < 1e-9 for row in rows), rows
+    assert load_checkpoint(tmp_path / 'final.pt')['meta']['message_delay'] == 2
+    with pytest.raises(CheckpointError, match='message_delay is 2 in the checkpoint, 1 here'):
+        train(_config(message_delay=1, message_dropout=0.3, total_steps=3 * 4 * 4), tmp_path, progress=False,
+              envs=_envs())
+    with pytest.raises(ValueError, match="message_delay is a TarMAC option"):
+        check_channel(0.0, None, 'i2c', 1)
+    with pytest.raises(ValueError, match='message_delay must be a whole number of decisions >= 0, got -1'):
+        check_channel(0.0, None, 'tarmac', -1)
+
+
+@pytest.mark.parametrize('arguments, message', [
+    (['mappo', '--comm', 'tarmac', '--message-delay', '-1'], '--message-delay must be a whole number of decisions >= 0'),
+    (['mappo', '--comm', 'i2c', '--message-delay', '1'], '--message-delay is a TarMAC option'),
+    (['mappo', '--message-delay', '1'], '--message-delay perturbs learned messages; it needs --comm'),
+])
+def test_command_delay_errors(arguments, message, capsys):
+    from mate.cli import main
+
+    assert main(['train', *arguments]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err
