@@ -20,7 +20,8 @@ __all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_chec
 CHECKPOINT_FORMAT = 'mate.learn/1'
 REQUIRED = ('actor', 'meta', 'config')
 META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team', 'comm': 'none',
-                 'critic_messages': False}
+                 'critic_messages': False, 'message_dropout': 0.0, 'communication_range': None,
+                 'message_delay': 0}
 """Values of meta keys added after the first checkpoints were written (files without them have these)."""
 
 

@@ -47,6 +47,11 @@ the PPO value targets; causal-influence labels for the prior (`causal_influence`
 policy-correlation regulariser KL(pi_i || softmax(Q_i(s, ., a_-i) / tau)) over the actions
 (`policy_correlation`).
 
+Training under a perturbed channel (`Channel`, `PPOConfig.message_dropout` / `communication_range`): at each
+decision a mask (B, N receivers, N senders) of the deliveries that happen, passed to `step` / `forward` as
+`delivered`; a lost delivery reads as zeros (TarMAC: the sender's key and value in that receiver's attention;
+I2C: the asked teammate's slot), which is what the deployment agents read when a message does not arrive.
+
 Units: observations are the processed ones of `TeamVecEnv` (rescaled to [-1, 1]); messages are in [-1, 1]
 (TarMAC) or unbounded (I2C); Q-values are in the critic's normalised return units.
 """
@@ -55,15 +60,16 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from .networks import AgentwiseLSTMCell, AgentwiseMLP, linear, mlp, restarted
 
-__all__ = ['COMMUNICATION', 'I2C_MESSAGE', 'I2C_REGULARISER', 'I2C_TEMPERATURE', 'I2CActor', 'I2CTraining',
-           'InfluenceThreshold', 'JointActionValue', 'TARMAC_LSTM', 'TarMACActor', 'causal_influence',
-           'cyclic_teammates', 'make_communicating_actor', 'policy_correlation']
+__all__ = ['COMMUNICATION', 'Channel', 'I2C_MESSAGE', 'I2C_REGULARISER', 'I2C_TEMPERATURE', 'I2CActor', 'I2CTraining',
+           'InfluenceThreshold', 'JointActionValue', 'TARMAC_LSTM', 'TarMACActor', 'causal_influence', 'check_channel',
+           'cyclic_teammates', 'make_communicating_actor', 'policy_correlation', 'teammate_slots']
 
 COMMUNICATION = ('none', 'tarmac', 'i2c')
 """Values of `PPOConfig.comm` (`mate train --comm`)."""
@@ -80,6 +86,11 @@ class TarMACActor(nn.Module):
     own (a single deployment agent: M = 1, `mate.learn.agents`).
     `forward(obs (T, B, N, D), state, starts (T, B) bool)` -> logits (T, B, N, A): zeroes the state of the envs
     where `starts[t]` before decision t, then steps; differentiable through the messages.
+    Both take `delivered` ((..., M, N) bool, (T, B, N, N) for `forward`; None: every message arrives): the
+    perturbed channel of training (`Channel`); receiver i reads sender j's message as zeros where it is false,
+    as a deployment agent reads a message that did not reach it. With `delay` K > 0 (training only, the whole
+    team: M = N) every receiver reads its own last message but its teammates' messages of K decisions earlier
+    (sent at t - 1 - K, read at t), kept in the state's queue, which episode starts zero like the rest.
     """
 
     recurrent = True
@@ -87,31 +98,59 @@ class TarMACActor(nn.Module):
     scheme = 'tarmac'
 
     def __init__(self, obs_dim: int, num_actions: int, hidden=(256, 256), activation: str = 'tanh', lstm: int = 256,
-                 key: int = 32, value: int = 32) -> None:
+                 key: int = 32, value: int = 32, delay: int = 0) -> None:
         super().__init__()
         self.num_actions, self.lstm_size = int(num_actions), int(lstm)
+        # training's channel delay in decisions (not in the weights: at deployment the env's channel delays)
+        self.delay = int(delay)
         self.key_size, self.value_size = int(key), int(value)
         self.body, self.width = mlp(obs_dim + self.value_size, hidden, activation)
         self.cell = nn.LSTMCell(self.width, self.lstm_size)                                  # PyTorch's default init
         self.query = linear(2 * self.lstm_size, self.key_size, 1.0, 1.0, bias=False)
         self.head = linear(self.width + self.lstm_size, self.num_actions + self.key_size + self.value_size, 1.0, 1.0)
 
-    def initial_state(self, *shape: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Zero (h, c, messages) for `shape` = (B, N) agents."""
-        return (torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size),
-                torch.zeros(*shape, self.key_size + self.value_size))
+    def initial_state(self, *shape: int) -> tuple[torch.Tensor, ...]:
+        """Zero (h, c, messages) for `shape` = (B, N) agents; with a `delay` K, also the queue (B, K, N, key +
+        value) of the messages of the K decisions before the last, oldest first."""
+        size = self.key_size + self.value_size
+        state = (torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, self.lstm_size), torch.zeros(*shape, size))
+        return state + ((torch.zeros(*shape[:-1], self.delay, shape[-1], size),) if self.delay else ())
 
-    def attention_weights(self, state) -> torch.Tensor:
+    def _late(self, state) -> torch.Tensor | None:
+        """With a delay: (..., N, N) bool, true where receiver i reads sender j's message from the queue's oldest
+        decision (every teammate), false on the diagonal (an agent's own last message is kept locally)."""
+        if not self.delay:
+            return None
+        n = state[2].shape[-2]
+        return ~torch.eye(n, dtype=torch.bool)
+
+    def attention_weights(self, state, delivered: torch.Tensor | None = None) -> torch.Tensor:
         """(..., N receivers, N senders): each receiver's softmax over the senders, from its query (its h, c in
-        `state`) and the keys of the messages in `state`. Rows sum to one."""
-        h, c, messages = state
+        `state`) and the keys of the messages in `state`. Rows sum to one. `delivered` (..., N receivers,
+        N senders) bool: a message that did not reach a receiver reads as zeros (its score is 0)."""
+        h, c, messages = state[:3]
         query = self.query(torch.cat([h, c], dim=-1))                                   # (..., N, key)
         keys = messages[..., :self.key_size]                                            # (..., N, key)
-        return torch.softmax(query @ keys.transpose(-1, -2) / math.sqrt(self.key_size), dim=-1)
+        scores = query @ keys.transpose(-1, -2) / math.sqrt(self.key_size)
+        late = self._late(state)
+        if late is not None:                           # teammates' keys of `delay` decisions earlier
+            old_keys = state[3][..., 0, :, :self.key_size]
+            scores = torch.where(late, query @ old_keys.transpose(-1, -2) / math.sqrt(self.key_size), scores)
+        if delivered is not None:
+            scores = scores * delivered
+        return torch.softmax(scores, dim=-1)
 
-    def step(self, obs: torch.Tensor, state):
-        h, c, messages = state
-        heard = self.attention_weights(state) @ messages[..., self.key_size:]           # (..., N, value)
+    def step(self, obs: torch.Tensor, state, delivered: torch.Tensor | None = None):
+        h, c, messages = state[:3]
+        weights = self.attention_weights(state, delivered)
+        if delivered is not None:                       # a lost message's value reads as zeros too
+            weights = weights * delivered
+        late = self._late(state)
+        if late is None:
+            heard = weights @ messages[..., self.key_size:]                             # (..., N, value)
+        else:                                           # own value: the last; teammates': the queue's oldest
+            heard = ((weights * ~late) @ messages[..., self.key_size:]
+                     + (weights * late) @ state[3][..., 0, :, self.key_size:])
         features = self.body(torch.cat([obs, heard], dim=-1))                           # (..., N, width)
         lead = features.shape[:-1]
         h, c = self.cell(features.reshape(-1, self.width),
@@ -119,12 +158,15 @@ class TarMACActor(nn.Module):
         h, c = h.reshape(*lead, self.lstm_size), c.reshape(*lead, self.lstm_size)
         out = self.head(torch.cat([features, h], dim=-1))
         logits, message = out[..., :self.num_actions], torch.tanh(out[..., self.num_actions:])
+        if self.delay:                                  # the queue moves on: the last messages join it
+            queue = torch.cat([state[3][..., 1:, :, :], messages.unsqueeze(-3)], dim=-3)
+            return logits, (h, c, message, queue)
         return logits, (h, c, message)
 
-    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor, delivered: torch.Tensor | None = None) -> torch.Tensor:
         logits = []
         for t in range(obs.shape[0]):
-            step_logits, state = self.step(obs[t], restarted(state, starts[t]))
+            step_logits, state = self.step(obs[t], restarted(state, starts[t]), None if delivered is None else delivered[t])
             logits.append(step_logits)
         return torch.stack(logits)
 
@@ -141,6 +183,13 @@ I2C_LABEL_BUFFER = 100_000
 """KL values kept (first in, first out) for the labels' threshold, their median."""
 
 
+def teammate_slots(delivered: torch.Tensor) -> torch.Tensor:
+    """(..., N receivers, N senders) -> (..., N, N - 1): row i's entries for its cyclic slots (teammates i+1, ...)."""
+    n = delivered.shape[-1]
+    index = (torch.arange(n)[:, None] + torch.arange(1, n)[None, :]) % n
+    return delivered.gather(-1, index.expand(*delivered.shape[:-1], n - 1))
+
+
 def cyclic_teammates(x: torch.Tensor) -> torch.Tensor:
     """(..., N, F) -> (..., N, N - 1, F): row i holds its teammates' rows in cyclic order i+1, ..., i+N-1 (mod N)."""
     n = x.shape[-2]
@@ -155,7 +204,9 @@ class I2CActor(nn.Module):
     agent reading its teammates' current observations. With `teammates` (..., n, N - 1, D) and `agents` (n,)
     long, the n rows of obs are those agents and read those teammates' observations instead (a deployment
     agent: its replies, zeros where none came). `forward(obs (T, B, N, D), state, starts (T, B))` unrolls
-    sequences (the state of the envs where `starts[t]` zeroed before decision t).
+    sequences (the state of the envs where `starts[t]` zeroed before decision t). Both take `delivered`
+    ((..., N, N) bool, (T, B, N, N) for `forward`), training's perturbed channel: a teammate whose reply did not
+    arrive is a zero observation in its slot (the prior's mask unchanged).
     """
 
     recurrent = True
@@ -210,21 +261,25 @@ class I2CActor(nn.Module):
         return self.message(self.attended(heard, agents), agents)
 
     def features(self, obs: torch.Tensor, teammates: torch.Tensor | None = None,
-                 agents: torch.Tensor | None = None) -> torch.Tensor:
-        """The MLP body's output (..., n, width) on [obs, message], the prior choosing whom to read."""
+                 agents: torch.Tensor | None = None, delivered: torch.Tensor | None = None) -> torch.Tensor:
+        """The MLP body's output (..., n, width) on [obs, message], the prior choosing whom to read.
+        `delivered` (..., N, N) bool (training's perturbed channel): a teammate whose reply did not reach the
+        asker is read as a zero observation in its slot, the prior's mask unchanged (as a deployment agent)."""
         if teammates is None:
             teammates = cyclic_teammates(obs)
+            if delivered is not None:
+                teammates = teammates * teammate_slots(delivered).unsqueeze(-1)
         selected = self.request_logits(obs, agents) >= 0
         return self.body(torch.cat([obs, self.messages(obs, teammates, selected, agents)], dim=-1), agents)
 
     def step(self, obs: torch.Tensor, state, teammates: torch.Tensor | None = None,
-             agents: torch.Tensor | None = None):
-        features = self.features(obs, teammates, agents)
+             agents: torch.Tensor | None = None, delivered: torch.Tensor | None = None):
+        features = self.features(obs, teammates, agents, delivered)
         h, c = self.cell(features, state, agents)
         return self.head(torch.cat([features, h], dim=-1), agents), (h, c)
 
-    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor) -> torch.Tensor:
-        features = self.features(obs)                      # no recurrence before the LSTM: all decisions at once
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor, delivered: torch.Tensor | None = None) -> torch.Tensor:
+        features = self.features(obs, delivered=delivered)   # no recurrence before the LSTM: all decisions at once
         gates, hidden = self.cell.input_gates(features), []
         for t in range(obs.shape[0]):
             state = self.cell.recur(gates[t], restarted(state, starts[t]))
@@ -355,6 +410,70 @@ class I2CTraining(nn.Module):
     @staticmethod
     def prior_loss(actor: I2CActor, obs: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
         return F.binary_cross_entropy_with_logits(actor.request_logits(obs), labels.to(obs.dtype))
+
+
+# ============================================================================ the perturbed channel of training
+
+def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac', delay: int = 0) -> None:
+    """ValueError (one line, naming the valid range) unless `dropout` is a probability in [0, 1], `range_limit`
+    None or a distance > 0 and `delay` a whole number of decisions >= 0; a perturbed channel needs a communicating
+    team (`comm` 'tarmac' or 'i2c'), a delay TarMAC (an I2C reply that comes after its decision is never read)."""
+    if isinstance(dropout, bool) or not isinstance(dropout, (int, float)) or not 0.0 <= dropout <= 1.0:
+        raise ValueError(f'message_dropout must be a probability in [0, 1], got {dropout!r}')
+    if range_limit is not None and (isinstance(range_limit, bool) or not isinstance(range_limit, (int, float))
+                                    or not range_limit > 0):
+        raise ValueError(f'communication_range must be a distance > 0 in world units (None: unlimited), '
+                         f'got {range_limit!r}')
+    if isinstance(delay, bool) or not isinstance(delay, int) or delay < 0:
+        raise ValueError(f'message_delay must be a whole number of decisions >= 0, got {delay!r}')
+    if (dropout > 0 or range_limit is not None or delay > 0) and comm not in COMMUNICATION[1:]:
+        raise ValueError(f"message_dropout, communication_range and message_delay perturb learned messages; they "
+                         f"need comm 'tarmac' or 'i2c', not {comm!r}")
+    if delay > 0 and comm != 'tarmac':
+        raise ValueError(f"message_delay is a TarMAC option: an I2C reply later than its decision is never read "
+                         f"(train that with message_dropout 1), comm {comm!r}")
+
+
+class Channel:
+    """Which messages of a decision arrive in training: `delivered(positions, generator)` -> (B, N receivers,
+    N senders) bool, the diagonal always true (an agent always reads its own message, kept locally at
+    deployment), or None when nothing is perturbed.
+
+    * `dropout` P: each sender -> receiver delivery is lost independently with probability P, as with
+      `RandomMessageDropout(P)` at deployment. A delivery takes `legs` messages, each lost on its own: 1 for
+      TarMAC (a broadcast), 2 for I2C (the request, then the reply), so an I2C reply arrives with
+      probability (1 - P)^2, as through the wrapper.
+    * `range_limit` R: a delivery happens only if sender and receiver are at most R world units apart
+      (`within_range`, the test of `RestrictedCommunicationRange`), on `positions` (B, N, 2) of the
+      decision (`TeamVecEnv.positions`).
+
+    The draws come from `generator` (torch); P = 0 draws nothing.
+    """
+
+    def __init__(self, dropout: float = 0.0, range_limit: float | None = None, legs: int = 1) -> None:
+        check_channel(dropout, range_limit)
+        self.dropout, self.range_limit, self.legs = float(dropout), range_limit, int(legs)
+
+    @property
+    def active(self) -> bool:
+        return self.dropout > 0 or self.range_limit is not None
+
+    def delivered(self, shape: tuple[int, int], positions=None, generator: torch.Generator | None = None):
+        """`shape` (B, N); `positions` (B, N, 2) array (needed with a range limit)."""
+        if not self.active:
+            return None
+        b, n = shape
+        mask = torch.ones(b, n, n, dtype=torch.bool)
+        if self.dropout > 0:
+            draws = torch.rand(b, n, n, self.legs, generator=generator)
+            mask &= (draws >= self.dropout).all(-1)
+        if self.range_limit is not None:
+            from ..wrappers.restricted_communication_range import within_range
+
+            receivers, senders = (x.reshape(-1) for x in np.meshgrid(np.arange(n), np.arange(n), indexing='ij'))
+            near = within_range(np.asarray(positions, dtype=np.float64), senders, receivers, float(self.range_limit))
+            mask &= torch.from_numpy(near.reshape(b, n, n))
+        return mask | torch.eye(n, dtype=torch.bool)
 
 
 def make_communicating_actor(comm: str, kind: str, obs_dim: int, num_actions: int, hidden, activation: str,

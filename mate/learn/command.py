@@ -48,6 +48,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "observations and attends to them (prior trained on causal-influence labels of joint "
                              "action-value networks); deployed agents exchange messages through the env's channel; "
                              "default 'none'")
+    parser.add_argument('--message-dropout', type=float, default=0.0, metavar='P',
+                        help='with --comm: train under a lossy channel, each sender -> receiver delivery lost with '
+                             'probability P in [0, 1] (as RandomMessageDropout; an I2C reply needs its request and '
+                             'itself to get through); default 0')
+    parser.add_argument('--communication-range', type=float, default=None, metavar='R',
+                        help='with --comm: deliver a message only between agents at most R world units apart (as '
+                             'RestrictedCommunicationRange); default: any distance')
+    parser.add_argument('--message-delay', type=int, default=0, metavar='K',
+                        help="with --comm tarmac: teammates' messages arrive K decisions late (on top of TarMAC's one; "
+                             'as ExtraCommunicationDelays of K x frame-skip steps); default 0')
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
@@ -120,7 +130,8 @@ def _env(config: str | None) -> dict:
 
 PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=False, lstm=0, full_observability=False,
                 memory=0, velocity=False, gae_lambda=0.95, kl_coeff=None, kl_target=0.01, entropy_schedule=None,
-                snapshot_every=0, init_from=None, comm='none')
+                snapshot_every=0, init_from=None, comm='none', message_dropout=0.0,
+                communication_range=None, message_delay=0)
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
 DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
                 sequence_length=25, selection='joint')
@@ -215,6 +226,21 @@ def config_from_args(args: argparse.Namespace):
         if args.algo != 'mappo':
             raise CommandError(f'--comm i2c is a MAPPO add-on (its Q-networks read the global state); '
                                f'use mate train mappo, not {args.algo}')
+    if not 0.0 <= args.message_dropout <= 1.0:
+        raise CommandError(f'--message-dropout must be a probability in [0, 1], got {args.message_dropout}')
+    if args.communication_range is not None and not args.communication_range > 0:
+        raise CommandError(f'--communication-range must be a distance > 0 (world units), got {args.communication_range}')
+    if args.message_delay < 0:
+        raise CommandError(f'--message-delay must be a whole number of decisions >= 0, got {args.message_delay}')
+    if args.comm == 'none':
+        for flag, given in (('--message-dropout', args.message_dropout > 0),
+                            ('--communication-range', args.communication_range is not None),
+                            ('--message-delay', args.message_delay > 0)):
+            if given:
+                raise CommandError(f'{flag} perturbs learned messages; it needs --comm tarmac or --comm i2c')
+    if args.comm == 'i2c' and args.message_delay:
+        raise CommandError('--message-delay is a TarMAC option: an I2C reply later than its decision is never read '
+                           '(train that with --message-dropout 1)')
     if args.comm != 'none' and args.actor == 'per-target':
         raise CommandError(f'--comm {args.comm} builds its actor on the MLP body; --actor per-target does not '
                            'combine with it')
@@ -224,7 +250,9 @@ def config_from_args(args: argparse.Namespace):
                      minibatches=args.minibatches, frame_skip=args.frame_skip, horizon=args.horizon,
                      gae_lambda=args.gae_lambda, kl_target=args.kl_target, torch_threads=args.threads,
                      snapshot_every=args.snapshot_every,
-                     lstm=args.lstm, comm=args.comm, hrl=args.hrl, full_observability=args.full_observability,
+                     lstm=args.lstm, comm=args.comm, message_dropout=args.message_dropout,
+                     communication_range=args.communication_range,
+                     message_delay=args.message_delay, hrl=args.hrl, full_observability=args.full_observability,
                      memory=args.memory, velocity=args.velocity, credit=args.credit, init_from=args.init_from,
                      **_env(args.config), **extra)
 
@@ -243,7 +271,10 @@ def run(args: argparse.Namespace, console) -> int:
         config = config_from_args(args)
         resolved = config.resolved()
     name = ((f'hrl-{args.algo}' if args.hrl else args.algo) + (f'-{args.comm}' if args.comm != 'none' else '')
-            + ('-full-obs' if args.full_observability else ''))
+            + ('-full-obs' if args.full_observability else '')
+            + (f'-dropout{args.message_dropout:g}' if getattr(args, 'message_dropout', 0.0) > 0 else '')
+            + (f'-range{args.communication_range:g}' if getattr(args, 'communication_range', None) is not None else '')
+            + (f'-delay{args.message_delay}' if getattr(args, 'message_delay', 0) > 0 else ''))
     run_dir = Path(args.run_dir or f'runs/{name}-{args.team}-seed{args.seed}')
     checkpoint_path = run_dir / 'checkpoint.pt'
     resuming = checkpoint_path.exists() and not args.fresh
@@ -267,6 +298,11 @@ def run(args: argparse.Namespace, console) -> int:
                f'{resolved.actor} actor' if hasattr(resolved, 'actor') else
                {'qmix': 'GRU agent network, mixer', 'iql': 'dueling Q-network',
                 'maddpg': 'an actor and twin critics per agent, continuous actions'}[args.algo])
+    if (getattr(resolved, 'message_dropout', 0.0) > 0 or getattr(resolved, 'communication_range', None) is not None
+            or getattr(resolved, 'message_delay', 0) > 0):
+        network += (f', channel: message dropout {resolved.message_dropout}, communication range '
+                    f'{resolved.communication_range if resolved.communication_range is not None else "any"}, '
+                    f'extra delay {resolved.message_delay}')
     console.print(f'training {name.upper()} {args.team}s on {resolved.env_id} ({network}, frame skip '
                   f'{resolved.frame_skip}, {config.num_envs} envs, {config.total_steps:,} decision steps) -> {run_dir}')
     if resuming:

@@ -45,7 +45,7 @@ from ..agents.utils import (
     normalize_observation,
     rescale_observation,
 )
-from ..constants import PRESERVED_DIM
+from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..spaces import observation_indices_of
 from ..wrappers.discrete_camera import square_grid
@@ -277,6 +277,18 @@ class TeamVecEnv:
     def raw_observations(self) -> np.ndarray:
         """(B, N, D) unprocessed observations of the trained team at the current decision (do not modify)."""
         return self._raw
+
+    def positions(self) -> np.ndarray:
+        """(B, N, 2) float64 world positions of the trained team's agents at the current decision, cut from the
+        global state as `RestrictedCommunicationRange` reads them (the training channel's range test)."""
+        state = self.vec.state()
+        nc, nt, _ = self.counts
+        if self.team is Team.CAMERA:
+            begin, count, width = PRESERVED_DIM, nc, CAMERA_STATE_DIM_PRIVATE
+        else:
+            begin, count, width = PRESERVED_DIM + CAMERA_STATE_DIM_PRIVATE * nc, nt, TARGET_STATE_DIM_PRIVATE
+        rows = state[:, begin:begin + count * width].reshape(self.num_envs, count, width)
+        return rows[..., :2].astype(np.float64)
 
     def allowed_actions(self, processed: np.ndarray) -> np.ndarray:
         """HRL: (..., N, Nt, 2) bool from processed observations (..., N, D): 'ignore' is always allowed,

@@ -26,6 +26,16 @@ one optimiser (spec §4.2): the joint action-value networks' regression onto the
 binary cross-entropy on causal-influence labels (computed without gradient, once per iteration, on
 `influence_samples` random decisions of the rollout) and 0.01 x the policy-correlation regulariser.
 
+With `message_dropout` > 0 or a `communication_range` (TarMAC or I2C) the team trains under a perturbed
+channel (`mate.learn.comm.Channel`): at every decision of the rollout a mask (B, N receivers, N senders) says
+which deliveries happen (each lost with the dropout's probability, or between agents farther apart than the
+range, read from `TeamVecEnv.positions`); a lost message reads as zeros (TarMAC: in the receiver's attention;
+I2C: the asked teammate's slot), as at deployment. The masks are stored with the rollout and the update's
+unroll replays them; their draws come from a generator of their own, so the actions drawn are those of an
+unperturbed run. The critic still reads every message sent (centralised, like the global state).
+`message_delay` K (TarMAC): teammates' messages are read K decisions later than without (own: the last), the
+actor's state carrying a queue of the K message sets before the last (`TarMACActor.delay`).
+
 Deviations from the paper's RLlib runs, on purpose: a feed-forward actor unless `lstm` > 0 (the
 paper's MLP -> LSTM -> skip-concat head) and a feed-forward critic, GAE lambda 0.95 (RLlib's default 1.0
 is a flag away), no adaptive KL penalty unless `kl_coeff` > 0 (`--paper` turns on RLlib's 0.2 / target
@@ -45,7 +55,7 @@ from torch import nn
 
 from ..core.engine import NUM_THREADS
 from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
-from .comm import I2C_REGULARISER, TARMAC_LSTM, I2CTraining
+from .comm import I2C_REGULARISER, TARMAC_LSTM, Channel, I2CTraining, check_channel
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .logging import RunReport
 from .networks import Critic, make_actor, restarted
@@ -85,6 +95,9 @@ class PPOConfig:
     actor: str | None = None             # 'mlp' (paper) or 'per-target' (cameras); None: per-target cameras, mlp targets
     lstm: int = 0                        # > 0: recurrent actor, MLP -> LSTM(lstm) -> head (paper: 256)
     comm: str = 'none'                   # 'tarmac' or 'i2c': learned communication (comm.py; lstm 0 -> 256)
+    message_dropout: float = 0.0         # comm: each sender -> receiver delivery lost with this probability (Channel)
+    communication_range: float | None = None   # comm: deliveries only within this many world units; None: any
+    message_delay: int = 0               # TarMAC: teammates' messages read this many decisions late (besides the 1)
     influence_samples: int = 32          # I2C: decisions per iteration whose prior labels are computed (A x A Q's each)
     total_steps: int = 2_000_000         # decision steps (per env, summed over envs), as RLlib counts
     time_limit: float = 0.0              # seconds of training wall time (resumed sessions included); 0: none
@@ -285,6 +298,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     config = config.resolved()
     if config.comm == 'i2c':
         check_i2c(config)
+    check_channel(config.message_dropout, config.communication_range, config.comm, config.message_delay)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     learn_threads = config.torch_threads or NUM_THREADS
@@ -297,6 +311,11 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, envs.num_actions
     H, C = getattr(envs, 'action_heads', 1), getattr(envs, 'action_choices', A)   # A = H x C logits per agent
     i2c = config.comm == 'i2c'
+    # the perturbed channel (dropout, range) between the agents of a communicating team; None masks: every message
+    channel = Channel(config.message_dropout, config.communication_range, legs=2 if i2c else 1)
+    perturbed = channel.active
+    if config.communication_range is not None and not hasattr(envs, 'positions'):
+        raise ValueError('communication_range needs the agents\' positions; this env has no positions()')
 
     # ---- networks and optimiser
     torch.manual_seed(config.seed)
@@ -306,13 +325,18 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 full_observability=bool(getattr(envs, 'full_observability', False)),
                 memory=int(getattr(getattr(envs, 'memory', None), 'period', 0)),
                 velocity=bool(getattr(envs, 'velocity', False)), credit=getattr(envs, 'credit', 'team'),
-                actor=config.actor, lstm=config.lstm, comm=config.comm)
+                actor=config.actor, lstm=config.lstm, comm=config.comm,
+                message_dropout=float(config.message_dropout),
+                communication_range=None if config.communication_range is None else float(config.communication_range),
+                message_delay=int(config.message_delay))
     talking = config.comm == 'tarmac'     # TarMAC: the critic reads the N messages of every decision too
     if talking:
         meta['critic_messages'] = True    # slice-1 TarMAC checkpoints (critic without them) do not resume
     per_agent_rewards = meta['credit'] != 'team'     # rewards (B, N): the MAPPO critic gives one value per agent
     actor = make_actor(config.actor, D, A, config.hidden, config.activation, meta, config.lstm)
     recurrent = getattr(actor, 'recurrent', False)
+    if config.message_delay:          # TarMAC: a queue of late messages in the carried state (not in the weights)
+        actor.delay = int(config.message_delay)
     M = actor.key_size + actor.value_size if talking else 0          # message size
     critic = Critic(critic_input_dim(config.algo, D, S, N * M), config.hidden, config.activation,
                     outputs=N if per_agent_rewards and config.algo == 'mappo' else 1)
@@ -340,6 +364,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     elif config.init_from:
         _warm_start(config.init_from, dict(meta, algo=config.algo), actor, critic, value_norm)
     generator = torch.Generator().manual_seed(config.seed * 1_000_003 + iteration)
+    channel_generator = torch.Generator().manual_seed(config.seed * 1_000_003 + iteration + 500_009)   # its own draws
 
     def checkpoint(path: Path) -> None:
         save_checkpoint(path, dict(actor=actor.state_dict(), critic=critic.state_dict(),
@@ -376,6 +401,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
     done_buf = torch.zeros(T, B)
     start_buf = torch.zeros(T, B, dtype=torch.bool)      # an episode begins at this decision (recurrent actor)
     message_buf = torch.zeros(T, B, N, M)                # TarMAC: the messages read at each decision (critic input)
+    delivered_buf = torch.ones(T, B, N, N, dtype=torch.bool) if perturbed else None   # the channel's masks, replayed
     memory = actor.initial_state(B, N) if recurrent else None
     starting = torch.ones(B, dtype=torch.bool)
 
@@ -405,7 +431,13 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     if recurrent:
                         memory = restarted(memory, starting)
                         heard = read(memory)
-                        logits, memory = actor.step(obs, memory)
+                        if perturbed:   # who reads whom at this decision; the update replays the same masks
+                            delivered = channel.delivered((B, N), envs.positions() if channel.range_limit is not None
+                                                          else None, channel_generator)
+                            delivered_buf[t] = delivered
+                            logits, memory = actor.step(obs, memory, delivered=delivered)
+                        else:
+                            logits, memory = actor.step(obs, memory)
                     else:
                         logits, heard = actor(obs), None
                     dist = action_distribution(logits, H, C, allowed_of(obs))
@@ -448,7 +480,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     return actor(b_obs[rows])
                 envs_ = rows[:len(rows) // T]          # rows are t-major: the first T-th are t = 0, i.e. the envs
                 first = tuple(part[envs_] for part in memory_at_start)
-                seq = actor(obs_buf[:, envs_], first, start_buf[:, envs_])
+                masks = dict(delivered=delivered_buf[:, envs_]) if perturbed else {}
+                seq = actor(obs_buf[:, envs_], first, start_buf[:, envs_], **masks)
                 return seq.reshape(-1, *seq.shape[2:])
 
             flat = lambda x: x.reshape(T * B, *x.shape[2:])
