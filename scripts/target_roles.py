@@ -285,8 +285,15 @@ def markdown(per_episode: np.ndarray, analysis: dict) -> str:
     return '\n'.join(lines)
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose errors are one line: `target_roles.py: error: MESSAGE` (status 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f'{self.prog}: error: {message}\n')
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog='target_roles.py', description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog='target_roles.py', description=__doc__.splitlines()[0])
     parser.add_argument('--target-agent', default='greedy', help='checkpoint:PATH, pretrained:NAME or a rule-based name')
     parser.add_argument('--camera-agent', default='greedy', help='default greedy')
     parser.add_argument('--config', default='MATE-4v8-0', help='preset or YAML/JSON path (default MATE-4v8-0)')
