@@ -48,10 +48,13 @@ MIN_SILHOUETTE = 0.5
 """Mean silhouette from which a clustering counts as structure (Kaufman and Rousseeuw's 'reasonable')."""
 MIN_SEPARATION = 2.0
 """Between-cluster difference of a feature, in pooled within-cluster standard deviations, that tells two roles apart."""
-WORDS = {'tracked': ('tracked often', 'rarely tracked'), 'occluded': ('often behind obstacles', 'rarely behind obstacles'),
+WORDS = {'tracked': ('tracked often', 'rarely tracked'),
+         'occluded': ('often behind obstacles', 'rarely behind obstacles'),
          'camera_distance': ('far from cameras', 'near cameras'), 'deliveries': ('most deliveries', 'few deliveries'),
          'loaded': ('often loaded', 'rarely loaded'), 'requests_sent': ('asks often', 'asks rarely'),
-         'requests_received': ('asked often', 'asked rarely'), 'broadcasts_sent': ('broadcasts often', 'broadcasts rarely')}
+         'requests_received': ('asked often', 'asked rarely'),
+         'broadcasts_sent': ('broadcasts often', 'broadcasts rarely')}
+"""Words for a cluster whose feature lies MIN_SEPARATION within-cluster std above (first) or below the others."""
 
 
 # --------------------------------------------------------------------------- measuring
@@ -261,8 +264,8 @@ def roles(per_episode: np.ndarray, seed: int = 0, names: tuple[str, ...] = NAMES
                              f'differs by >= {min_pair:.1f} within-cluster std in some feature)')
     else:
         result['verdict'] = (f'no distinct roles: best k = {k} has silhouette {score:.2f} (needs >= {MIN_SILHOUETTE}) '
-                             f'and its two closest clusters differ by at most {min_pair:.1f} within-cluster std in any feature '
-                             f'(needs >= {MIN_SEPARATION})')
+                             f'and its two closest clusters differ by at most {min_pair:.1f} within-cluster std in '
+                             f'any feature (needs >= {MIN_SEPARATION})')
     return result
 
 
@@ -294,7 +297,8 @@ class OneLineParser(argparse.ArgumentParser):
 
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(prog='target_roles.py', description=__doc__.splitlines()[0])
-    parser.add_argument('--target-agent', default='greedy', help='checkpoint:PATH, pretrained:NAME or a rule-based name')
+    parser.add_argument('--target-agent', default='greedy',
+                        help='checkpoint:PATH, pretrained:NAME or a rule-based name (default greedy)')
     parser.add_argument('--camera-agent', default='greedy', help='default greedy')
     parser.add_argument('--config', default='MATE-4v8-0', help='preset or YAML/JSON path (default MATE-4v8-0)')
     parser.add_argument('--episodes', type=int, default=20, help='episodes, seeds seed..seed+E-1 (default 20)')

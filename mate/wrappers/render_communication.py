@@ -114,7 +114,8 @@ class RenderCommunication(MateWrapper):
         self.remaining = {kind: {team: np.zeros((n, n), dtype=np.int64) for team, n in self._sizes.items()}
                           for kind in KINDS}
         self._clear_counts()
-        self.sent, self.received = self._sent, self._received
+        self.sent, self.received = self._sent, self._received     # zeros until the first step
+        self._clear_counts()
         if hasattr(base, 'add_render_callback'):
             base.add_render_callback('communication', self.draw)
 
@@ -140,6 +141,7 @@ class RenderCommunication(MateWrapper):
                 remaining[...] = 0
         self._clear_counts()
         self.sent, self.received = self._sent, self._received
+        self._clear_counts()
         return self.env.reset(seed=seed, options=options)
 
     def send_messages(self, messages) -> None:

@@ -113,6 +113,21 @@ def test_i2c_requests_and_replies_are_counted_and_drawn_apart(i2c_targets):
     assert max(orange) > 0                                   # some request arrow shows in orange
 
 
+def test_tarmac_broadcasts_are_counted(tmp_path):
+    train(PPOConfig(algo='mappo', team='target', env_id='MATE-2v4-0-v0', num_envs=2, rollout_length=2,
+                    total_steps=4, epochs=1, hidden=(16,), lstm=16, comm='tarmac', seed=0, torch_threads=1),
+          tmp_path, progress=False)
+    policy = load_policy(tmp_path / 'final.pt', 'target')
+    features, infos, _, steps = _record('MATE-2v4-0', lambda seed: PolicyTargetAgent(policy, seed=seed), 12)
+    f = dict(zip(NAMES, features.T))
+    decisions = steps / policy.meta['frame_skip']
+    own = np.array([sum(m.sender == t for i in infos for m in i[t]['messages']) for t in range(4)])
+    others = np.array([sum(m.sender != t for i in infos for m in i[t]['messages']) for t in range(4)])
+    assert own.sum() > 0 and np.allclose(f['broadcasts_sent'] * decisions, own)     # each broadcast reaches its sender
+    assert np.allclose(f['broadcasts_received'] * decisions, others) and np.array_equal(others, own.sum() - own)
+    assert (f['requests_sent'] == 0).all() and (f['replies_received'] == 0).all()
+
+
 def _synthetic(two_roles: bool, episodes=20, targets=8, seed=0):
     rng = np.random.default_rng(seed)
     x = np.zeros((episodes, targets, len(NAMES)))
@@ -131,7 +146,8 @@ def test_two_roles_are_found_and_one_role_is_not():
     groups = {tuple(c['targets']): c for c in analysis['clusters']}
     assert set(groups) == {(0, 1, 2, 3), (4, 5, 6, 7)}
     assert groups[(0, 1, 2, 3)]['label'] == 'distractor-like'
-    assert 'tracked often' in groups[(0, 1, 2, 3)]['description'] and 'near cameras' in groups[(0, 1, 2, 3)]['description']
+    description = groups[(0, 1, 2, 3)]['description']
+    assert 'tracked often' in description and 'near cameras' in description and 'few deliveries' in description
     assert groups[(4, 5, 6, 7)]['label'] == 'running-back-like'
     one = roles_script.roles(_synthetic(False))
     assert not one['distinct'] and one['min_pair_separation'] < 2.0
@@ -154,19 +170,19 @@ def test_the_script_writes_json_and_a_gif_and_reports_errors_in_one_line(tmp_pat
     for argv, message in ((['--target-agent', 'nobody'], "unknown target agent 'nobody'"),
                           (['--episodes', '0'], '--episodes must be at least 1'),
                           (['--episodes', 'x'], "invalid int value: 'x'"),
+                          (['--gif', str(tmp_path / 'x.png')], 'must end with .gif'),
                           (['--target-agent', f'checkpoint:{tmp_path / "missing.pt"}'], 'missing.pt')):
-        with pytest.raises(SystemExit) if argv[0] == '--episodes' else _returns_two():
-            assert roles_script.main(argv) == 2
+        assert _exit_status(argv) == 2
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1, err
 
 
-class _returns_two:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
+def _exit_status(argv) -> int:
+    """The script's exit status: main's return value, or the status of the SystemExit of an argument error."""
+    try:
+        return roles_script.main(argv)
+    except SystemExit as exc:
+        return exc.code
 
 
 def test_mate_evaluate_render_communication(tmp_path):
