@@ -5,7 +5,8 @@
 One hand-made world holds an example of everything a frame can show: two cameras (one seen by a
 target, one not; one tracking a target behind an obstacle's shadow, one seeing nothing), targets
 with and without cargo, a high-capacity target, a target whose bounty is spent, a tracked
-target, an obstacle, the four warehouse states and the message arrows of `RenderCommunication`.
+target, an obstacle, the four warehouse states and the message arrows of `RenderCommunication` (with and
+without `kinds=True`: requests, replies and broadcasts).
 The script renders it once (HUD off, 1600 pixels for crisp crops), cuts a square around each
 example, and lays the crops out in a captioned grid, with the heads-up line of the same frame at
 the bottom. Coordinates are world units (the terrain spans [-1000, 1000] on both axes).
@@ -42,8 +43,8 @@ CAMERA_VIEW = [(60.0, 60.0), (0.0, 120.0)]
 """(orientation, viewing angle) per camera, degrees."""
 TARGETS = np.array([[-450.0, 450.0], [-150.0, 450.0], [150.0, 450.0], [450.0, 450.0],
                     [-550.0 + 400.0 * math.cos(math.radians(75.0)), -450.0 + 400.0 * math.sin(math.radians(75.0))],
-                    [-150.0, 790.0], [150.0, 790.0]])
-TARGET_GOALS = [0, -1, 1, 3, 2, 0, 0]
+                    [-150.0, 790.0], [150.0, 790.0], [-300.0, -820.0], [0.0, -820.0]])
+TARGET_GOALS = [0, -1, 1, 3, 2, 0, 0, -1, -1]
 """Destination warehouse per target (-1: no cargo)."""
 OBSTACLES = np.array([[-550.0 + 350.0 * math.cos(math.radians(45.0)), -450.0 + 350.0 * math.sin(math.radians(45.0)),
                        70.0], [150.0, 100.0, 90.0]])
@@ -81,6 +82,11 @@ SECTIONS = [
         (WAREHOUSES[3], 110.0, 'idle warehouse (pale, shutters)'),
         ((0.0, 790.0), 190.0, 'message between targets: red dashed arrow to the recipient'),
         ((330.0, -450.0), 170.0, 'message between cameras: blue dashed arrow'),
+    ]),
+    ('Message kinds (mate evaluate --render-communication)', 150, [
+        ((-150.0, -820.0), 200.0, 'request (orange, dashed) from the left target, and the reply (purple, solid) '
+                                  'it gets back in the same step'),
+        ((0.0, 790.0), 190.0, 'broadcast: dashed in the team colour, as any message without the kinds'),
     ]),
 ]
 HUD_CAPTION = ('heads-up line (top of every frame; env.render_hud / mate evaluate --no-hud turn it off): env name, '
@@ -123,6 +129,9 @@ def legend_world(renderer: Renderer) -> tuple[mate.MultiAgentTracking, dict]:
     world['target_heading'][4] = 105.0
     env.camera_remaining[0, 1] = env.target_remaining[5, 6] = env.duration
     env.draw(base, renderer)
+    kinds = mate.RenderCommunication(base, duration=1, kinds=True)     # request 7 -> 8, reply 8 -> 7
+    kinds.remaining['request'][mate.Team.TARGET][7, 8] = kinds.remaining['reply'][mate.Team.TARGET][8, 7] = 1
+    kinds.draw(base, renderer)
     return base, world
 
 

@@ -579,7 +579,9 @@ def test_human_mode_without_a_display_fails_with_one_clear_line(display):
 def test_legend_script_draws_the_legend(tmp_path):
     path = tmp_path / 'legend.png'
     subprocess.run([sys.executable, str(ROOT / 'scripts' / 'render_legend.py'), '--output', str(path)],
-                   env={**os.environ, 'SDL_VIDEODRIVER': 'dummy'}, capture_output=True, text=True, check=True)
+                   env={**os.environ, 'SDL_VIDEODRIVER': 'dummy',     # this checkout's mate, not an installed one
+                        'PYTHONPATH': os.pathsep.join([str(ROOT), os.environ.get('PYTHONPATH', '')])},
+                   capture_output=True, text=True, check=True)
     legend = load_png(path)
     assert legend.shape[1] == 800 and legend.shape[0] > 600
 
@@ -588,6 +590,7 @@ def test_legend_script_draws_the_legend(tmp_path):
 
     assert shows(YELLOW) and shows(RUST) and shows(BLUE) and shows(OBSTACLE_GREY.round())
     assert shows(np.round(WAREHOUSE_COLORS[1] * 255)) and shows((51, 153, 51))     # red cargo, green no-cargo target
+    assert shows((140, 0, 191))                                                     # a reply arrow (purple)
     assert (legend.max(axis=2) < 60).sum() > 2000                                   # caption text
     docs = (ROOT / 'docs' / 'rendering.md').read_text()
     assert 'images/legend.png' in docs and (ROOT / 'docs' / 'images' / 'legend.png').is_file()
