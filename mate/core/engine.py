@@ -28,6 +28,7 @@ from .params import Params
 from .perception import flag_camera_obstacles, is_tracked, perceive
 from .rng import key_from_seed
 from .spawn import reset_row
+from .warmup import compiling_step_aside, wait_for_step_compile
 from .world import World
 
 NUM_THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1)
@@ -149,14 +150,17 @@ def seed_rows(world: World, mask: np.ndarray, seeds) -> None:
 
 def reset(params: Params, world: World, mask: np.ndarray, camera_obs: np.ndarray, target_obs: np.ndarray) -> None:
     """Start new episodes in the rows where mask (B,) is true; fill their observations
-    camera_obs (B, Nc, D_c) and target_obs (B, Nt, D_t). Other rows are untouched."""
-    _run(_reset_rows, params, world, mask, camera_obs, target_obs)
+    camera_obs (B, Nc, D_c) and target_obs (B, Nt, D_t). Other rows are untouched.
+    A process's first reset on a cold compile cache has the step compiled meanwhile (`warmup`)."""
+    with compiling_step_aside(camera_obs, target_obs):
+        _run(_reset_rows, params, world, mask, camera_obs, target_obs)
 
 
 def step(params: Params, world: World, camera_actions: np.ndarray, target_actions: np.ndarray,
          camera_obs: np.ndarray, target_obs: np.ndarray) -> None:
     """Advance every row by one step. Actions are float64 (B, Nc, 2) in degrees
     (rotation, zoom) and (B, Nt, 2) displacements; they must be finite (callers check)."""
+    wait_for_step_compile()
     _run(_step_rows, params, world, camera_actions, target_actions, camera_obs, target_obs)
 
 
@@ -167,6 +171,7 @@ def bind_step(params: Params, world: World, camera_actions: np.ndarray, target_a
     once here, which skips numba's per-call typing of the ~40 world arrays (about 7 of the
     10 us a B = 1 call costs). Batches large enough for the thread pool get plain `step`."""
     args = (params, world, camera_actions, target_actions, camera_obs, target_obs)
+    wait_for_step_compile()
     if _num_workers(len(world.episode_step)) > 1:
         return functools.partial(step, *args)
     compiled = _step_rows.compile(tuple(numba.typeof(arg) for arg in args))

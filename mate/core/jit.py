@@ -24,7 +24,7 @@ from numba.core import event
 from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE = 'mate: compiling the simulation kernels (first run only, ~{seconds} s)...'
-COMPILE_SECONDS = '15-30'
+COMPILE_SECONDS = '10-30'
 """Cold compile time of a first `mate evaluate`, quiet to busy 2-core machine (docs/performance.md)."""
 
 
