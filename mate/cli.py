@@ -226,7 +226,8 @@ def _evaluation_wrappers(args: argparse.Namespace) -> list:
         if team != 'none':
             stack.append(lambda env, w=wrapper, t=team: w(env, team=t))
     if args.render_communication:
-        stack.append(lambda env: wrappers.RenderCommunication(env, duration=args.render_communication, kinds=True))
+        stack.append(lambda env: wrappers.RenderCommunication(env, duration=args.render_communication,
+                                                              kinds=args.message_kinds))
     return stack
 
 
@@ -345,11 +346,12 @@ def build_parser() -> argparse.ArgumentParser:
     for flag in ('enhanced-observation', 'shared-field-of-view', 'no-communication'):
         evaluate.add_argument(f'--{flag}', nargs='?', const='both', default='none', choices=TEAM_CHOICES,
                               metavar='TEAM', help=f'add the {flag.replace("-", " ")} wrapper for TEAM (bare flag: both)')
-    evaluate.add_argument('--render-communication', nargs='?', type=positive_int, const=1, default=None,
-                          metavar='DURATION',
-                          help='draw the messages in the recorded frames: requests orange dashed, replies purple solid, '
-                               'broadcasts dashed in the team colour, each for DURATION steps after its delivery (bare '
-                               'flag: 1, the messages delivered during the step of the frame); off by default')
+    evaluate.add_argument('--render-communication', nargs='?', type=positive_int, const=20, default=None,
+                          metavar='DURATION', help='draw message arrows in the recorded frames, each for DURATION steps '
+                                                   'after it was sent (bare flag: 20)')
+    evaluate.add_argument('--message-kinds', action='store_true',
+                          help='with --render-communication: draw requests orange dashed, replies purple solid and '
+                               'broadcasts dashed in the team colour (default: blue camera / red target arrows)')
     evaluate.add_argument('--no-render', action='store_true', help='record nothing (no GIF, no video)')
     evaluate.add_argument('--save-gif', default='mate-evaluate.gif', metavar='PATH',
                           help='GIF of the first episode (default mate-evaluate.gif; empty string: none)')

@@ -189,5 +189,6 @@ def test_mate_evaluate_render_communication(tmp_path):
     from mate.cli import main
     gif = tmp_path / 'talk.gif'
     assert main(['evaluate', '--config', 'MATE-2v4-0', '--episodes', '1', '--max-episode-steps', '6',
-                 '--render-communication', '--save-gif', str(gif), '--frame-size', '100', '--frame-every', '1']) == 0
+                 '--render-communication', '1', '--message-kinds', '--save-gif', str(gif), '--frame-size', '100',
+                 '--frame-every', '1']) == 0
     assert gif.stat().st_size > 0
