@@ -423,6 +423,27 @@ def test_gif_round_trip(tmp_path):
     assert np.abs(decoded.astype(int) - frames[2]).mean() < 3.0   # palette quantisation only
 
 
+def test_gif_frames_decode_exactly_and_many_colours_fall_back_to_the_nearest(tmp_path):
+    from PIL import Image
+    frames = rendered_frames(40)
+    frames[30] = frames[30].copy()
+    frames[30][2:4, 2:4] = (10, 20, 250)      # a colour of one frame only
+    path = save_gif(frames, tmp_path / 'episode.gif')
+    distinct = [f for i, f in enumerate(frames) if i == 0 or not np.array_equal(f, frames[i - 1])]  # repeats merge
+    with Image.open(path) as image:
+        assert image.n_frames == len(distinct) > 20
+        for index, frame in enumerate(distinct):
+            image.seek(index)
+            np.testing.assert_array_equal(np.asarray(image.convert('RGB')), frame)   # < 256 colours: exact
+    rng = np.random.default_rng(0)
+    noise = [rng.integers(0, 256, (16, 16, 3), dtype=np.uint8) for _ in range(3)]   # 768 colours: median cut
+    path = save_gif(noise, tmp_path / 'noise.gif')
+    with Image.open(path) as image:
+        image.seek(1)
+        error = np.abs(np.asarray(image.convert('RGB')).astype(int) - noise[1])
+    assert error.mean() < 40 and (error == 0).mean() < 0.9
+
+
 def test_save_video_writes_a_gif_by_suffix(tmp_path):
     from PIL import Image
     path = save_video(iter(rendered_frames(3)), tmp_path / 'episode.gif', fps=10)
