@@ -91,7 +91,7 @@ def save_gif(frames: Iterable[np.ndarray], path: str | os.PathLike, fps: float =
     path = _check_path(path, ('.gif',), 'GIF')
     fps = _check_fps(fps)
     try:
-        from PIL import Image
+        from PIL import Image  # noqa: F401  (used by _paletted; a missing Pillow fails here with this message)
     except ImportError as exc:
         raise ImportError("save_gif needs Pillow: pip install 'mate[render]' (or pip install pillow)") from exc
     images = _paletted(list(_frames(frames)))

@@ -71,7 +71,8 @@ def compiling_step_aside(camera_obs: np.ndarray, target_obs: np.ndarray) -> cont
 
 def _start_helper(camera_dtype: str, target_dtype: str) -> None:
     global _helper
-    environment = {**os.environ, 'MATE_PARALLEL_COMPILE': '0', 'MATE_COMPILE_NOTICE': '0'}
+    environment = {**os.environ, 'MATE_PARALLEL_COMPILE': '0', 'MATE_COMPILE_NOTICE': '0',
+                   'PYTHONPATH': os.pathsep.join(path or os.getcwd() for path in sys.path)}   # this process's mate
     code = f'from mate.core.warmup import compile_step; compile_step({camera_dtype!r}, {target_dtype!r})'
     try:
         _helper = subprocess.Popen([sys.executable, '-c', code], env=environment, stdin=subprocess.DEVNULL,

@@ -17,6 +17,7 @@ from mate.learn.evaluate import PolicyTeam, make_team, play_batch
 from mate.learn.networks import make_actor
 from mate.learn.ppo import PPOConfig, train
 
+from .deployment import policy_targets_against_greedy
 from .toy import CueExchange
 
 
@@ -192,15 +193,9 @@ def _play_targets(path, wrappers=(), lag=0, steps=22, frame_skip=3):
     `lag`: teammates' messages read at decision k are those of decision k - 1 - lag (None: never any;
     'arrived': those that the channel delivered to the receiver since its last decision, by sender).
     lag 0 is the training computation: one `TarMACActor.step` on the team (1, N, D)."""
-    env = mate.make('MATE-2v4-0-v0', wrappers=wrappers)
-    policy = load_policy(path, 'target')
+    env, policy, targets, cameras, (camera_obs, target_obs), (camera_infos, target_infos) = \
+        policy_targets_against_greedy(path, wrappers, frame_skip)
     actor = policy.actor
-    targets = load_agent(f'checkpoint:{path}', 'target')(seed=0, deterministic=True,
-                                                         frame_skip=frame_skip).spawn(env.num_targets)
-    cameras = mate.GreedyCameraAgent(seed=0).spawn(env.num_cameras)
-    (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=3)
-    mate.group_reset(cameras, camera_obs)
-    mate.group_reset(targets, target_obs)
     N, M = env.num_targets, actor.key_size + actor.value_size
     team_memory = actor.initial_state(1, N)                                # the training computation (lag 0)
     own_memory = actor.initial_state(N, 1)                                 # one receiver per row

@@ -6,18 +6,19 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 import torch
 from torch import nn
 
 import mate
-from mate.learn.agents import load_agent, load_policy
+from mate.learn.agents import load_policy
 from mate.learn.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.comm import (I2CActor, I2CTraining, InfluenceThreshold, JointActionValue, causal_influence,
                              cyclic_teammates, policy_correlation)
 from mate.learn.evaluate import PolicyTeam, make_team, play_batch
 from mate.learn.ppo import PPOConfig, train
+
+from .deployment import policy_targets_against_greedy
 
 
 # ---------------------------------------------------------------------------- labels and threshold
@@ -260,15 +261,9 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
     without wrappers that is the training computation, one step of the team on its N observations.
     Returns (requests delivered, requests the priors made, replies delivered, decisions); requests and replies
     are those of the decision steps, `late` counts messages delivered at other steps (a delay wrapper)."""
-    env = mate.make('MATE-2v4-0-v0', wrappers=wrappers)
-    policy = load_policy(path, 'target')
+    env, policy, targets, cameras, (camera_obs, target_obs), (camera_infos, target_infos) = \
+        policy_targets_against_greedy(path, wrappers, frame_skip)
     actor = policy.actor
-    targets = load_agent(f'checkpoint:{path}', 'target')(seed=0, deterministic=True,
-                                                         frame_skip=frame_skip).spawn(env.num_targets)
-    cameras = mate.GreedyCameraAgent(seed=0).spawn(env.num_cameras)
-    (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=3)
-    mate.group_reset(cameras, camera_obs)
-    mate.group_reset(targets, target_obs)
     N = env.num_targets
     team_memory, rows_memory = actor.initial_state(1, N), actor.initial_state(N)
     requests = asked = replies = decisions = late = 0
