@@ -54,7 +54,7 @@ from torch import nn
 from .checkpoint import save_checkpoint, load_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
 from .hrl import joint_allowed, selection_bits
-from .logging import RunReport, mean_or_nan
+from .logging import RunReport, mean_or_nan, out_of_time
 from .networks import make_actor
 from .replay import TransitionRing
 from .schedules import piecewise
@@ -373,11 +373,9 @@ def train_dqn(config: DQNConfig, run_dir: str | os.PathLike, resume: bool = True
     next_copy = (env_steps // config.target_update + 1) * config.target_update
     next_update = max(learning_from, env_steps + config.update_every)
 
-    def out_of_time() -> bool:
-        return config.time_limit > 0 and wall_before + time.perf_counter() - start >= config.time_limit
-
     try:
-        while env_steps < config.total_steps and not out_of_time():
+        while env_steps < config.total_steps and not out_of_time(config.time_limit,
+                                                                    wall_before + time.perf_counter() - start):
             # ---- act: epsilon-greedy for every agent of every env, one forward pass
             epsilon = piecewise(config.epsilon_schedule, env_steps, interpolate=True)
             with torch.no_grad():

@@ -24,6 +24,12 @@ def mean_or_nan(values) -> float:
     return float(np.mean(values)) if len(values) else math.nan
 
 
+def out_of_time(time_limit: float, seconds: float) -> bool:
+    """Whether `seconds` of training wall time (earlier sessions of a resumed run included) have spent a budget
+    of `time_limit` seconds (0: no budget): the `--minutes` of every trainer."""
+    return time_limit > 0 and seconds >= time_limit
+
+
 class RunReport:
     """Where a training run's iterations go.
 

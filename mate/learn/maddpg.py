@@ -44,7 +44,7 @@ from torch import nn
 
 from .checkpoint import load_checkpoint, save_checkpoint
 from .envs import PAPER_SETTINGS, TeamVecEnv
-from .logging import RunReport, mean_or_nan
+from .logging import RunReport, mean_or_nan, out_of_time
 from .networks import AgentwiseMLP, IndependentActors
 from .replay import TransitionRing
 
@@ -217,11 +217,9 @@ def train_maddpg(config: MADDPGConfig, run_dir: str | os.PathLike, resume: bool 
     next_report = (env_steps // config.report_every + 1) * config.report_every
     next_update = max(learning_from, env_steps + config.update_every)
 
-    def out_of_time() -> bool:
-        return config.time_limit > 0 and wall_before + time.perf_counter() - start >= config.time_limit
-
     try:
-        while env_steps < config.total_steps and not out_of_time():
+        while env_steps < config.total_steps and not out_of_time(config.time_limit,
+                                                                    wall_before + time.perf_counter() - start):
             # ---- act: uniform at first, then the actors' actions plus Gaussian noise
             if env_steps < config.random_steps:
                 action = rng.uniform(-1.0, 1.0, size=(B, N, A)).astype(np.float32)

@@ -57,7 +57,7 @@ from ..core.engine import NUM_THREADS
 from .checkpoint import META_DEFAULTS, CheckpointError, load_checkpoint, save_checkpoint
 from .comm import I2C_REGULARISER, TARMAC_LSTM, Channel, I2CTraining, check_channel
 from .envs import PAPER_SETTINGS, TeamVecEnv
-from .logging import RunReport
+from .logging import RunReport, out_of_time
 from .networks import Critic, make_actor, restarted
 from .schedules import piecewise
 
@@ -411,11 +411,9 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                        save_best=lambda: snapshot(run_dir / 'best.pt'))
     start, start_steps, row = time.perf_counter(), env_steps, {}
 
-    def out_of_time() -> bool:   # the wall-time budget (`time_limit`) is spent
-        return config.time_limit > 0 and wall_before + time.perf_counter() - start >= config.time_limit
-
     try:
-        while env_steps < config.total_steps and not out_of_time():
+        while env_steps < config.total_steps and not out_of_time(config.time_limit,
+                                                                    wall_before + time.perf_counter() - start):
             lr = piecewise(config.lr_schedule, env_steps, interpolate=False)
             entropy_coef = piecewise(config.entropy_schedule, env_steps, interpolate=True)
             for group in optimizer.param_groups:
