@@ -39,8 +39,11 @@ EXPERIMENTS = {
     'camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9'], 'cameras-4v8-9', 'rollout_coverage',
                      'mean coverage rate'),
     # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
-    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'], 'cameras-4v8-9',
-                         'rollout_coverage', 'mean coverage rate'),
+    'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'],
+                         ('cameras-4v8-9', 'cameras-4v8-9-communication'), 'rollout_coverage', 'mean coverage rate'),
+    # the same with TarMAC messages (issue 22; same entropy recipe)
+    'hrl-tarmac-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--comm', 'tarmac'],
+                                'cameras-4v8-9-communication', 'rollout_coverage', 'mean coverage rate'),
     # value-based HRL with a keep/ignore head per target slot instead of the spec's Discrete(256) (the default)
     'hrl-per-target-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--selection', 'per-target'],
                                     'cameras-4v8-9', 'rollout_coverage', 'mean coverage rate'),
@@ -50,13 +53,24 @@ EXPERIMENTS = {
     'target-2v4-0-full-obs': (['--team', 'target', '--config', 'MATE-2v4-0', '--full-observability'],
                               'targets-2v4-0-observability', 'episode_normalized_target_return',
                               'normalised target episode reward'),
-    'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], 'targets-4v8-0',
+    'target-4v8-0': (['--team', 'target', '--config', 'MATE-4v8-0'], ('targets-4v8-0', 'targets-4v8-0-communication'),
                      'episode_normalized_target_return', 'normalised target episode reward'),
+    # the paper's Fig. 4b/5 add-ons: learned communication among the targets (TarMAC for MAPPO and IPPO, I2C for MAPPO)
+    'target-4v8-0-tarmac': (['--team', 'target', '--config', 'MATE-4v8-0', '--comm', 'tarmac'],
+                            'targets-4v8-0-communication', 'episode_normalized_target_return',
+                            'normalised target episode reward'),
+    'target-4v8-0-i2c': (['--team', 'target', '--config', 'MATE-4v8-0', '--comm', 'i2c'],
+                         'targets-4v8-0-communication', 'episode_normalized_target_return',
+                         'normalised target episode reward'),
 }
 # HRL-MAPPO: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
-PPO_ARGUMENTS = {'hrl-camera-4v8-9': ['--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]']}
+RECIPE = ['--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]']
+PPO_ARGUMENTS = {'hrl-camera-4v8-9': RECIPE, 'hrl-tarmac-camera-4v8-9': RECIPE}
+COMMUNICATION = {'tarmac': '+TarMAC', 'i2c': '+I2C'}      # experiment name part -> legend suffix
 FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0': ('target', 'MATE-2v4-0-v0'),
                    'targets-4v8-0': ('target', 'MATE-4v8-0-v0'),
+                   'targets-4v8-0-communication': ('target', 'MATE-4v8-0-v0'),
+                   'cameras-4v8-9-communication': ('camera', 'MATE-4v8-9-v0'),
                    'targets-2v4-0-observability': ('target', 'MATE-2v4-0-v0')}
 
 
@@ -144,6 +158,7 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
                 prefix = 'HRL-' if name.startswith('hrl') else ''
                 suffix = (', full obs.' if name.endswith('full-obs') else ', partial obs.') if 'observability' in figure else ''
                 suffix += ', per-target heads' if 'per-target' in name else ''
+                suffix = ''.join(tag for part, tag in COMMUNICATION.items() if part in name.split('-')) + suffix
                 ax.plot(grid, mean, label=f'{prefix}{algo.upper()}{suffix} ({len(ys)} seed{"s" * (len(ys) > 1)})')
                 ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
                 drawn = True
@@ -203,7 +218,9 @@ def main(argv: list[str] | None = None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds
                  if not (algo == 'maddpg' and name.startswith('hrl'))      # HRL selects targets: no continuous form
-                 and not (algo not in ('iql', 'qmix') and 'per-target' in name)]
+                 and not (algo not in ('iql', 'qmix') and 'per-target' in name)
+                 and not (algo not in PPO_ALGOS and any(part in name.split('-') for part in COMMUNICATION))
+                 and not (algo == 'ippo' and 'i2c' in name.split('-'))]      # I2C is a MAPPO add-on
         with ThreadPoolExecutor(args.jobs) as pool:
             codes = list(pool.map(lambda t: run_one(args.out, *t, args.steps, args.train_args.split()), tasks))
         if any(codes):

@@ -311,24 +311,35 @@ class JointActionValue(nn.Module):
     def forward(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         return self.net(self.inputs(state, actions)).squeeze(-1)
 
+    def _first_layer(self, state: torch.Tensor, actions: torch.Tensor):
+        """The first layer's pre-activation split by input block (it is linear in the one-hot inputs, so a changed
+        action only swaps one weight row): returns (base (..., N, H): state, teammates' actions and bias,
+        mates (N, N - 1, A, H): the rows of each teammate slot's actions, taken (..., N, N - 1, H): the rows of
+        the teammates' actual actions, own (N, A, H): the rows of the own action)."""
+        n, a, s = self.num_agents, self.num_actions, self.state_dim
+        weight, bias = self.net.weights[0], self.net.biases[0]                             # (N, S + N A, H), (N, H)
+        mates = weight[:, s:s + (n - 1) * a].reshape(n, n - 1, a, -1)
+        own = weight[:, s + (n - 1) * a:]
+        slots = cyclic_teammates(actions.unsqueeze(-1)).squeeze(-1)                        # (..., N, N - 1)
+        taken = mates[torch.arange(n)[:, None], torch.arange(n - 1)[None, :], slots]      # (..., N, N - 1, H)
+        base = (state @ weight[:, :s].transpose(0, 1).flatten(1)).unflatten(-1, (n, -1)) + bias + taken.sum(-2)
+        return base, mates, taken, own
+
     def own_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        a = self.num_actions
-        x = self.inputs(state, actions).unsqueeze(-3)                                       # (..., 1, N, I)
-        x = x.expand(*x.shape[:-3], a, *x.shape[-2:]).clone()                               # (..., A own, N, I)
-        x[..., -a:] = torch.eye(a, dtype=x.dtype)[:, None, :]
-        return self.net(x).squeeze(-1).transpose(-1, -2)
+        """(..., S), (..., N) -> (..., N, A): Q_i with agent i's own action replaced by each of the A."""
+        base, _, _, own = self._first_layer(state, actions)
+        hidden = self.net.activation(base.unsqueeze(-2) + own)                            # (..., N, A own, H)
+        return self.net(hidden.transpose(-2, -3), start=1).squeeze(-1).transpose(-1, -2)
 
     def paired_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-        a, s = self.num_actions, self.state_dim
-        x = self.inputs(state, actions)[..., None, None, :, :]                              # (..., 1, 1, N, I)
-        x = x.expand(*x.shape[:-4], a, a, *x.shape[-2:]).clone()                            # (..., A own, A mate, N, I)
-        x[..., -a:] = torch.eye(a, dtype=x.dtype)[:, None, None, :]
-        values = []
-        for slot in range(self.num_agents - 1):
-            y = x.clone()
-            y[..., s + slot * a:s + (slot + 1) * a] = torch.eye(a, dtype=x.dtype)[None, :, None, :]
-            values.append(self.net(y).squeeze(-1))                                          # (..., A, A, N)
-        return torch.stack(values, dim=-1).movedim((-4, -3), (-2, -1))                      # (..., N, K, A, A)
+        """(..., S), (..., N) -> (..., N, N - 1, A own, A teammate): Q_i with its own action and that of the
+        teammate of each cyclic slot replaced by every pair, the other teammates' as given."""
+        base, mates, taken, own = self._first_layer(state, actions)
+        lead, (n, k, a, h) = base.shape[:-2], mates.shape
+        others = (base.unsqueeze(-2) - taken).reshape(-1, n, k, 1, 1, h).transpose(0, 1)  # (N, R, K, 1, 1, H)
+        pre = others + own[:, None, None, :, None, :] + mates[:, None, :, None, :, :]    # (N, R, K, A, A, H)
+        values = self.net.agent_major(self.net.activation(pre.reshape(n, -1, h)), start=1)   # (N, R K A A, 1)
+        return values.reshape(n, -1, k, a, a).transpose(0, 1).reshape(*lead, n, k, a, a)
 
 
 def causal_influence(own_values: torch.Tensor, paired_values: torch.Tensor,
@@ -388,7 +399,7 @@ class I2CTraining(nn.Module):
     """
 
     def __init__(self, agents: int, state_dim: int, num_actions: int, hidden=(512, 256), activation: str = 'tanh',
-                 temperature: float = I2C_TEMPERATURE, capacity: int = I2C_LABEL_BUFFER, chunk: int = 8) -> None:
+                 temperature: float = I2C_TEMPERATURE, capacity: int = I2C_LABEL_BUFFER, chunk: int = 1) -> None:
         super().__init__()
         self.value = JointActionValue(agents, state_dim, num_actions, hidden, activation)
         self.threshold = InfluenceThreshold(capacity)

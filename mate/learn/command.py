@@ -58,6 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--message-delay', type=int, default=0, metavar='K',
                         help="with --comm tarmac: teammates' messages arrive K decisions late (on top of TarMAC's one; "
                              'as ExtraCommunicationDelays of K x frame-skip steps); default 0')
+    parser.add_argument('--influence-samples', type=int, default=32, metavar='N',
+                        help="with --comm i2c: decisions per iteration whose causal-influence labels are computed "
+                             "(each costs N_agents x (N_agents - 1) x 25 x 25 joint action-value evaluations: the "
+                             "largest share of an I2C iteration); default 32")
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
@@ -131,7 +135,7 @@ def _env(config: str | None) -> dict:
 PPO_ONLY = dict(rollout_length=25, epochs=4, minibatches=4, actor=None, paper=False, lstm=0, full_observability=False,
                 memory=0, velocity=False, gae_lambda=0.95, kl_coeff=None, kl_target=0.01, entropy_schedule=None,
                 snapshot_every=0, init_from=None, comm='none', message_dropout=0.0,
-                communication_range=None, message_delay=0)
+                communication_range=None, message_delay=0, influence_samples=32)
 """The options of `mate train` that only the PPO trainers take, with their defaults."""
 DQN_ONLY = dict(buffer_size=None, batch_size=1024, update_every=128, learning_starts=5_000, epsilon_schedule=None,
                 sequence_length=25, selection='joint')
@@ -238,6 +242,10 @@ def config_from_args(args: argparse.Namespace):
                             ('--message-delay', args.message_delay > 0)):
             if given:
                 raise CommandError(f'{flag} perturbs learned messages; it needs --comm tarmac or --comm i2c')
+    if args.influence_samples != 32 and args.comm != 'i2c':
+        raise CommandError('--influence-samples sets how I2C labels its prior; it needs --comm i2c')
+    if args.influence_samples < 1:
+        raise CommandError(f'--influence-samples must be a number of decisions >= 1, got {args.influence_samples}')
     if args.comm == 'i2c' and args.message_delay:
         raise CommandError('--message-delay is a TarMAC option: an I2C reply later than its decision is never read '
                            '(train that with --message-dropout 1)')
@@ -252,7 +260,8 @@ def config_from_args(args: argparse.Namespace):
                      snapshot_every=args.snapshot_every,
                      lstm=args.lstm, comm=args.comm, message_dropout=args.message_dropout,
                      communication_range=args.communication_range,
-                     message_delay=args.message_delay, hrl=args.hrl, full_observability=args.full_observability,
+                     message_delay=args.message_delay, influence_samples=args.influence_samples, hrl=args.hrl,
+                     full_observability=args.full_observability,
                      memory=args.memory, velocity=args.velocity, credit=args.credit, init_from=args.init_from,
                      **_env(args.config), **extra)
 

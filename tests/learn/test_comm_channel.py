@@ -358,6 +358,8 @@ def test_delay_in_training_replays_and_is_in_the_checkpoint(tmp_path):
     (['mappo', '--comm', 'tarmac', '--message-delay', '-1'], '--message-delay must be a whole number of decisions >= 0'),
     (['mappo', '--comm', 'i2c', '--message-delay', '1'], '--message-delay is a TarMAC option'),
     (['mappo', '--message-delay', '1'], '--message-delay perturbs learned messages; it needs --comm'),
+    (['mappo', '--comm', 'tarmac', '--influence-samples', '8'], '--influence-samples sets how I2C labels its prior'),
+    (['mappo', '--comm', 'i2c', '--influence-samples', '0'], '--influence-samples must be a number of decisions >= 1'),
 ])
 def test_command_delay_errors(arguments, message, capsys):
     from mate.cli import main

@@ -8,7 +8,6 @@ import math
 
 import pytest
 import torch
-from torch import nn
 
 import mate
 from mate.learn.agents import load_policy
@@ -38,20 +37,21 @@ def test_causal_influence_on_a_hand_made_q():
     assert kl[1, 0, 0].item() == pytest.approx(0.0, abs=1e-7)
 
 
-class _TableQ(nn.Module):
-    """Q_i = table[a_i, a_j] for N = 2 agents, 2 actions, state dim 1: input [s, teammate one-hot, own one-hot]."""
-
-    def __init__(self, table: torch.Tensor) -> None:
-        super().__init__()
-        self.table = table
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return ((x[..., 3:5] @ self.table) * x[..., 1:3]).sum(-1, keepdim=True)
+def _table_q(signals: I2CTraining) -> None:
+    """Make the joint action-value networks of N = 2 agents, 2 actions, state dim 1 compute Q_i = 0.1 [a_i = a_j]
+    exactly: ReLU units h_x = relu(teammate one-hot_x + own one-hot_x - 1) on [s, teammate one-hot, own one-hot],
+    Q = 0.1 (h_0 + h_1)."""
+    net = signals.value.net
+    with torch.no_grad():
+        net.weights[0].copy_(torch.tensor([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 0.0], [0.0, 1.0]]).expand(2, 5, 2))
+        net.biases[0].fill_(-1.0)
+        net.weights[1].fill_(0.1)
+        net.biases[1].zero_()
 
 
 def test_labels_from_the_joint_action_values_and_the_median_of_the_buffer():
-    signals = I2CTraining(2, 1, 2, hidden=(4,), temperature=0.1, capacity=4, chunk=2)
-    signals.value.net = _TableQ(torch.tensor([[1.0, 0.0], [0.0, 1.0]]) * 0.1)
+    signals = I2CTraining(2, 1, 2, hidden=(2,), activation='relu', temperature=0.1, capacity=4, chunk=2)
+    _table_q(signals)
     # three decisions; agent 0 is influenced by agent 1 as in case 1 above (KL by hand), and so is agent 1
     state, actions = torch.zeros(3, 1), torch.tensor([[0, 0], [1, 0], [1, 1]])
     labels, kl = signals.labels(state, actions)
