@@ -136,7 +136,9 @@ def _opponent(spec, team: str, env: MultiAgentTracking):
 
 # --------------------------------------------------------------------------- env
 class MateMultiAgentEnv(MultiAgentEnv):
-    __doc__ = __doc__
+    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv`; `env_config` keys in the module `mate.integrations.rllib`."""
+
+    __doc__ = __doc__  # help() shows the module's full description
 
     def __init__(self, config: dict | None = None) -> None:
         super().__init__()

@@ -79,6 +79,9 @@ __all__ = [
 
 @dataclasses.dataclass
 class PPOConfig:
+    """Settings of a MAPPO / IPPO run (`train(config, run_dir)`, `mate train mappo|ippo`); each field's
+    comment in the source says what it does, and `None` fields take the team's paper setting."""
+
     algo: str = 'mappo'                  # 'mappo' (centralised critic on the state) or 'ippo' (local critic)
     team: str = 'camera'                 # trained team; the other one is the batched greedy opponent
     env_id: str | None = None            # None: the paper's preset for the team (PAPER_SETTINGS)
