@@ -11,6 +11,7 @@ import contextlib
 import doctest
 import io
 import os
+import warnings
 
 import pytest
 
@@ -40,7 +41,8 @@ def test_python_blocks_run(path, tmp_path, monkeypatch):
         printed = io.StringIO()
         try:
             code = compile(block.code, block.where, 'exec')
-            with contextlib.redirect_stdout(printed):
+            with contextlib.redirect_stdout(printed), warnings.catch_warnings():
+                warnings.simplefilter('error')  # an example that warns shows users a warning: fix the example
                 exec(code, namespace)
         except Exception as error:
             raise AssertionError(f'{block.where}: the block raised {type(error).__name__}: {error}') from error
