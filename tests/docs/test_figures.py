@@ -1,9 +1,13 @@
-"""The pictures the site shows exist, and the copied result figures equal their sources."""
+"""The pictures the site shows exist, the copied result figures equal their sources, and drawing the
+pictures again gives the same pixels (so they show what the current renderer and game draw)."""
 
 from __future__ import annotations
 
 import importlib.util
 import re
+
+import numpy as np
+import pytest
 
 from .markdown_blocks import ROOT, pages
 
@@ -46,3 +50,21 @@ def test_every_image_a_page_shows_exists():
 def test_the_gif_is_small():
     figures = _docs_figures()
     assert (figures.IMAGES / 'greedy-play.gif').stat().st_size < 1_000_000
+
+
+@pytest.mark.parametrize('group', ['presets', 'concepts', 'ranges', 'gif'])
+def test_redrawing_gives_the_same_pixels(group, tmp_path, monkeypatch):
+    from PIL import Image, ImageSequence
+    figures = _docs_figures()
+    committed = figures.IMAGES
+    monkeypatch.setattr(figures, 'IMAGES', tmp_path)
+    drawn = figures.GROUPS[group]()
+    assert drawn
+    for path in drawn:
+        name = path.relative_to(tmp_path)
+        with Image.open(path) as new, Image.open(committed / name) as old:
+            new_frames = [np.asarray(frame.convert('RGB')) for frame in ImageSequence.Iterator(new)]
+            old_frames = [np.asarray(frame.convert('RGB')) for frame in ImageSequence.Iterator(old)]
+        assert len(new_frames) == len(old_frames) and all(
+            np.array_equal(a, b) for a, b in zip(new_frames, old_frames)), (
+            f'docs/images/{name} is stale: run SDL_VIDEODRIVER=dummy python scripts/docs_figures.py {group}')
