@@ -265,17 +265,43 @@ def config_table() -> str:
 
 
 def presets_table() -> str:
+    """One row per preset; columns whose value is the same for every preset become a sentence after it."""
+    header = ['preset', 'cameras', 'targets', 'obstacles', 'cargo per target', 'max steps', 'reward',
+              'cargo at start', 'camera min angle', 'camera max range', 'target step', 'target sight range',
+              'target start boxes', 'obstacle radius range', 'transmittance']
     rows = []
     for name in mate.list_presets():
         config = mate.read_config(name)
-        camera = config.get('camera', {})
-        rows.append([f'`{name}`', *preset_counts(config), config['num_cargoes_per_target'],
+        camera, target, obstacle = config.get('camera', {}), config['target'], config.get('obstacle', {})
+        boxes = sorted({str(box) for box in target['location_random_range']}) or ['-']
+        radius = obstacle.get('radius_random_range', obstacle.get('radius')) if obstacle else None
+        rows.append([name, *preset_counts(config), config['num_cargoes_per_target'],
                      config['max_episode_steps'], config['reward_type'],
+                     'yes' if config['targets_start_with_cargoes'] else 'no',
                      _number(camera['min_viewing_angle']) if camera else '-',
                      _number(camera['max_sight_range']) if camera else '-',
-                     _number(config['target']['step_size'])])
-    return _table(['preset', 'cameras', 'targets', 'obstacles', 'cargo per target', 'max steps', 'reward',
-                   'camera min angle', 'camera max range', 'target step'], rows)
+                     _number(target['step_size']), _number(target['sight_range']), ' '.join(boxes),
+                     str(radius) if obstacle else '-',
+                     _number(obstacle['transmittance']) if obstacle else '-'])
+    # '-' = not applicable (no cameras, no obstacles): such a column still counts as shared
+    constant = [k for k in range(1, len(header)) if len({str(row[k]) for row in rows} - {'-'}) == 1]
+    keep = [k for k in range(len(header)) if k not in constant]
+    table = _table([header[k] for k in keep], [[row[k] for k in keep] for row in rows])
+    if not constant:
+        return table
+    shared = '; '.join(f'{header[k]} {next(row[k] for row in rows if row[k] != "-")}' for k in constant)
+    return table + f'\nThe same in every preset that has the entities concerned: {shared}.\n'
+
+
+GALLERY_COLUMNS = 3
+
+
+def gallery_table() -> str:
+    """The preset gallery: each preset's frame (docs/images/presets/NAME.png) with its name under it."""
+    cells = [f'![{name}](../images/presets/{name}.png){{ width="200" }}<br>{name}' for name in mate.list_presets()]
+    cells += [''] * (-len(cells) % GALLERY_COLUMNS)
+    rows = [cells[i:i + GALLERY_COLUMNS] for i in range(0, len(cells), GALLERY_COLUMNS)]
+    return _table([' '] * GALLERY_COLUMNS, rows)
 
 
 GENERATORS = {
@@ -291,6 +317,7 @@ GENERATORS = {
     'dimensions': dimensions_table,
     'config-keys': config_table,
     'presets': presets_table,
+    'preset-gallery': gallery_table,
 }
 """Block name -> function returning its markdown."""
 
