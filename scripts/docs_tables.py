@@ -176,6 +176,29 @@ def layout_table(team: mate.Team) -> str:
     return _table(['slice', 'indices', 'entries', 'content'], rows)
 
 
+def entries_table(team: mate.Team) -> str:
+    """Every entry of an observation of `team` for the example sizes: index, part, entity slot, entry."""
+    slices = spaces.observation_slices_of(team, *EXAMPLE_COUNTS)
+    camera = team is mate.Team.CAMERA
+    own = CAMERA_PRIVATE_ENTRIES if camera else TARGET_PRIVATE_ENTRIES
+    opponent = ('target', TARGET_PUBLIC_ENTRIES) if camera else ('camera', CAMERA_PUBLIC_ENTRIES)
+    teammate = ('camera', CAMERA_PUBLIC_ENTRIES) if camera else ('target', TARGET_PUBLIC_ENTRIES)
+    rows = [[i, 'preserved', '', name] for i, name in enumerate(PRESERVED_ENTRIES)]
+    rows += [[slices['self_state'].start + i, 'own state', '', name] for i, name in enumerate(own)]
+    for part, (kind, names) in (('opponent', opponent), ('obstacle', ('obstacle', OBSTACLE_ENTRIES)),
+                                ('teammate', teammate)):
+        block = slices[f'{part}_states_with_mask']
+        fields = names + ['flag: observed (1) or not (0)']
+        for offset in range(block.stop - block.start):
+            slot, entry = divmod(offset, len(fields))
+            rows.append([block.start + offset, part, f'{kind} {slot}', fields[entry]])
+    dim = int(spaces.observation_indices_of(team, *EXAMPLE_COUNTS)[-1])
+    if [row[0] for row in rows] != list(range(dim)):
+        raise StaleDocsError(f'the {team.name.lower()} entry names do not cover indices 0..{dim - 1}: '
+                             'update scripts/docs_tables.py')
+    return _table(['index', 'part', 'entity', 'entry'], rows)
+
+
 def indices_table() -> str:
     """The part offsets returned by the index helpers, for the example sizes."""
     rows = []
@@ -314,6 +337,8 @@ GENERATORS = {
     'camera-layout': lambda: layout_table(mate.Team.CAMERA),
     'target-layout': lambda: layout_table(mate.Team.TARGET),
     'observation-indices': indices_table,
+    'camera-entries': lambda: entries_table(mate.Team.CAMERA),
+    'target-entries': lambda: entries_table(mate.Team.TARGET),
     'dimensions': dimensions_table,
     'config-keys': config_table,
     'presets': presets_table,
