@@ -60,3 +60,46 @@ def test_an_unknown_block_is_an_error(docs_tables):
 def test_marker_pattern_matches_only_pairs(docs_tables):
     text = '<!-- generated:a -->\nx\n<!-- /generated:b -->\n'
     assert not re.search(docs_tables.MARKER, text)
+
+
+def _rows(table: str) -> list[list[str]]:
+    return [[cell.strip() for cell in line.strip('|').split('|')] for line in table.splitlines()[2:]]
+
+
+@pytest.mark.parametrize('team_name', ['CAMERA', 'TARGET'])
+def test_entry_names_match_what_the_env_puts_there(docs_tables, team_name):
+    """Read an observation through the documented names: counts, positions and flags are the world's."""
+    import mate
+    team = mate.Team[team_name]
+    env = mate.make('MATE-4v8-9-v0')
+    observations, _ = env.reset(seed=3)
+    for _ in range(30):
+        observations, *_ = env.step(env.action_space.sample())
+    world = env.get_world()
+    own_kind = team_name.lower()
+    states = {'camera': world['camera_state'], 'target': world['target_state'], 'obstacle': world['obstacle_state']}
+    seen = {('camera', 'target'): world['camera_target_view_mask'], ('camera', 'obstacle'): world['camera_obstacle_view_mask'],
+            ('camera', 'camera'): world['camera_camera_view_mask'], ('target', 'camera'): world['target_camera_view_mask'],
+            ('target', 'obstacle'): world['target_obstacle_view_mask'], ('target', 'target'): world['target_target_view_mask']}
+    checked = 0
+    for agent, row in enumerate(observations[team]):
+        for index, part, entity, entry in _rows(docs_tables.entries_table(team)):
+            value = row[int(index)]
+            if entry.startswith('number of'):
+                assert value == {'N_c': 4, 'N_t': 8, 'N_o': 9}[entry[-3:]]
+            elif part == 'own state' and entry in ('x', 'y'):
+                assert value == states[own_kind][agent, 'xy'.index(entry)]
+            elif entity:
+                kind, slot = entity.split()
+                flag = seen[own_kind, kind][agent, int(slot)]
+                if entry.startswith('flag'):
+                    assert value == flag, (index, entity)
+                elif entry in ('x', 'y'):
+                    expected = states[kind][int(slot), 'xy'.index(entry)] if flag else 0.0
+                    assert value == pytest.approx(expected), (index, entity, entry)
+                else:
+                    continue
+            else:
+                continue
+            checked += 1
+    assert checked > 100
