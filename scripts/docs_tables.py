@@ -171,7 +171,8 @@ def layout_table(team: mate.Team) -> str:
     opponents, teammates = ('targets', 'cameras') if team is mate.Team.CAMERA else ('cameras', 'targets')
     rows = []
     for name, piece in slices.items():
-        meaning = SLICE_MEANING[name].format(opponent=f'opponent {opponents[:-1]}', teammate=f'teammate {teammates[:-1]}')
+        meaning = SLICE_MEANING[name].format(opponent=f'opponent {opponents[:-1]}',
+                                             teammate=f'teammate {teammates[:-1]}')
         rows.append([f'`{name}`', _slice_text(piece), _slice_length(piece), meaning])
     return _table(['slice', 'indices', 'entries', 'content'], rows)
 

@@ -78,9 +78,8 @@ def test_entry_names_match_what_the_env_puts_there(docs_tables, team_name):
     world = env.get_world()
     own_kind = team_name.lower()
     states = {'camera': world['camera_state'], 'target': world['target_state'], 'obstacle': world['obstacle_state']}
-    seen = {('camera', 'target'): world['camera_target_view_mask'], ('camera', 'obstacle'): world['camera_obstacle_view_mask'],
-            ('camera', 'camera'): world['camera_camera_view_mask'], ('target', 'camera'): world['target_camera_view_mask'],
-            ('target', 'obstacle'): world['target_obstacle_view_mask'], ('target', 'target'): world['target_target_view_mask']}
+    seen = {(observer, kind): world[f'{observer}_{kind}_view_mask']   # who observes whom, (observer, observed)
+            for observer in ('camera', 'target') for kind in ('camera', 'target', 'obstacle')}
     checked = 0
     for agent, row in enumerate(observations[team]):
         for index, part, entity, entry in _rows(docs_tables.entries_table(team)):
