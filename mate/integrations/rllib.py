@@ -136,7 +136,10 @@ def _opponent(spec, team: str, env: MultiAgentTracking):
 
 # --------------------------------------------------------------------------- env
 class MateMultiAgentEnv(MultiAgentEnv):
-    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv`; `env_config` keys in the module `mate.integrations.rllib`."""
+    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv`.
+
+    The `env_config` keys are described in the module `mate.integrations.rllib` and in docs/rllib.md.
+    """
 
     __doc__ = __doc__  # help() shows the module's full description
 
