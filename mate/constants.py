@@ -20,8 +20,10 @@ __all__ = [
 TERRAIN_SIZE = 1000.0
 """Half the side of the square terrain [-1000, 1000]^2."""
 TERRAIN_WIDTH = 2.0 * TERRAIN_SIZE
+"""Side of the terrain (2000); coordinates in observations are bounded by +-TERRAIN_WIDTH."""
 
 NUM_WAREHOUSES = 4
+"""Warehouses, one in each corner of the terrain."""
 WAREHOUSE_RADIUS = 0.075 * TERRAIN_SIZE
 """Half-width of each (square) warehouse: 75."""
 WAREHOUSES = (TERRAIN_SIZE - WAREHOUSE_RADIUS) * np.array(
@@ -31,22 +33,34 @@ WAREHOUSES = (TERRAIN_SIZE - WAREHOUSE_RADIUS) * np.array(
 WAREHOUSES.setflags(write=False)
 
 MAX_CAMERA_VIEWING_ANGLE = 180.0
+"""Widest field of view of a camera (degrees)."""
 TARGET_RADIUS = 0.0
+"""Targets are points: they never collide with each other."""
 
 PRESERVED_DIM = 3 + 1 + 2 * NUM_WAREHOUSES + 1
 """Entries at the start of every observation: counts, own index, warehouses, half-width (13)."""
 OBSERVATION_OFFSET = PRESERVED_DIM
+"""Index where an agent's own state starts in its observation (same as PRESERVED_DIM)."""
 
 CAMERA_STATE_DIM_PUBLIC = 6
+"""Entries of a camera's public state: x, y, radius, R_s cos(phi), R_s sin(phi), viewing angle."""
 CAMERA_STATE_DIM_PRIVATE = 9
+"""Entries of a camera's private state: the public state + max sight range, rotation and zooming steps."""
 TARGET_STATE_DIM_PUBLIC = 4
+"""Entries of a target's public state: x, y, sight range, is loaded."""
 TARGET_STATE_DIM_PRIVATE = 6 + 2 * NUM_WAREHOUSES
+"""Entries of a target's private state: the public state + step size, capacity, 4 goal bits, 4 empty bits."""
 OBSTACLE_STATE_DIM = 3
+"""Entries of an obstacle's state: x, y, radius."""
 
 CAMERA_ACTION_DIM = 2
+"""A camera acts with (rotation, zoom), in degrees."""
 TARGET_ACTION_DIM = 2
+"""A target acts with a displacement (dx, dy)."""
 CAMERA_DEFAULT_ACTION = np.zeros(CAMERA_ACTION_DIM)
+"""The no-op camera action (read-only zeros)."""
 TARGET_DEFAULT_ACTION = np.zeros(TARGET_ACTION_DIM)
+"""The no-op target action (read-only zeros)."""
 CAMERA_DEFAULT_ACTION.setflags(write=False)
 TARGET_DEFAULT_ACTION.setflags(write=False)
 

@@ -112,7 +112,12 @@ class GameDescription:
 
 
 class MultiAgentTracking(GameDescription, gym.Env):
-    __doc__ = __doc__
+    """The two-team tracking game as a Gymnasium env: one world, cameras and targets acting together.
+
+    Spaces, the step's return value and the arguments are described in the module `mate.env`.
+    """
+
+    __doc__ = __doc__  # help() shows the module's full description
 
     metadata = {'render_modes': ['human', 'rgb_array'], 'render_fps': 60}
 

@@ -106,7 +106,12 @@ def _box(low: np.ndarray, high: np.ndarray, dtype) -> spaces.Box:
 
 
 class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
-    __doc__ = __doc__
+    """`num_envs` worlds stepped together by the batched core, as a Gymnasium `VectorEnv`.
+
+    Spaces, autoreset, seeding and buffers are described in the module `mate.vector`.
+    """
+
+    __doc__ = __doc__  # help() shows the module's full description
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = False,

@@ -147,3 +147,4 @@ def env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: 
 
 
 raw_env = env
+"""The same function as `env` (PettingZoo's conventional name for the unwrapped AEC constructor)."""

@@ -136,7 +136,12 @@ def _opponent(spec, team: str, env: MultiAgentTracking):
 
 # --------------------------------------------------------------------------- env
 class MateMultiAgentEnv(MultiAgentEnv):
-    __doc__ = __doc__
+    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv`.
+
+    The `env_config` keys are described in the module `mate.integrations.rllib` and in docs/rllib.md.
+    """
+
+    __doc__ = __doc__  # help() shows the module's full description
 
     def __init__(self, config: dict | None = None) -> None:
         super().__init__()

@@ -42,7 +42,8 @@ class VecGreedyTarget:
     while moving and 0.75 after a (nearly) blocked step.
 
     Args:
-        num_envs, num_targets: batch shape.
+        num_envs: batch size B.
+        num_targets: targets per env.
         seed: seed of the numpy generator.
     """
 

@@ -79,6 +79,13 @@ __all__ = [
 
 @dataclasses.dataclass
 class PPOConfig:
+    """Settings of a MAPPO / IPPO run (`train(config, run_dir)`, `mate train mappo|ippo`).
+
+    The fields and their defaults are listed below; the comment beside each field in
+    `mate/learn/ppo.py` says what it does, and `mate train mappo -h` describes the same settings as
+    options. `None` fields take the team's paper setting (`resolved()`).
+    """
+
     algo: str = 'mappo'                  # 'mappo' (centralised critic on the state) or 'ippo' (local critic)
     team: str = 'camera'                 # trained team; the other one is the batched greedy opponent
     env_id: str | None = None            # None: the paper's preset for the team (PAPER_SETTINGS)
