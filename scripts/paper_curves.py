@@ -3,6 +3,7 @@
     python scripts/paper_curves.py                                 # redraw the figures from the shipped logs
     python scripts/paper_curves.py plot --logs DIR --out FIGURES   # draw from other logs
     python scripts/paper_curves.py train --steps 2e6 --out results # train every run (hours), then draw
+    python scripts/paper_curves.py table --at 1e5 2e5              # each curve's mean ± std at these budgets
 
 `plot` (the default) reads, for each experiment, algorithm and seed, LOGS/ALGO-NAME-seedS.csv (the thinned
 logs shipped in scripts/results/) or LOGS/runs/ALGO-NAME-seedS/progress.csv (what `train` writes; preferred
@@ -117,7 +118,7 @@ def read_curve(path: Path, column: str):
     with open(path, newline='') as f:
         rows = list(csv.DictReader(f))
     x = np.array([float(r['env_steps']) for r in rows])
-    y = np.array([float(r[column]) for r in rows])
+    y = np.array([float(r[column] or 'nan') for r in rows])     # an empty cell: nothing logged
     return x, y
 
 
@@ -182,13 +183,34 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
     return written
 
 
+def table(logs: Path, algos: list[str], seeds: list[int], experiments: list[str], budgets: list[float]) -> str:
+    """A markdown table of each (experiment, algorithm) curve at each budget (decision steps): mean ± std over the
+    seeds whose log reaches it (the value interpolated between logged points, as drawn), '-' where none does."""
+    lines = ['| experiment | algorithm | seeds | ' + ' | '.join(f'{b:,.0f} decisions' for b in budgets) + ' |',
+             '|---|---|---|' + '---|' * len(budgets)]
+    for name in experiments:
+        column = EXPERIMENTS[name][2]
+        for algo in algos:
+            curves = [read_curve(path, column) for seed in seeds
+                      if (path := find_log(logs, f'{algo}-{name}-seed{seed}')) is not None]
+            curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
+            if not curves:
+                continue
+            cells = []
+            for budget in budgets:
+                values = [np.interp(budget, x, y) for x, y in curves if x[0] <= budget <= x[-1]]
+                cells.append(f'{np.mean(values):.3f} ± {np.std(values):.3f} ({len(values)})' if values else '-')
+            lines.append(f'| {name} | {algo} | {len(curves)} | ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines)
+
+
 SHIPPED_LOGS = Path(__file__).resolve().parent / 'results'
-COMMANDS = ('plot', 'train')
+COMMANDS = ('plot', 'train', 'table')
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    commands = parser.add_subparsers(dest='command', required=True, metavar='{plot,train}')
+    commands = parser.add_subparsers(dest='command', required=True, metavar='{plot,train,table}')
     selection = argparse.ArgumentParser(add_help=False)
     selection.add_argument('--algos', nargs='+', default=list(ALGOS), choices=ALGOS,
                            help='algorithms (default all; `train` skips MADDPG on HRL experiments)')
@@ -200,6 +222,10 @@ def build_parser() -> argparse.ArgumentParser:
                       help=f'where the logs are (default: the shipped ones, {SHIPPED_LOGS})')
     draw.add_argument('--out', type=Path, default=None, help='where the PNGs go (default: the --logs directory)')
     draw.add_argument('--plot-only', action='store_true', help=argparse.SUPPRESS)   # the former spelling of `plot`
+
+    at = commands.add_parser('table', parents=[selection], help='print each curve at given budgets (markdown)')
+    at.add_argument('--logs', type=Path, default=SHIPPED_LOGS, help=f'where the logs are (default {SHIPPED_LOGS})')
+    at.add_argument('--at', type=float, nargs='+', required=True, metavar='STEPS', help='budgets in decision steps')
 
     train = commands.add_parser('train', parents=[selection], help='train every run with `mate train`, then draw')
     train.add_argument('--out', type=Path, default=Path('results'), help='runs go to OUT/runs/, PNGs to OUT (default results)')
@@ -226,6 +252,9 @@ def main(argv: list[str] | None = None) -> int:
         if any(codes):
             print(f'{sum(c != 0 for c in codes)} runs failed', file=sys.stderr)
         logs = out = args.out
+    elif args.command == 'table':
+        print(table(args.logs, args.algos, args.seeds, args.experiments, args.at))
+        return 0
     else:
         logs, out = args.logs, args.out or args.logs
     if not plot(logs, out, args.algos, args.seeds, args.experiments):

@@ -47,3 +47,15 @@ def test_a_training_run_directory_is_preferred_to_a_thinned_log(paper_curves, tm
     (tmp_path / 'runs' / run).mkdir(parents=True)
     (tmp_path / 'runs' / run / 'progress.csv').write_text('env_steps\n')
     assert paper_curves.find_log(tmp_path, run) == tmp_path / 'runs' / run / 'progress.csv'
+
+
+def test_the_table_reads_each_curve_at_the_budgets_it_reaches(paper_curves, tmp_path, capsys):
+    header = 'iteration,env_steps,episode_normalized_target_return\n'
+    for seed, rows in ((0, [(1, 100, ''), (2, 200, 0.1), (3, 400, 0.3)]), (1, [(1, 200, 0.2), (2, 300, 0.4)])):
+        (tmp_path / f'mappo-target-4v8-0-seed{seed}.csv').write_text(
+            header + ''.join(f'{i},{x},{y}\n' for i, x, y in rows))
+    assert paper_curves.main(['table', '--logs', str(tmp_path), '--experiments', 'target-4v8-0', '--algos', 'mappo',
+                              '--at', '200', '300', '400']) == 0
+    row = capsys.readouterr().out.strip().splitlines()[-1]
+    # 200: seeds 0 (0.1) and 1 (0.2); 300: seed 0 interpolated (0.2) and seed 1 (0.4); 400: seed 0 only
+    assert row == '| target-4v8-0 | mappo | 2 | 0.150 ± 0.050 (2) | 0.300 ± 0.100 (2) | 0.300 ± 0.000 (1) |'
