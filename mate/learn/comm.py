@@ -328,8 +328,10 @@ class JointActionValue(nn.Module):
     def own_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """(..., S), (..., N) -> (..., N, A): Q_i with agent i's own action replaced by each of the A."""
         base, _, _, own = self._first_layer(state, actions)
-        hidden = self.net.activation(base.unsqueeze(-2) + own)                            # (..., N, A own, H)
-        return self.net(hidden.transpose(-2, -3), start=1).squeeze(-1).transpose(-1, -2)
+        lead, (n, a, h) = base.shape[:-2], own.shape
+        pre = base.reshape(-1, n, 1, h).transpose(0, 1) + own[:, None]                   # (N, R, A own, H)
+        values = self.net.agent_major(self.net.activation(pre.reshape(n, -1, h)), start=1)   # (N, R A, 1)
+        return values.reshape(n, -1, a).transpose(0, 1).reshape(*lead, n, a)
 
     def paired_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """(..., S), (..., N) -> (..., N, N - 1, A own, A teammate): Q_i with its own action and that of the
@@ -412,11 +414,20 @@ class I2CTraining(nn.Module):
                         for s, a in zip(state.split(self.chunk), actions.split(self.chunk))])
         return self.threshold.labels(kl), kl
 
-    def losses(self, logits: torch.Tensor, state: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor):
-        own = self.value.own_action_values(state, actions)                                  # (R, N, A)
-        taken = own.gather(-1, actions.unsqueeze(-1)).squeeze(-1)
-        regression = (taken - returns).pow(2).mean()
-        return regression, policy_correlation(logits, own.detach(), self.temperature).mean()
+    @torch.no_grad()
+    def own_action_values(self, state: torch.Tensor, actions: torch.Tensor, rows: int = 256) -> torch.Tensor:
+        """(R, S), (R, N) -> (R, N, A) without gradient, `rows` at a time: the regulariser's targets (the trainer
+        takes them once per iteration, before its epochs, as PPO takes its old log-probabilities)."""
+        return torch.cat([self.value.own_action_values(s, a) for s, a in zip(state.split(rows), actions.split(rows))])
+
+    def losses(self, logits: torch.Tensor, state: torch.Tensor, actions: torch.Tensor, returns: torch.Tensor,
+               own_values: torch.Tensor | None = None):
+        """`own_values` (R, N, A): the regulariser's Q targets if already computed (else computed here, detached).
+        The regression evaluates Q at the taken actions only (R x N rows with gradient, not R x N x A)."""
+        regression = (self.value(state, actions) - returns).pow(2).mean()
+        if own_values is None:
+            own_values = self.own_action_values(state, actions)
+        return regression, policy_correlation(logits, own_values, self.temperature).mean()
 
     @staticmethod
     def prior_loss(actor: I2CActor, obs: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:

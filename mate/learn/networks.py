@@ -398,12 +398,9 @@ class AgentwiseMLP(nn.Module):
             self.weights.append(nn.Parameter(weight.detach().clone()))               # (N, in, out)
             self.biases.append(nn.Parameter(torch.zeros(agents, n_out)))
 
-    def forward(self, x: torch.Tensor, agents: torch.Tensor | None = None, start: int = 0) -> torch.Tensor:
-        """With `start` k > 0, x (..., n, width of layer k - 1) is the activated output of layer k - 1 (computed
-        by the caller, e.g. from a factorised first layer) and only the layers from k on are applied."""
+    def forward(self, x: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
         layers = len(self.weights)
-        for layer in range(start, layers):
-            weight, bias = self.weights[layer], self.biases[layer]
+        for layer, (weight, bias) in enumerate(zip(self.weights, self.biases)):
             if agents is not None:
                 weight, bias = weight[agents], bias[agents]
             x = agentwise_matmul(x, weight) + bias
@@ -412,8 +409,9 @@ class AgentwiseMLP(nn.Module):
         return x
 
     def agent_major(self, x: torch.Tensor, start: int = 0) -> torch.Tensor:
-        """`forward` on rows already grouped by agent: x (N, R, width of layer start - 1) -> (N, R, outputs),
-        every agent's layers on its R rows as `bmm`s with no transposes (large batches, e.g. I2C's A x A pairs)."""
+        """`forward` on rows already grouped by agent, from layer `start` on: x (N, R, inputs of that layer; for
+        `start` k > 0 the activated output of layer k - 1, computed by the caller, e.g. from a factorised first
+        layer) -> (N, R, outputs), every agent's layers as `bmm`s with no transposes (I2C's A x A pairs)."""
         layers = len(self.weights)
         for layer in range(start, layers):
             x = torch.baddbmm(self.biases[layer].unsqueeze(1), x, self.weights[layer])

@@ -500,6 +500,7 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                 label_rows = torch.randperm(T * B, generator=generator)[:config.influence_samples]
                 labels, influence = signals.labels(b_state[label_rows], b_action[label_rows, :, 0])
                 label_obs = b_obs[label_rows]
+                b_own_values = signals.own_action_values(b_state, b_action[..., 0])   # the regulariser's targets
                 stats.update(q_loss=0.0, prior_loss=0.0, regulariser=0.0)
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, recurrent, generator):
@@ -517,7 +518,8 @@ def train(config: PPOConfig, run_dir: str | os.PathLike, resume: bool = True, pr
                     if kl_coeff > 0:
                         loss = loss + kl_coeff * kl
                     if i2c:
-                        q_loss, regulariser = signals.losses(logits, b_state[idx], b_action[idx][..., 0], b_ret[idx])
+                        q_loss, regulariser = signals.losses(logits, b_state[idx], b_action[idx][..., 0], b_ret[idx],
+                                                             b_own_values[idx])
                         prior_loss = signals.prior_loss(actor, label_obs, labels)
                         loss = loss + q_loss + prior_loss + I2C_REGULARISER * regulariser
                         stats['q_loss'] += q_loss.item()
