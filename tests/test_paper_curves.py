@@ -8,7 +8,8 @@ import pytest
 from PIL import Image
 
 SCRIPT = Path(__file__).resolve().parents[1] / 'scripts' / 'paper_curves.py'
-FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'targets-4v8-0')
+FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'targets-4v8-0', 'cameras-4v8-9-communication',
+           'targets-4v8-0-communication')
 
 
 @pytest.fixture(scope='module')
