@@ -148,6 +148,8 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
         drawn = False
         for name, column, label in members:
             for algo in algos:
+                if figure.endswith('-communication') and algo not in PPO_ALGOS:
+                    continue        # the add-ons are PPO's: their figures compare PPO learners only
                 paths = [find_log(logs, f'{algo}-{name}-seed{seed}') for seed in seeds]
                 curves = [read_curve(path, column) for path in paths if path is not None]
                 curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
