@@ -7,10 +7,10 @@ outside the package; if they are missing the tests fail.
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from modules import load_module
 
 SHARED = Path(__file__).resolve().parents[1].parent / 'shared'
 CHECK = SHARED / 'checks' / 'conformance.py'
@@ -28,10 +28,7 @@ def _fixture_paths():
 def check():
     if not CHECK.is_file():
         pytest.fail(f'the differential check is missing: expected {CHECK}')
-    spec = importlib.util.spec_from_file_location('mate_shared_conformance', CHECK)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module(CHECK, 'mate_shared_conformance')
 
 
 def test_shared_check_and_fixtures_exist():

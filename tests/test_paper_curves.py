@@ -1,11 +1,12 @@
 """scripts/paper_curves.py: with no command it redraws the figures from the thinned logs shipped in
 scripts/results/ (no training), and says so when it finds nothing to draw."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
 from PIL import Image
+
+from modules import load_module
 
 SCRIPT = Path(__file__).resolve().parents[1] / 'scripts' / 'paper_curves.py'
 FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'targets-4v8-0', 'cameras-4v8-9-communication',
@@ -14,10 +15,7 @@ FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'tar
 
 @pytest.fixture(scope='module')
 def paper_curves():
-    spec = importlib.util.spec_from_file_location('paper_curves', SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module(SCRIPT)
 
 
 def test_the_default_command_redraws_every_figure_from_the_shipped_logs(paper_curves, tmp_path, monkeypatch):

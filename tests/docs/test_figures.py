@@ -3,11 +3,12 @@ pictures again gives the same pixels (so they show what the current renderer and
 
 from __future__ import annotations
 
-import importlib.util
 import re
 
 import numpy as np
 import pytest
+
+from modules import load_module
 
 from .markdown_blocks import ROOT, pages
 
@@ -16,10 +17,7 @@ IMAGE_LINK = re.compile(r'!\[[^\]]*\]\((?P<target>[^)\s]+)\)')
 
 
 def _docs_figures():
-    spec = importlib.util.spec_from_file_location('docs_figures', SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module(SCRIPT)
 
 
 def test_result_figures_are_copies_of_their_sources():

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
 import re
 
 import pytest
+
+from modules import load_module
 
 from .markdown_blocks import ROOT
 
@@ -14,10 +15,7 @@ SCRIPT = ROOT / 'scripts' / 'docs_tables.py'
 
 @pytest.fixture(scope='module')
 def docs_tables():
-    spec = importlib.util.spec_from_file_location('docs_tables', SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module(SCRIPT)
 
 
 def test_regenerating_the_tables_changes_no_page(docs_tables):

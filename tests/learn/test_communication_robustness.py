@@ -1,17 +1,13 @@
 """scripts/communication_robustness.py: the channel wrappers act on a deployed TarMAC team and the counts add up."""
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
 
 from mate.learn.ppo import PPOConfig, train
+from modules import load_script
 
-SCRIPT = Path(__file__).resolve().parents[2] / 'scripts' / 'communication_robustness.py'
-spec = importlib.util.spec_from_file_location('communication_robustness', SCRIPT)
-robustness = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(robustness)
+robustness = load_script('communication_robustness')
 
 
 @pytest.fixture(scope='module')

@@ -1,8 +1,6 @@
 """scripts/target_roles.py: per-target features against a recorded trajectory, the role analysis on synthetic
 data, RenderCommunication(kinds=True) frames, and one-line errors."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,11 +9,9 @@ import mate
 from mate.learn.agents import PolicyTargetAgent, load_policy
 from mate.learn.ppo import PPOConfig, train
 from mate.render import Renderer
+from modules import load_script
 
-SCRIPT = Path(__file__).resolve().parents[2] / 'scripts' / 'target_roles.py'
-spec = importlib.util.spec_from_file_location('target_roles', SCRIPT)
-roles_script = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(roles_script)
+roles_script = load_script('target_roles')
 NAMES = roles_script.NAMES
 
 
