@@ -399,22 +399,20 @@ class AgentwiseMLP(nn.Module):
             self.biases.append(nn.Parameter(torch.zeros(agents, n_out)))
 
     def forward(self, x: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
-        layers = len(self.weights)
-        for layer, (weight, bias) in enumerate(zip(self.weights, self.biases)):
-            if agents is not None:
-                weight, bias = weight[agents], bias[agents]
-            x = agentwise_matmul(x, weight) + bias
-            if layer < layers - 1 or self.activated:
-                x = self.activation(x)
-        return x
+        lead, n = x.shape[:-2], x.shape[-2]
+        rows = x.reshape(-1, n, x.shape[-1]).transpose(0, 1)                                # (n, R, inputs)
+        return self.agent_major(rows, agents=agents).transpose(0, 1).reshape(*lead, n, -1)
 
-    def agent_major(self, x: torch.Tensor, start: int = 0) -> torch.Tensor:
-        """`forward` on rows already grouped by agent, from layer `start` on: x (N, R, inputs of that layer; for
+    def agent_major(self, x: torch.Tensor, start: int = 0, agents: torch.Tensor | None = None) -> torch.Tensor:
+        """`forward` on rows already grouped by agent, from layer `start` on: x (n, R, inputs of that layer; for
         `start` k > 0 the activated output of layer k - 1, computed by the caller, e.g. from a factorised first
-        layer) -> (N, R, outputs), every agent's layers as `bmm`s with no transposes (I2C's A x A pairs)."""
+        layer) -> (n, R, outputs), every agent's layers as one `bmm` each (I2C's A x A pairs come this way)."""
         layers = len(self.weights)
         for layer in range(start, layers):
-            x = torch.baddbmm(self.biases[layer].unsqueeze(1), x, self.weights[layer])
+            weight, bias = self.weights[layer], self.biases[layer]
+            if agents is not None:
+                weight, bias = weight[agents], bias[agents]
+            x = torch.bmm(x, weight) + bias.unsqueeze(1)
             if layer < layers - 1 or self.activated:
                 x = self.activation(x)
         return x
