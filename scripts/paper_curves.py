@@ -130,6 +130,13 @@ def find_log(logs: Path, run: str) -> Path | None:
     return None
 
 
+def seed_curves(logs: Path, run: str, seeds: list[int], column: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The logged points (steps, `column`) of each seed's run RUN-seedS under `logs` that has one (NaN rows left
+    out; a curve with fewer than two points is left out)."""
+    curves = [read_curve(path, column) for seed in seeds if (path := find_log(logs, f'{run}-seed{seed}')) is not None]
+    return [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
+
+
 def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments: list[str]) -> list[Path]:
     """Draw every figure with at least one curve of `experiments` from the logs under `logs` into `out`;
     returns the PNGs written."""
@@ -150,9 +157,7 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
             for algo in algos:
                 if figure.endswith('-communication') and algo not in PPO_ALGOS:
                     continue        # the add-ons are PPO's: their figures compare PPO learners only
-                paths = [find_log(logs, f'{algo}-{name}-seed{seed}') for seed in seeds]
-                curves = [read_curve(path, column) for path in paths if path is not None]
-                curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
+                curves = seed_curves(logs, f'{algo}-{name}', seeds, column)
                 if not curves:
                     continue
                 grid = np.geomspace(max(x[0] for x, _ in curves), min(x[-1] for x, _ in curves), 200)
@@ -193,9 +198,7 @@ def table(logs: Path, algos: list[str], seeds: list[int], experiments: list[str]
     for name in experiments:
         column = EXPERIMENTS[name][2]
         for algo in algos:
-            curves = [read_curve(path, column) for seed in seeds
-                      if (path := find_log(logs, f'{algo}-{name}-seed{seed}')) is not None]
-            curves = [(x[~np.isnan(y)], y[~np.isnan(y)]) for x, y in curves if (~np.isnan(y)).sum() > 1]
+            curves = seed_curves(logs, f'{algo}-{name}', seeds, column)
             if not curves:
                 continue
             cells = []

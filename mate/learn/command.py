@@ -58,10 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--message-delay', type=int, default=0, metavar='K',
                         help="with --comm tarmac: teammates' messages arrive K decisions late (on top of TarMAC's one; "
                              'as ExtraCommunicationDelays of K x frame-skip steps); default 0')
-    parser.add_argument('--influence-samples', type=int, default=32, metavar='N',
+    parser.add_argument('--influence-samples', type=int, default=PPO_ONLY['influence_samples'], metavar='N',
                         help="with --comm i2c: decisions per iteration whose causal-influence labels are computed "
                              "(each costs N_agents x (N_agents - 1) x 25 x 25 joint action-value evaluations: the "
-                             "largest share of an I2C iteration); default 32")
+                             "largest share of an I2C iteration); default %(default)s")
     parser.add_argument('--full-observability', action='store_true',
                         help='the trained team sees every entity (the EnhancedObservation wrapper; the paper\'s Fig. 6 '
                              'ablation); evaluate such a policy with `mate evaluate --enhanced-observation TEAM`')
@@ -242,7 +242,7 @@ def config_from_args(args: argparse.Namespace):
                             ('--message-delay', args.message_delay > 0)):
             if given:
                 raise CommandError(f'{flag} perturbs learned messages; it needs --comm tarmac or --comm i2c')
-    if args.influence_samples != 32 and args.comm != 'i2c':
+    if args.influence_samples != PPO_ONLY['influence_samples'] and args.comm != 'i2c':
         raise CommandError('--influence-samples sets how I2C labels its prior; it needs --comm i2c')
     if args.influence_samples < 1:
         raise CommandError(f'--influence-samples must be a number of decisions >= 1, got {args.influence_samples}')
