@@ -33,8 +33,9 @@ _tried = False
 
 
 def _wanted() -> bool:
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1
-    return os.environ.get('MATE_PARALLEL_COMPILE', '1').strip() != '0' and cores > 1 and not DISABLE_JIT
+    from .engine import NUM_THREADS   # the cores this process may use (engine imports this module)
+
+    return os.environ.get('MATE_PARALLEL_COMPILE', '1').strip() != '0' and NUM_THREADS > 1 and not DISABLE_JIT
 
 
 class _FirstMateCompile(event.Listener):
