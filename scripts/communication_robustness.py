@@ -19,6 +19,7 @@ rate for cameras, normalised target return for targets (mean and std over episod
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -59,14 +60,21 @@ def channel_env(config: str, channel: tuple[str, float]):
     return mate.RenderCommunication(env, duration=1)
 
 
+@functools.lru_cache(maxsize=None)
+def teams(policy: str, team: str) -> tuple:
+    """(camera factory, target factory): the policy for `team`, greedy for the other; a checkpoint is loaded once
+    for all the channels it plays."""
+    trained = Team.CAMERA if team == 'camera' else Team.TARGET
+    own = resolve_agent(f'checkpoint:{policy}' if Path(policy).is_file() else policy, trained)
+    other = resolve_agent('greedy', Team.TARGET if team == 'camera' else Team.CAMERA)
+    return (own, other) if team == 'camera' else (other, own)
+
+
 def score(policy: str, team: str, config: str, channel: tuple[str, float], episodes: int, seed: int,
           max_steps: int) -> dict:
     """One row: the policy's metric (mean, std over episodes) and messages per raw step on one channel."""
     trained = Team.CAMERA if team == 'camera' else Team.TARGET
-    agent = f'checkpoint:{policy}' if Path(policy).is_file() else policy
-    own = resolve_agent(agent, trained)
-    other = resolve_agent('greedy', Team.TARGET if team == 'camera' else Team.CAMERA)
-    cameras, targets = (own, other) if team == 'camera' else (other, own)
+    cameras, targets = teams(policy, team)
     env = channel_env(config, channel)
     values, sent, delivered, steps = [], 0, 0, 0
     start = time.perf_counter()
