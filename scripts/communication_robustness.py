@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import mate
+from mate.cli import ArgumentParser
 from mate.evaluate import play_episode, resolve_agent
 from mate.messages import Team
 
@@ -100,15 +101,8 @@ def markdown(rows: list[dict], team: str) -> str:
     return '\n'.join(lines)
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """Argument errors as one line on stderr, exit status 2."""
-
-    def error(self, message: str):
-        self.exit(2, f'{self.prog}: error: {message}\n')
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('policies', nargs='+', help='checkpoint paths or agent specs of the trained team')
     parser.add_argument('--team', choices=('camera', 'target'), required=True)
     parser.add_argument('--config', default='MATE-4v8-9', help='preset or config file (default MATE-4v8-9)')

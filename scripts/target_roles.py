@@ -16,7 +16,6 @@ everything, `--gif PATH` records the first episode with the messages drawn (`Ren
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -25,6 +24,7 @@ import numpy as np
 
 import mate
 from mate.constants import WAREHOUSE_RADIUS, WAREHOUSES
+from mate.cli import ArgumentParser
 from mate.evaluate import FrameRecorder, play_episode, resolve_agent
 from mate.messages import Team
 
@@ -288,15 +288,8 @@ def markdown(per_episode: np.ndarray, analysis: dict) -> str:
     return '\n'.join(lines)
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """argparse's parser whose errors are one line: `target_roles.py: error: MESSAGE` (status 2)."""
-
-    def error(self, message: str):
-        self.exit(2, f'{self.prog}: error: {message}\n')
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog='target_roles.py', description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog='target_roles.py', description=__doc__.splitlines()[0])
     parser.add_argument('--target-agent', default='greedy',
                         help='checkpoint:PATH, pretrained:NAME or a rule-based name (default greedy)')
     parser.add_argument('--camera-agent', default='greedy', help='default greedy')

@@ -43,4 +43,5 @@ def test_the_script_prints_a_table_writes_json_and_refuses_bad_channels(tarmac_t
         robustness.main([str(tarmac_targets), '--team', 'target', '--dropout', '1.5'])
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
-    assert 'dropout must be in [0, 1]' in err and len(err.strip().splitlines()) == 1
+    first, *rest = err.strip().splitlines()
+    assert 'dropout must be in [0, 1]' in first and len(rest) == 1 and rest[0].endswith(' -h)')
