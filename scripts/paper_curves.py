@@ -174,13 +174,17 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
             plt.close(fig)
             continue
         team, env_id = FIGURE_SETTINGS[figure]
-        ax.axhline(greedy_reference(team, env_id), color='grey', linestyle='--',
+        ax.axhline(greedy_reference(team, env_id), color='black', linestyle='--',     # black: no curve's colour
                    label=f'greedy {team}s (same setting)')
         ax.set_xscale('log')      # off-policy runs of minutes beside PPO runs of millions of steps
         ax.set_xlabel('decision steps (log scale)')
         ax.set_ylabel(label)
         ax.set_title(figure)
-        ax.legend(fontsize='small')
+        if len(ax.lines) > 8:      # a long legend goes beside the axes, not over the curves
+            fig.set_size_inches(9, 4)
+            ax.legend(fontsize='small', loc='center left', bbox_to_anchor=(1.01, 0.5))
+        else:
+            ax.legend(fontsize='small')
         fig.tight_layout()
         out.mkdir(parents=True, exist_ok=True)
         fig.savefig(out / f'{figure}.png', dpi=120)
