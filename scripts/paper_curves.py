@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import csv
 import functools
+import importlib.util
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -248,8 +249,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] not in (*COMMANDS, '-h', '--help'):
         argv.insert(0, 'plot')      # no command: redraw
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.command == 'train':
+        if importlib.util.find_spec('mate') is None:     # found now, not after hours of training when plotting
+            parser.error('the mate package is not importable by this Python: install it (pip install -e .) first')
         args.out.mkdir(parents=True, exist_ok=True)
         tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds
                  if not (algo == 'maddpg' and name.startswith('hrl'))      # HRL selects targets: no continuous form

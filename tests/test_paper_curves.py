@@ -58,3 +58,18 @@ def test_the_table_reads_each_curve_at_the_budgets_it_reaches(paper_curves, tmp_
     row = capsys.readouterr().out.strip().splitlines()[-1]
     # 200: seeds 0 (0.1) and 1 (0.2); 300: seed 0 interpolated (0.2) and seed 1 (0.4); 400: seed 0 only
     assert row == '| target-4v8-0 | mappo | 2 | 0.150 ± 0.050 (2) | 0.300 ± 0.100 (2) | 0.300 ± 0.000 (1) |'
+
+
+def test_train_refuses_to_start_without_an_importable_mate(paper_curves, tmp_path, monkeypatch, capsys):
+    real_find_spec = paper_curves.importlib.util.find_spec
+    monkeypatch.setattr(paper_curves.importlib.util, 'find_spec',
+                        lambda name, *rest: None if name == 'mate' else real_find_spec(name, *rest))
+
+    def no_training(*args):
+        raise AssertionError('nothing may train before the check')
+    monkeypatch.setattr(paper_curves, 'run_one', no_training)
+    with pytest.raises(SystemExit) as exit_info:
+        paper_curves.main(['train', '--out', str(tmp_path / 'out'), '--experiments', 'target-2v4-0'])
+    assert exit_info.value.code == 2
+    assert 'mate package is not importable' in capsys.readouterr().err
+    assert not (tmp_path / 'out').exists()
