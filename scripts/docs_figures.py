@@ -45,6 +45,7 @@ RESULT_FIGURES = {
     'targets-2v4-0-observability.png': 'scripts/results/targets-2v4-0-observability.png',
     'targets-4v8-0-communication.png': 'scripts/results/targets-4v8-0-communication.png',
     'cameras-4v8-9-communication.png': 'scripts/results/cameras-4v8-9-communication.png',
+    'cameras-4v8-9-hrl.png': 'scripts/results/cameras-4v8-9-hrl.png',
     'psro-exploitability.png': 'scripts/results/psro/exploitability.png',
     'psro-meta-strategies-nash-seed0.png': 'scripts/results/psro/meta-strategies-nash-seed0.png',
 }

@@ -16,7 +16,9 @@ Experiments (spec training.md §0): cameras (flat and HRL) vs batched greedy tar
 skip 5, coverage-rate reward; curve: rollout coverage rate) and targets vs batched greedy cameras on
 MATE-2v4-0 and MATE-4v8-0 (frame skip 10, raw dense reward; curve: episode target reward normalised by the
 preset's maximum), and the paper's Fig. 6 observability ablation (`target-2v4-0-full-obs`: the same
-targets seeing every entity, drawn with the partial-observability runs in `targets-2v4-0-observability`).
+targets seeing every entity, drawn with the partial-observability runs in `targets-2v4-0-observability`), and
+the HRL cameras' target selection side by side in `cameras-4v8-9-hrl` (HRL-MAPPO; IQL and QMIX choosing one of
+the 256 subsets or with a keep/ignore head per target; per-target IQL paid with the difference reward).
 The dashed line is the greedy agent of the trained team in the same setting (batched greedy opponents,
 training-length episodes), measured when plotting (a few seconds each).
 """
@@ -42,13 +44,18 @@ EXPERIMENTS = {
                      'mean coverage rate'),
     # HRL: the recipe of the shipped policy (pretrained/hrl-mappo-camera-4v8-9.pt), a higher entropy bonus
     'hrl-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl'],
-                         ('cameras-4v8-9', 'cameras-4v8-9-communication'), 'rollout_coverage', 'mean coverage rate'),
+                         ('cameras-4v8-9', 'cameras-4v8-9-communication', 'cameras-4v8-9-hrl'), 'rollout_coverage',
+                         'mean coverage rate'),
     # the same with TarMAC messages (issue 22; same entropy recipe)
     'hrl-tarmac-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--comm', 'tarmac'],
                                 'cameras-4v8-9-communication', 'rollout_coverage', 'mean coverage rate'),
     # value-based HRL with a keep/ignore head per target slot instead of the spec's Discrete(256) (the default)
     'hrl-per-target-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--selection', 'per-target'],
-                                    'cameras-4v8-9', 'rollout_coverage', 'mean coverage rate'),
+                                    ('cameras-4v8-9', 'cameras-4v8-9-hrl'), 'rollout_coverage', 'mean coverage rate'),
+    # the same, each camera paid its own share of the coverage (difference reward; IQL only: QMIX mixes the team's)
+    'hrl-per-target-difference-camera-4v8-9': (['--team', 'camera', '--config', 'MATE-4v8-9', '--hrl', '--selection',
+                                                'per-target', '--credit', 'difference'],
+                                               'cameras-4v8-9-hrl', 'rollout_coverage', 'mean coverage rate'),
     'target-2v4-0': (['--team', 'target', '--config', 'MATE-2v4-0'], ('targets-2v4-0', 'targets-2v4-0-observability'),
                      'episode_normalized_target_return', 'normalised target episode reward'),
     # the paper's Fig. 6 ablation: the same, with the targets seeing everything (EnhancedObservation)
@@ -73,6 +80,7 @@ FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0'
                    'targets-4v8-0': ('target', 'MATE-4v8-0-v0'),
                    'targets-4v8-0-communication': ('target', 'MATE-4v8-0-v0'),
                    'cameras-4v8-9-communication': ('camera', 'MATE-4v8-9-v0'),
+                   'cameras-4v8-9-hrl': ('camera', 'MATE-4v8-9-v0'),
                    'targets-2v4-0-observability': ('target', 'MATE-2v4-0-v0')}
 
 
@@ -167,6 +175,7 @@ def plot(logs: Path, out: Path, algos: list[str], seeds: list[int], experiments:
                 prefix = 'HRL-' if name.startswith('hrl') else ''
                 suffix = (', full obs.' if name.endswith('full-obs') else ', partial obs.') if 'observability' in figure else ''
                 suffix += ', per-target heads' if 'per-target' in name else ''
+                suffix += ', difference reward' if 'difference' in name.split('-') else ''
                 suffix = ''.join(tag for part, tag in COMMUNICATION.items() if part in name.split('-')) + suffix
                 ax.plot(grid, mean, label=f'{prefix}{algo.upper()}{suffix} ({len(ys)} seed{"s" * (len(ys) > 1)})')
                 ax.fill_between(grid, mean - std, mean + std, alpha=0.25)
@@ -258,6 +267,7 @@ def main(argv: list[str] | None = None) -> int:
         tasks = [(name, algo, seed) for name in args.experiments for algo in args.algos for seed in args.seeds
                  if not (algo == 'maddpg' and name.startswith('hrl'))      # HRL selects targets: no continuous form
                  and not (algo not in ('iql', 'qmix') and 'per-target' in name)
+                 and not (algo != 'iql' and 'difference' in name.split('-'))      # the difference reward: IQL's
                  and not (algo not in PPO_ALGOS and any(part in name.split('-') for part in COMMUNICATION))
                  and not (algo == 'ippo' and 'i2c' in name.split('-'))]      # I2C is a MAPPO add-on
         with ThreadPoolExecutor(args.jobs) as pool:

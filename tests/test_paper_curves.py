@@ -10,7 +10,7 @@ from modules import load_module
 
 SCRIPT = Path(__file__).resolve().parents[1] / 'scripts' / 'paper_curves.py'
 FIGURES = ('cameras-4v8-9', 'targets-2v4-0', 'targets-2v4-0-observability', 'targets-4v8-0', 'cameras-4v8-9-communication',
-           'targets-4v8-0-communication')
+           'targets-4v8-0-communication', 'cameras-4v8-9-hrl')
 
 
 @pytest.fixture(scope='module')
