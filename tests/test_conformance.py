@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from modules import load_module
 
 SHARED = Path(__file__).resolve().parents[1].parent / 'shared'
