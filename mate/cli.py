@@ -96,7 +96,8 @@ def _bench(args: argparse.Namespace) -> int:
     with console.status('compiling and measuring...') as status:
         results = bench.run(args.presets, batch_sizes, seconds, float32=not args.quick,
                             progress=lambda text: status.update(f'measuring {text}'), repeat=args.repeat)
-    columns = ['preset', 'what', 'B', 'obs dtype', 'env-steps/s'] + (['median'] if args.repeat > 1 else []) + ['x original']
+    columns = (['preset', 'what', 'B', 'obs dtype', 'env-steps/s'] + (['median'] if args.repeat > 1 else [])
+               + ['x single env', 'x original'])
     rounds = f', best of {args.repeat} rounds' if args.repeat > 1 else ''
     table = Table(title=f'mate throughput (random actions, observations built{rounds})')
     for column in columns:
@@ -105,10 +106,11 @@ def _bench(args: argparse.Namespace) -> int:
         speedup = f"{r['speedup_vs_original']:,.0f}x" if r['speedup_vs_original'] else '-'
         median = [f"{r['median_env_steps_per_second']:,.0f}"] if args.repeat > 1 else []
         table.add_row(r['preset'], r['kind'], str(r['batch_size']), r['dtype'],
-                      f"{r['env_steps_per_second']:,.0f}", *median, speedup)
+                      f"{r['env_steps_per_second']:,.0f}", *median, f"{r['speedup_vs_single_env']:,.1f}x", speedup)
     console.print(table)
     facts = bench.machine_facts()
-    console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}")
+    console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}. The ratios hold across "
+                  "machines; the absolute numbers differ between CPU families by 2x and more", soft_wrap=True)
     if args.json:
         console.print(f'results written to {bench.write_json(results, args.json)}')
     return 0
@@ -117,7 +119,7 @@ def _bench(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     from . import evaluate as ev
     from .messages import Team
-    from .progress import progress_bar
+    from .progress import ProgressLine
     from .registration import make
 
     if args.batched:
@@ -135,20 +137,21 @@ def _evaluate(args: argparse.Namespace) -> int:
             factory(seed=args.seed)      # an agent now, so that bad keyword arguments fail before any episode
         except (TypeError, ValueError) as exc:
             raise CommandError(f'{flag}: {exc}') from exc
+    with resolving_arguments():          # agents that refuse this game (a policy trained for another preset) say so now
+        ev.check_agents_fit(env, camera_factory, target_factory, args.seed)
     console.print(f'environment: {env}')
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
 
     recorder = None if args.no_render or not (args.save_gif or args.save_video) else ev.FrameRecorder(
         args.frame_size, args.frame_every, hud=not args.no_hud, max_episode_steps=args.max_episode_steps)
     results = []
-    with progress_bar(console=console, transient=True) as progress:
-        task = progress.add_task('evaluating', total=args.episodes, status='')
+    with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         for episode in range(args.episodes):
             result = ev.play_episode(env, camera_factory, target_factory, args.seed + episode,
                                      args.max_episode_steps, recorder if episode == 0 else None)
             results.append(result)
-            progress.update(task, advance=1, status=f'coverage {result.coverage_rate:.3f}, '
-                                                    f'{result.steps_per_second:,.0f} steps/s')
+            progress.update(advance=1, status=f'coverage {result.coverage_rate:.3f}, '
+                                              f'{result.steps_per_second:,.0f} steps/s')
     summary = _report(env, args, results)
     if recorder is not None:
         recorder.close()
@@ -175,7 +178,7 @@ def _write_results(args: argparse.Namespace, results: list, summary: list[dict])
 
 def _evaluate_batched(args: argparse.Namespace) -> int:
     from . import evaluate as ev
-    from .progress import progress_bar
+    from .progress import ProgressLine
     from .registration import make
 
     wrappers = [f'--{flag.replace("_", "-")}' for flag in ('enhanced_observation', 'shared_field_of_view',
@@ -194,10 +197,9 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
     if not args.no_render:
         console.print('--batched records no GIF or video (run without it to record the first episode)')
-    with progress_bar(console=console, transient=True) as progress:
-        task = progress.add_task('evaluating', total=args.episodes, status='')
+    with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
-                                  progress=lambda done, total: progress.update(task, completed=done))
+                                  progress=lambda done, total: progress.update(completed=done))
     summary = _report(env, args, results)
     console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
                   'env-steps/s (whole batch)')
@@ -253,13 +255,23 @@ def _save_frames(frames: list, args: argparse.Namespace) -> None:
 
 
 def _generate_config(args: argparse.Namespace) -> int:
-    from .generator import check_config_path, generate_config, plot_config, write_config
+    from .generator import GENERATION_SECONDS, ITERATIONS, RESTARTS, check_config_path, generate_config, plot_config, \
+        write_config
+    from .progress import ProgressLine
 
     with resolving_arguments():
         check_config_path(args.path)
-        with console.status('placing cameras (Adam over a 101 x 101 mesh)...'):
+        if args.num_cameras:
+            console.print(f'placing {args.num_cameras} cameras: {RESTARTS} runs of up to {ITERATIONS:,} Adam steps '
+                          f'over a 101 x 101 mesh ({GENERATION_SECONDS} s for 6 cameras on 2 cores)', soft_wrap=True)
+        with ProgressLine('placing cameras', total=RESTARTS * ITERATIONS, console=console, transient=True) as line:
+            def placed(restart: int, iteration: int, covering: float) -> None:
+                line.update(completed=restart * ITERATIONS + iteration,
+                            status=f'run {restart + 1}/{RESTARTS}, covering distance {covering:.1f}')
+
             config = generate_config(args.num_cameras, args.num_targets, args.num_obstacles,
-                                     args.num_cargoes_per_target, args.obstacle_transmittance, args.seed)
+                                     args.num_cargoes_per_target, args.obstacle_transmittance, args.seed,
+                                     progress=placed)
     path = write_config(config, args.path)
     console.print(f"wrote {path}: {config['name']}")
     if 'camera' in config:
@@ -314,6 +326,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog='mate', description='MATE: the Multi-Agent Tracking Environment', parents=[debug],
         epilog='A mistake in the arguments prints one line and exits with status 2; add --debug (mate --debug '
                'COMMAND ...) or set MATE_DEBUG=1 to see the traceback too.')
+    from . import __version__
+    parser.add_argument('--version', action='version', version=f'mate {__version__}')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
     def command(name: str, **kwargs) -> argparse.ArgumentParser:
@@ -407,10 +421,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run `mate ARGS`; returns the exit status (argparse's own errors exit with status 2)."""
+    """Run `mate ARGS`; returns the exit status (argparse's own errors exit with status 2; Ctrl-C: 130)."""
     args = build_parser().parse_args(argv)
     try:
         return args.run(args)
+    except KeyboardInterrupt:
+        if _debugging(args):
+            traceback.print_exc()
+        print(f'mate {args.command}: interrupted', file=sys.stderr)
+        return 130
     except BaseException as exc:
         if not _is_user_error(exc):
             raise
@@ -420,5 +439,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-if __name__ == '__main__':
-    sys.exit(main())
+if __name__ == '__main__':   # `python -m mate.cli`: run the package's module, whose classes the commands import
+    from mate.cli import main as package_main
+
+    sys.exit(package_main())

@@ -1,30 +1,7 @@
 """`MultiAgentTracking`: the Gymnasium-style two-team environment (one world row of the core).
 
-Cameras (fixed, rotating, zooming) try to keep targets in view; targets carry cargo between
-the four corner warehouses. Both teams act every step.
-
-Spaces
-    action_space: Tuple(TeamSpace(Box(2) x Nc), TeamSpace(Box(2) x Nt)), a TeamSpace being a Tuple
-    of one agent's space per agent that samples the whole team at once. A camera acts with
-    (rotation, zoom) in degrees, each within +-rotation_step / +-zooming_step; a target with a
-    displacement (dx, dy) whose norm is clipped to its speed (step_size / capacity).
-    observation_space: Tuple of per-agent Boxes; observations come as 2-D arrays
-    (Nc, D_c) and (Nt, D_t), float64, with the layouts of `mate.spaces`.
-
-Step
-    env.step((camera_actions, target_actions)) ->
-    ((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated,
-     (camera_infos, target_infos))
-    The game is zero-sum: camera_reward == -target_reward. `terminated` once every cargo unit
-    is delivered; `truncated` once `max_episode_steps` steps are done.
-
-Arguments
-    config: a preset name ('MATE-4v8-9'), a YAML/JSON path, or a dict (see `mate.config`);
-    keyword overrides are deep-merged into it. render_mode: None, 'rgb_array' (`render()`
-    returns an (800, 800, 3) uint8 frame) or 'human' (a pygame window); see `mate.render`.
-
-Version history
-    v0: behaviour of the original MATE with the differences listed in docs/differences.md.
+The class docstring of `MultiAgentTracking` describes the game: spaces, the accepted action forms,
+rewards, episode end and arguments (`help(mate.MultiAgentTracking)`, or the API page of the docs).
 """
 
 from __future__ import annotations
@@ -71,6 +48,36 @@ _WORLD_SCALARS = {
 }
 
 
+ACTION_FIELDS = {'camera': '[rotate, zoom]', 'target': '[dx, dy]'}
+"""What one agent's action row holds, per team (for error messages)."""
+
+
+def team_shape_error(team: str, expected: tuple[int, ...], got, batched: str = '', alternative=None) -> str:
+    """The one-line message refusing `team`'s actions of shape `got` (a shape, or a description):
+    `camera joint action must have shape (4, 2) (4 cameras x [rotate, zoom]); got (2, 4)`.
+    `batched` names the leading axes of a vector env's actions (`'num_envs x '`); `alternative` is
+    another accepted shape."""
+    count = expected[-2]
+    what = f'{team} actions' if batched else f'{team} joint action'
+    also = '' if alternative is None else f' or {alternative}'
+    return (f'{what} must have shape {expected} ({batched}{count} {team}{"" if count == 1 else "s"} x '
+            f'{ACTION_FIELDS[team]}){also}; got {got}')
+
+
+def agent_action(agent: str, action, shape: tuple[int, ...]) -> np.ndarray:
+    """One agent's action (`agent` named `camera_<i>` or `target_<i>`, as the PettingZoo and RLlib
+    adapters name them) as a float64 array of `shape`; ValueError naming the agent otherwise."""
+    fields = ACTION_FIELDS['camera' if agent.startswith('camera') else 'target']
+    try:
+        array = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'action of {agent} must be an array of shape {shape} {fields}; got {action!r} '
+                         f'({exc})') from None
+    if array.shape != shape:
+        raise ValueError(f'action of {agent} must have shape {shape} {fields}; got {array.shape}')
+    return array
+
+
 def _row_view(field: str):
     def get(self):
         view = getattr(self._world, field)[0].view()
@@ -114,10 +121,52 @@ class GameDescription:
 class MultiAgentTracking(GameDescription, gym.Env):
     """The two-team tracking game as a Gymnasium env: one world, cameras and targets acting together.
 
-    Spaces, the step's return value and the arguments are described in the module `mate.env`.
-    """
+    Cameras (fixed in place, rotating and zooming) try to keep targets in view; targets carry cargo
+    between the four corner warehouses. Both teams act at every step. `mate.make(id)` builds one
+    from a registered ID; the environment pages of the docs describe the game in full.
 
-    __doc__ = __doc__  # help() shows the module's full description
+    **Action space.** `action_space` is `Tuple(camera_joint_action_space, target_joint_action_space)`,
+    each a `mate.spaces.TeamSpace` of `Nc` (or `Nt`) `Box(2)` that samples the whole team in one draw.
+    A camera acts with `[rotate, zoom]` in degrees, within +-`rotation_step` and +-`zooming_step`; a
+    target with a displacement `[dx, dy]` within +-`step_size`, which the dynamics shorten to the
+    target's speed (`step_size / capacity`). `step((camera_actions, target_actions))` takes each team's
+    actions as an `(N, 2)` array of any real dtype (one row per agent, in slot order), a sequence of
+    N pairs, or a sample of the team's space. Any other shape, a flat `(2N,)` vector included, raises
+    a `ValueError` naming the team, the expected shape and the shape given: nothing is reshaped.
+    Values outside the bounds are clipped by the dynamics; NaN or inf is refused. A refused action
+    leaves the env unchanged.
+
+    **Observation space.** `observation_space` is a `Tuple` of the teams' `Tuple`s of per-agent `Box`es
+    (`camera_observation_space`, `target_observation_space`); `reset` and `step` return each team's
+    observations as one float64 array, `(Nc, D_c)` and `(Nt, D_t)`, laid out as `mate.spaces`
+    describes. `state()` is the global state vector (`state_space`).
+
+    **Step.** `env.step((camera_actions, target_actions))` returns
+    `((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated,
+    (camera_infos, target_infos))`, with one info dict per agent (`raw_reward`,
+    `normalized_raw_reward`, `coverage_rate`, `real_coverage_rate`, `mean_transport_rate`,
+    `num_delivered_cargoes`, `messages` and the communication edges).
+
+    **Rewards.** Team rewards, zero-sum: `camera_reward == -target_reward`. With `reward_type: dense`
+    (the presets) the targets lose a point each step per tracked target whose bounty is not used up
+    and gain the freight plus the bounty left of each cargo unit they deliver; `sparse` pays the
+    same total at delivery.
+
+    **Episode end.** `terminated` once every cargo unit is delivered; `truncated` after exactly
+    `max_episode_steps` steps (never on the same step as `terminated`). `step` before the first
+    `reset` raises `RuntimeError`.
+
+    **Version history.** v0: the behaviour of the original MATE, with the differences listed on the
+    docs' differences page.
+
+    Args:
+        config: a preset name (`'MATE-4v8-9'`), a YAML/JSON path or a dict (see `mate.read_config`);
+            None: the default preset, or an empty configuration when overrides are given (a quirk
+            of the original MATE).
+        render_mode: None, `'rgb_array'` (`render()` returns an `(800, 800, 3)` uint8 frame) or
+            `'human'` (a pygame window); see `mate.render`.
+        **overrides: keys deep-merged into the configuration (e.g. `max_episode_steps=1000`).
+    """
 
     metadata = {'render_modes': ['human', 'rgb_array'], 'render_fps': 60}
 
@@ -189,7 +238,8 @@ class MultiAgentTracking(GameDescription, gym.Env):
         return self._world.rng[0, 0] == 0 and self._world.rng[0, 1] == 0
 
     def step(self, action):
-        """Advance one step with (camera_actions (Nc, 2), target_actions (Nt, 2))."""
+        """Advance one step with (camera_actions (Nc, 2), target_actions (Nt, 2)); see the class docstring
+        for the accepted action forms and the return value."""
         if self._needs_reset:
             raise RuntimeError('MultiAgentTracking: call reset() before step()')
         self._camera_actions[...], self._target_actions[...] = self._parse_action(action)
@@ -215,19 +265,22 @@ class MultiAgentTracking(GameDescription, gym.Env):
 
     @staticmethod
     def _team_action(value, count: int, team: str, box: spaces.Box) -> np.ndarray:
+        """A team's actions as a (1, count, 2) float64 array; ValueError for any other shape."""
         try:   # a TeamSpace sample carries its stacked array (no re-stacking of the per-agent views)
             array = np.asarray(value.array if type(value) is mate_spaces.TeamSample else value, dtype=np.float64)
         except (TypeError, ValueError) as exc:
+            if 'inhomogeneous' in str(exc):   # rows of different lengths
+                raise ValueError(team_shape_error(team, (count, 2), 'a ragged sequence')) from None
             raise ValueError(f'{team} joint action is not numeric: {exc}') from None
-        if array.size != 2 * count:
-            raise ValueError(f'{team} joint action has {array.size} values (shape {array.shape}); '
-                             f'expected shape ({count}, 2)')
-        array = array.reshape(1, count, 2)
+        if array.shape != (count, 2):
+            if not (count == 0 and array.size == 0):   # an empty sequence for a team without agents
+                raise ValueError(team_shape_error(team, (count, 2), array.shape))
+            array = array.reshape(0, 2)
         if not np.isfinite(array).all():
-            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(array[0]))[:, 0]})
+            bad = sorted({int(i) for i in np.argwhere(~np.isfinite(array))[:, 0]})
             raise ValueError(f'{team} joint action contains NaN or inf (agents {bad}); every entry must be '
                              f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
-        return array
+        return array[None]
 
     def _observations(self) -> tuple[np.ndarray, np.ndarray]:
         return self._camera_obs[0].copy(), self._target_obs[0].copy()

@@ -117,6 +117,15 @@ class FrameRecorder:
         self.renderer.close()
 
 
+def check_agents_fit(env, camera_factory, target_factory, seed: int) -> None:
+    """Reset `env` with `seed` and the agents of both teams on its first observations, as `play_episode` does,
+    so that an agent refusing this game (ValueError: a policy trained for another preset or team size) says so
+    before any episode is played."""
+    (camera_obs, target_obs), _ = env.reset(seed=seed)
+    group_reset(camera_factory(seed=seed).spawn(env.num_cameras), camera_obs)
+    group_reset(target_factory(seed=seed).spawn(env.num_targets), target_obs)
+
+
 def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
                  on_step: Callable | None = None) -> EpisodeResult:
     """One episode of the protocol in the module docstring.

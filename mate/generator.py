@@ -19,6 +19,12 @@ from .config import read_config
 from .constants import TERRAIN_SIZE
 
 MESH_POINTS = 101
+RESTARTS = 3
+"""Optimisations from different starts; the best placement is kept."""
+ITERATIONS = 2000
+"""Adam steps per optimisation at most (it stops earlier once the learning rate has decayed)."""
+GENERATION_SECONDS = '10-25'
+"""Wall time of a placement of 6 cameras on our 2-core machines, quiet to busy (docs/environment/configs.md)."""
 CAMERA_RANGE_HALF_WIDTH = 0.02 * TERRAIN_SIZE  # each camera's spawn box is its point +-20
 TARGET_RANGE = [-500.0, 500.0, -500.0, 500.0]
 OBSTACLE_RANGE = [-TERRAIN_SIZE, TERRAIN_SIZE, -TERRAIN_SIZE, TERRAIN_SIZE]
@@ -76,17 +82,22 @@ def _farthest_point_start(num_cameras: int, mesh: np.ndarray, rng: np.random.Gen
     return 0.9 * np.array(points)
 
 
-def place_cameras(num_cameras: int, seed: int = 0, restarts: int = 3, **adam) -> Placement:
-    """Camera positions covering the terrain: the best of `restarts` optimisations."""
+def place_cameras(num_cameras: int, seed: int = 0, restarts: int = RESTARTS, progress=None, **adam) -> Placement:
+    """Camera positions covering the terrain: the best of `restarts` optimisations. `progress(restart, iteration,
+    covering_distance)` (world units) is called every 50 Adam steps and when an optimisation ends."""
     rng = np.random.default_rng(seed)
     mesh = _mesh()
-    runs = [_optimise(_farthest_point_start(num_cameras, mesh, rng), mesh, **adam) for _ in range(restarts)]
+    runs = []
+    for restart in range(restarts):
+        report = None if progress is None else lambda it, best, r=restart: progress(r, it, best * TERRAIN_SIZE)
+        runs.append(_optimise(_farthest_point_start(num_cameras, mesh, rng), mesh, progress=report, **adam))
     return min(runs, key=lambda run: run.covering_distance)
 
 
-def _optimise(u: np.ndarray, mesh: np.ndarray, iterations: int = 2000, lr: float = 1e-2,
-              patience: int = 100) -> Placement:
-    """Adam with a plateau learning-rate schedule (halve after `patience` steps without progress)."""
+def _optimise(u: np.ndarray, mesh: np.ndarray, iterations: int = ITERATIONS, lr: float = 1e-2,
+              patience: int = 100, progress=None) -> Placement:
+    """Adam with a plateau learning-rate schedule (halve after `patience` steps without progress);
+    `progress(iteration, best covering distance in normalised units)` every 50 steps and at the end."""
     m, v = np.zeros_like(u), np.zeros_like(u)
     best, best_u, stale = np.inf, u.copy(), 0
     for it in range(1, iterations + 1):
@@ -100,16 +111,21 @@ def _optimise(u: np.ndarray, mesh: np.ndarray, iterations: int = 2000, lr: float
                 lr, stale = lr * 0.5, 0
                 if lr < 1e-5:
                     break
+        if progress is not None and it % 50 == 0:
+            progress(it, best)
         m = 0.9 * m + 0.1 * grad
         v = 0.999 * v + 0.001 * grad ** 2
         u = np.clip(u - lr * (m / (1 - 0.9 ** it)) / (np.sqrt(v / (1 - 0.999 ** it)) + 1e-8), -1.0, 1.0)
+    if progress is not None:
+        progress(iterations, best)   # done (possibly early): the whole share of this optimisation
     return Placement(points=best_u * TERRAIN_SIZE, covering_distance=best * TERRAIN_SIZE, iterations=it)
 
 
 def generate_config(num_cameras: int = 4, num_targets: int = 8, num_obstacles: int = 0,
                     num_cargoes_per_target: int = 8, obstacle_transmittance: float = 0.1, seed: int = 0,
-                    restarts: int = 3) -> dict:
-    """A validated configuration dict built from the default preset (see module docstring)."""
+                    restarts: int = RESTARTS, progress=None) -> dict:
+    """A validated configuration dict built from the default preset (see module docstring); `progress`: as
+    `place_cameras`'s (the placement takes GENERATION_SECONDS seconds)."""
     for name, value, low in (('num_cameras', num_cameras, 0), ('num_targets', num_targets, 1),
                              ('num_obstacles', num_obstacles, 0), ('num_cargoes_per_target', num_cargoes_per_target, 4)):
         if not isinstance(value, (int, np.integer)) or value < low:
@@ -119,7 +135,7 @@ def generate_config(num_cameras: int = 4, num_targets: int = 8, num_obstacles: i
     config['num_cargoes_per_target'] = int(num_cargoes_per_target)
     covering = TERRAIN_SIZE * np.sqrt(2.0)
     if num_cameras > 0:
-        placement = place_cameras(num_cameras, seed, restarts)
+        placement = place_cameras(num_cameras, seed, restarts, progress=progress)
         covering = placement.covering_distance
         sight = 2.0 * covering
         w = CAMERA_RANGE_HALF_WIDTH

@@ -1,4 +1,6 @@
-"""The one-line progress bar of `mate evaluate` and `mate train` (rich). At 80 columns:
+"""Progress of long commands: the one-line rich bar on a terminal, plain lines in a log file.
+
+The bar of `mate evaluate`, `mate train` and `mate generate-config` (rich). At 80 columns:
 
     training ━━━━━━━━━━━╸       12,800/20,000 0:00:09 eta 0:00:05 2,345 steps/s  co…
     (description, bar, done/total, elapsed and remaining time, status)
@@ -6,16 +8,28 @@
 The count and the times never shrink: when the terminal is narrow, the status text is cut
 first (with an ellipsis), then the bar. The count shown never passes the total (a training
 iteration can overshoot it).
+
+When the output is not a terminal (`nohup`, a cluster job, a pipe), a bar would show nothing until the
+end; `ProgressLine` prints instead one plain line at the start, one every `interval` seconds (30) and one
+at the end, with the same fields:
+
+    training: 12,800/20,000 (64%) elapsed 0:00:09 eta 0:00:05  2,345 steps/s  coverage 0.61
 """
 
 from __future__ import annotations
+
+import time
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, ProgressColumn, Task, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Column
 from rich.text import Text
 
-__all__ = ['StatusColumn', 'StepCountColumn', 'TimesColumn', 'displayed_count', 'progress_bar']
+__all__ = ['PLAIN_INTERVAL', 'ProgressLine', 'StatusColumn', 'StepCountColumn', 'TimesColumn', 'clock',
+           'displayed_count', 'progress_bar']
+
+PLAIN_INTERVAL = 30.0
+"""Seconds between two plain progress lines when the output is not a terminal."""
 
 
 def displayed_count(completed: float, total: float | None) -> int:
@@ -64,3 +78,90 @@ def progress_bar(console: Console | None = None, transient: bool = False, bar_wi
     return Progress(TextColumn('{task.description}', **fixed), BarColumn(bar_width=bar_width),
                     StepCountColumn(), TimesColumn(), StatusColumn(),
                     console=console, transient=transient)
+
+
+def clock(seconds: float | None) -> str:
+    """H:MM:SS of a number of seconds ('-:--:--' for None, a negative or a non-finite number)."""
+    if seconds is None or not seconds >= 0 or seconds == float('inf'):
+        return '-:--:--'
+    seconds = int(seconds)
+    return f'{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}'
+
+
+class ProgressLine:
+    """One task's progress: the rich bar on a terminal, else plain lines (module docstring).
+
+    Use as a context manager (or `start()` / `stop()`); `update(completed=..., advance=..., status=...)`.
+
+    Args:
+        description: what is measured ('training', 'evaluating', ...).
+        total: the count at the end (None: unknown).
+        completed: the count at the start (a resumed run).
+        console: where to write (default: a new rich Console on stdout).
+        transient: the terminal bar disappears at the end.
+        interval: seconds between plain lines.
+        plain: force the plain lines (True) or the bar (False); None: the bar on a terminal only.
+    """
+
+    def __init__(self, description: str, total: float | None, completed: float = 0, console: Console | None = None,
+                 transient: bool = False, interval: float = PLAIN_INTERVAL, plain: bool | None = None) -> None:
+        self.console = console or Console()
+        self.description, self.total, self.completed, self.status = description, total, completed, ''
+        self.plain = (not self.console.is_terminal) if plain is None else bool(plain)
+        self.interval = float(interval)
+        self._started = self._printed = None
+        self._start_count = completed
+        self._bar = None if self.plain else progress_bar(console=self.console, transient=transient)
+        self._task = None
+
+    def __enter__(self) -> ProgressLine:
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop(finished=exc[0] is None)
+
+    def start(self) -> None:
+        self._started = self._printed = time.perf_counter()
+        if self._bar is not None:
+            self._task = self._bar.add_task(self.description, total=self.total, completed=self.completed,
+                                            status=self.status)
+            self._bar.start()
+        else:
+            self._print()
+
+    def update(self, completed: float | None = None, advance: float = 0, status: str | None = None) -> None:
+        self.completed = (self.completed if completed is None else completed) + advance
+        if status is not None:
+            self.status = status
+        if self._bar is not None:
+            self._bar.update(self._task, completed=self.completed, status=self.status)
+        elif time.perf_counter() - self._printed >= self.interval:
+            self._print()
+
+    def stop(self, finished: bool = True) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+        elif self._started is not None and finished:
+            self._print()
+        self._started = None
+
+    def line(self) -> str:
+        """The plain line of the current state."""
+        elapsed = time.perf_counter() - (self._started or time.perf_counter())
+        done = displayed_count(self.completed, self.total)
+        if self.total:
+            rate = (self.completed - self._start_count) / elapsed if elapsed > 0 else 0.0
+            eta = (self.total - done) / rate if rate > 0 else None
+            count = f'{done:,}/{int(self.total):,} ({100 * done / self.total:.0f}%)'
+        else:
+            eta, count = None, f'{done:,}'
+        text = f'{self.description}: {count} elapsed {clock(elapsed)} eta {clock(eta)}'
+        return text + (f'  {self.status}' if self.status else '')
+
+    def _print(self) -> None:
+        self._printed = time.perf_counter()
+        self.console.print(self.line(), highlight=False, soft_wrap=True)
+        file = self.console.file
+        if hasattr(file, 'flush'):
+            file.flush()

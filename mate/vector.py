@@ -1,61 +1,8 @@
 """`MultiAgentTrackingVectorEnv`: B MATE games stepped together by the batched core (`make_vec`).
 
-One `World` of B rows is advanced by a single call into `mate.core.engine` per step: there is
-no loop over single environments. Row i behaves exactly like a `MultiAgentTracking` env reset
-with seed `s + i` (see Seeding).
-
-Spaces (Gymnasium vector conventions)
-    single_action_space: Tuple(Box(Nc, 2), Box(Nt, 2)), float64: a camera acts with
-    (rotation, zoom) in degrees within +-rotation_step / +-zooming_step; a target with a
-    displacement (dx, dy) whose norm the core clips to its speed. action_space is the batched
-    Tuple(Box(B, Nc, 2), Box(B, Nt, 2)). Out-of-bounds values are clipped by the core; NaN and
-    inf are refused.
-    single_observation_space: Tuple(Box(Nc, D_c), Box(Nt, D_t)) in `observation_dtype`;
-    observation_space the batched Tuple(Box(B, Nc, D_c), Box(B, Nt, D_t)). Layouts are those
-    of `mate.spaces` (one row per agent, as the single env returns them).
-    single_state_space / state_space: Box(S) / Box(B, S), S = 29 + 9 Nc + 16 Nt + 3 No.
-
-Step
-    envs.step((camera_actions (B, Nc, 2), target_actions (B, Nt, 2))) ->
-    ((camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)),
-     (camera_rewards (B,), target_rewards (B,)), terminations (B,), truncations (B,), infos)
-    The game is zero-sum: camera_rewards == -target_rewards. infos is a dict of (B,) arrays:
-    coverage_rate, real_coverage_rate, mean_transport_rate, num_delivered_cargoes,
-    episode_step, each with Gymnasium's `_<key>` mask (all true). There is no per-agent info
-    and no message channel: use the single env (`mate.make`) for communication.
-
-Autoreset (`autoreset_mode`, also in `metadata['autoreset_mode']`)
-    NEXT_STEP (default, Gymnasium 1.x): the step after env i finished ignores env i's actions,
-    starts its next episode and returns that episode's first observation with reward 0 and
-    terminated = truncated = False. The finished episode's last observation is the one
-    returned by the step that finished it.
-    SAME_STEP: the step that finishes env i also resets it; it returns the new episode's first
-    observation, the final step's reward and flags, and the finished episode's last
-    observation in infos['final_obs'] (an object array (B,): a (camera_obs (Nc, D_c),
-    target_obs (Nt, D_t)) pair of copies for finished envs, None elsewhere; mask
-    infos['_final_obs']) and its infos in infos['final_info'] (dict of (B,) arrays with
-    masks; mask infos['_final_info']).
-    DISABLED: no autoreset; stepping a finished env raises; reset some envs with
-    reset(options={'reset_mask': mask (B,) bool}).
-
-Seeding
-    reset(seed=s) seeds env i with s + i (a list of B ints/None seeds env i with seed[i]), so
-    env i replays `mate.make(same id and config).reset(seed=s + i)` step for step, autoresets
-    included (an autoreset continues env i's random stream, as the single env's
-    `reset()` without a seed does). reset() without a seed continues each env's stream; a
-    never-seeded env draws OS entropy.
-
-Buffers (zero-copy)
-    Observations, rewards, terminations and truncations are preallocated arrays that the next
-    step() or reset() overwrites in place; pass copy=True to get fresh arrays instead. infos
-    arrays are fresh each call. Observations are written by the core directly in
-    `observation_dtype` (float64 default; float32 for learners, no extra cast).
-
-Arguments
-    config: a preset name, a YAML/JSON path or a dict (see `mate.config`); keyword overrides are
-    deep-merged into it. num_envs: B. observation_dtype: np.float64 or np.float32.
-    autoreset_mode: a `gymnasium.vector.AutoresetMode` or its name ('next_step', 'same_step',
-    'disabled'). copy: return copies instead of the reused buffers.
+The class docstring of `MultiAgentTrackingVectorEnv` describes the spaces, the accepted action
+forms, autoreset, seeding, buffers and arguments (`help(mate.MultiAgentTrackingVectorEnv)`, or
+the API page and the vector env page of the docs).
 """
 
 from __future__ import annotations
@@ -71,7 +18,7 @@ from gymnasium.vector.utils import batch_space
 from . import registration
 from .core import engine
 from .core.world import empty_world, obstacle_states
-from .env import GameDescription, MultiAgentTracking
+from .env import GameDescription, MultiAgentTracking, team_shape_error
 
 try:
     from gymnasium.vector import AutoresetMode
@@ -108,10 +55,67 @@ def _box(low: np.ndarray, high: np.ndarray, dtype) -> spaces.Box:
 class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     """`num_envs` worlds stepped together by the batched core, as a Gymnasium `VectorEnv`.
 
-    Spaces, autoreset, seeding and buffers are described in the module `mate.vector`.
-    """
+    One world of B rows is advanced by a single call into `mate.core.engine` per step: there is no
+    loop over single environments. Row i behaves exactly like a `MultiAgentTracking` env reset with
+    seed `s + i` (see Seeding). `mate.make_vec(id, num_envs=B)` builds one from a registered ID.
 
-    __doc__ = __doc__  # help() shows the module's full description
+    **Action space** (Gymnasium vector conventions). `single_action_space` is
+    `Tuple(Box(Nc, 2), Box(Nt, 2))`, float64, and `action_space` the batched
+    `Tuple(Box(B, Nc, 2), Box(B, Nt, 2))`. A camera acts with `[rotate, zoom]` in degrees within
+    +-`rotation_step` / +-`zooming_step`; a target with a displacement `[dx, dy]` whose length the
+    core shortens to its speed. `step` takes each team's actions as a `(B, N, 2)` array of any real
+    dtype, or `(B, 2N)` (each env's row holding the agents' pairs in slot order). Any other shape
+    raises a `ValueError` naming the team, the expected shape and the shape given: nothing else is
+    reshaped. Out-of-bounds values are clipped by the core; NaN and inf are refused, naming the envs.
+
+    **Observation space.** `single_observation_space` is `Tuple(Box(Nc, D_c), Box(Nt, D_t))` in
+    `observation_dtype`, `observation_space` the batched `Tuple(Box(B, Nc, D_c), Box(B, Nt, D_t))`,
+    with the layouts of `mate.spaces` (one row per agent, as the single env returns them).
+    `single_state_space` / `state_space` are `Box(S)` / `Box(B, S)`, S = 29 + 9 Nc + 16 Nt + 3 No.
+
+    **Step.** `envs.step((camera_actions, target_actions))` returns
+    `((camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)), (camera_rewards (B,), target_rewards (B,)),
+    terminations (B,), truncations (B,), infos)`. The game is zero-sum:
+    `camera_rewards == -target_rewards`. `infos` is a dict of `(B,)` arrays (`coverage_rate`,
+    `real_coverage_rate`, `mean_transport_rate`, `num_delivered_cargoes`, `episode_step`), each with
+    Gymnasium's `_<key>` mask (all true). There is no per-agent info and no message channel: use the
+    single env (`mate.make`) for communication. `step` before `reset` raises `RuntimeError`.
+
+    **Autoreset** (`autoreset_mode`, also in `metadata['autoreset_mode']`).
+
+    - `NEXT_STEP` (default, Gymnasium 1.x): the step after env i finished ignores env i's actions,
+      starts its next episode and returns that episode's first observation with reward 0 and
+      terminated = truncated = False. The finished episode's last observation is the one returned by
+      the step that finished it.
+    - `SAME_STEP`: the step that finishes env i also resets it; it returns the new episode's first
+      observation, the final step's reward and flags, and the finished episode's last observation in
+      `infos['final_obs']` (an object array (B,): a `(camera_obs (Nc, D_c), target_obs (Nt, D_t))`
+      pair of copies for finished envs, None elsewhere; mask `infos['_final_obs']`) and its infos in
+      `infos['final_info']` (dict of (B,) arrays with masks; mask `infos['_final_info']`).
+    - `DISABLED`: no autoreset; stepping a finished env raises; reset some envs with
+      `reset(options={'reset_mask': mask (B,) bool})`.
+
+    **Seeding.** `reset(seed=s)` seeds env i with s + i (a list of B ints/None seeds env i with
+    `seed[i]`), so env i replays `mate.make(same id and config).reset(seed=s + i)` step for step,
+    autoresets included (an autoreset continues env i's random stream, as the single env's `reset()`
+    without a seed does). `reset()` without a seed continues each env's stream; a never-seeded env
+    draws OS entropy.
+
+    **Buffers** (zero-copy). Observations, rewards, terminations and truncations are preallocated
+    arrays that the next `step()` or `reset()` overwrites in place; pass `copy=True` to get fresh
+    arrays instead. `infos` arrays are fresh each call. Observations are written by the core directly
+    in `observation_dtype` (float64 default; float32 for learners, no extra cast).
+
+    Args:
+        config: a preset name, a YAML/JSON path or a dict (see `mate.read_config`), as for the
+            single env.
+        num_envs: B, the number of games.
+        observation_dtype: `np.float64` or `np.float32`.
+        autoreset_mode: a `gymnasium.vector.AutoresetMode` or its name (`'next_step'`,
+            `'same_step'`, `'disabled'`).
+        copy: return copies instead of the reused buffers.
+        **overrides: keys deep-merged into the configuration.
+    """
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = False,
@@ -218,7 +222,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return np.array(mask, dtype=bool, order='C')  # a private, writable, contiguous copy
 
     def step(self, actions):
-        """Advance every env by one step (see the module docstring for the autoreset semantics)."""
+        """Advance every env by one step (see the class docstring for the accepted action forms and the
+        autoreset semantics)."""
         if self._needs_reset:
             raise RuntimeError('MultiAgentTrackingVectorEnv: call reset() before step()')
         camera_actions, target_actions = self._parse_actions(actions)
@@ -277,15 +282,18 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
 
     def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
         B = self.num_envs
+        expected = (B, count, 2)
         try:
             array = np.asarray(value, dtype=np.float64)
         except (TypeError, ValueError) as exc:
+            if 'inhomogeneous' in str(exc):   # rows of different lengths
+                raise ValueError(team_shape_error(team, expected, 'a ragged sequence', batched='num_envs x ',
+                                                  alternative=(B, 2 * count))) from None
             raise ValueError(f'{team} actions are not numeric: {exc}') from None
-        expected = (B, count, 2)
         if array.shape != expected:
-            if array.ndim < 1 or array.shape[0] != B or array.size != B * count * 2:
-                raise ValueError(f'{team} actions have shape {array.shape}; expected shape {expected} '
-                                 f'(num_envs, num_{team}s, 2)')
+            if array.shape != (B, 2 * count):   # (B, 2N), documented, is the only other form accepted
+                raise ValueError(team_shape_error(team, expected, array.shape, batched='num_envs x ',
+                                                  alternative=(B, 2 * count)))
             array = array.reshape(expected)
         if not np.isfinite(array).all():
             bad = np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))

@@ -1,4 +1,4 @@
-"""Import a Python file that is not part of the package (a script of scripts/, the shared conformance check) as a
+"""Import a Python file that is not part of the package (a script of scripts/) as a
 module, for the tests that call its functions."""
 
 import importlib.util

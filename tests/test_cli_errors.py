@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -185,3 +186,56 @@ def test_the_console_entry_point(tmp_path):
     assert 'Traceback' not in result.stdout + result.stderr
     assert result.stderr.startswith("mate evaluate: error: unknown preset or config file 'MATE-9v9-9'")
     assert len(result.stderr.strip().splitlines()) == 1 and 'Known presets' in result.stderr
+
+
+def test_version(capsys):
+    import mate
+
+    assert run(['--version']) == 0
+    assert capsys.readouterr().out.strip() == f'mate {mate.__version__}'
+
+
+@pytest.mark.parametrize('module', ['mate', 'mate.cli'])
+def test_python_dash_m_is_the_mate_command(module, tmp_path):
+    """`python -m mate ...` (and `python -m mate.cli ...`) parse, report and exit exactly as `mate ...`."""
+    result = subprocess.run([sys.executable, '-m', module, 'evaluate', '--config', 'MATE-9v9-9', '--no-render'],
+                            capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 2 and 'Traceback' not in result.stderr
+    assert result.stderr.startswith("mate evaluate: error: unknown preset or config file 'MATE-9v9-9'")
+    help_text = subprocess.run([sys.executable, '-m', module, '-h'], capture_output=True, text=True, cwd=tmp_path)
+    assert help_text.returncode == 0 and help_text.stdout.startswith('usage: mate ')
+
+
+@pytest.mark.parametrize('batched', [False, True])
+def test_evaluate_a_policy_on_a_game_it_was_not_trained_for(capsys, batched):
+    error_of(capsys, ['evaluate', '--config', 'MATE-8v8-9', '--camera-agent', 'pretrained:hrl-mappo-camera-4v8-9',
+                      '--episodes', '1', '--no-render', *(['--batched'] if batched else [])],
+             'was trained with (cameras, targets, obstacles) = (4, 8, 9)', '(8, 8, 9)')
+
+
+def test_ctrl_c_during_evaluate_exits_130_with_one_line(tmp_path):
+    """SIGINT once the episodes are being played (its progress line shows): status 130, one line, no traceback."""
+    process = subprocess.Popen([sys.executable, '-m', 'mate', 'evaluate', '--episodes', '100000', '--no-render'],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                               env={**os.environ, 'MATE_COMPILE_NOTICE': '0'})
+    try:
+        for line in process.stdout:                  # not a terminal: plain progress lines
+            if line.startswith('evaluating: '):
+                break
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    assert err.strip() == 'mate evaluate: interrupted'
+
+
+def test_generate_config_shows_its_progress_in_a_log(tmp_path):
+    result = subprocess.run([sys.executable, '-m', 'mate', 'generate-config', '--num-cameras', '2', '--path',
+                             str(tmp_path / 'two.yaml')], capture_output=True, text=True, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith('placing 2 cameras: 3 runs of up to 2,000 Adam steps') and ' s for 6 cameras on 2 cores)' in lines[0]
+    progress = [line for line in lines if line.startswith('placing cameras: ')]
+    assert progress[0].startswith('placing cameras: 0/6,000 (0%)') and progress[-1].startswith('placing cameras: 6,000/6,000')
+    assert 'covering distance' in progress[-1] and (tmp_path / 'two.yaml').is_file()

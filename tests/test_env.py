@@ -322,12 +322,61 @@ def test_non_numeric_action_raises(env):
         env.step((np.zeros((4, 2)), [['a', 'b']] * 8))
 
 
-def test_flat_and_nested_list_actions_are_accepted(env):
+# The right number of values in the wrong shape: refused, never reshaped (issue 30).
+SAME_SIZE_WRONG_SHAPE = [
+    ('camera', np.zeros((2, 4)), np.zeros((8, 2)), '(2, 4)'),        # transposed
+    ('camera', np.zeros(8), np.zeros((8, 2)), '(8,)'),               # flat (2 Nc,)
+    ('camera', np.zeros((1, 4, 2)), np.zeros((8, 2)), '(1, 4, 2)'),  # a batch of one
+    ('target', np.zeros((4, 2)), np.zeros((2, 8)), '(2, 8)'),
+    ('target', np.zeros((4, 2)), np.zeros(16), '(16,)'),
+    ('target', np.zeros((4, 2)), np.zeros((8, 2, 1)), '(8, 2, 1)'),
+    ('target', np.zeros((4, 2)), [[0.0, 0.0]] * 7 + [[0.0]] * 2, 'a ragged sequence'),
+]
+
+
+@pytest.mark.parametrize('team, cam, tgt, given', SAME_SIZE_WRONG_SHAPE,
+                         ids=[f'{team}-{given}' for team, _, _, given in SAME_SIZE_WRONG_SHAPE])
+def test_actions_of_the_right_size_but_the_wrong_shape_are_refused(env, team, cam, tgt, given):
+    expected = '(4, 2) (4 cameras x [rotate, zoom])' if team == 'camera' else '(8, 2) (8 targets x [dx, dy])'
+    before = env.get_world()
+    with pytest.raises(ValueError) as error:
+        env.step((cam, tgt))
+    assert str(error.value) == f'{team} joint action must have shape {expected}; got {given}'
+    _assert_same_world(before, env.get_world())
+    assert env.episode_step == 0
+
+
+def test_the_accepted_action_forms(env):
+    """(N, 2) arrays of any real dtype, sequences of N pairs (nested lists, tuples of per-agent actions)
+    and team space samples are all taken as one row per agent, in slot order."""
     world = env.get_world()
-    env.step(([0.0] * 8, [[0.0, 0.0]] * 8))
+    cam = np.array([[5.0, -2.5], [-5.0, 2.5], [1.0, 0.0], [0.0, 1.0]])
+    tgt = np.arange(-8, 8, dtype=np.float64).reshape(8, 2)
+    expected = env.step((cam, tgt))[0]
+    forms = [
+        (cam.tolist(), tgt.tolist()),
+        (tuple(cam), tuple(tgt)),                           # per-agent (2,) actions, as group_act returns them
+        (cam.astype(np.float32), tgt.astype(np.int64)),
+        (np.asfortranarray(cam), tgt[::-1][::-1]),          # non-contiguous layouts
+    ]
+    for form in forms:
+        env.set_world(world)
+        observations = env.step(form)[0]
+        np.testing.assert_array_equal(observations[0], expected[0])
+        np.testing.assert_array_equal(observations[1], expected[1])
     env.set_world(world)
-    env.step((np.zeros((4, 2)), np.zeros(16)))
+    env.step(env.action_space.sample())                     # a TeamSample of each team
     assert env.episode_step == 1
+
+
+def test_a_team_without_agents_takes_an_empty_action():
+    env = mate.make('MATE-Navigation-v0')                   # no cameras
+    env.reset(seed=0)
+    for cameras in (np.zeros((0, 2)), [], ()):
+        env.step((cameras, np.zeros((8, 2))))
+    with pytest.raises(ValueError, match=r'camera joint action must have shape \(0, 2\)'):
+        env.step((np.zeros((1, 2)), np.zeros((8, 2))))
+    assert env.episode_step == 3
 
 
 def test_unknown_render_mode_raises_a_clear_error():

@@ -6,7 +6,7 @@ import io
 import pytest
 from rich.console import Console
 
-from mate.progress import displayed_count, progress_bar
+from mate.progress import ProgressLine, displayed_count, progress_bar
 
 STATUS = '2,345 steps/s  coverage 0.575  return 123.4  entropy 1.23'
 
@@ -50,3 +50,32 @@ def test_count_and_eta_stay_visible_in_a_narrow_terminal(width):
 
 def test_a_wide_terminal_shows_the_whole_status():
     assert render(160, 12_800).endswith(STATUS)
+
+
+def test_plain_lines_when_the_output_is_not_a_terminal(monkeypatch):
+    """A log file gets a line at the start, every `interval` seconds, and at the end; no bar escape codes."""
+    from mate import progress as progress_module
+
+    now = [100.0]
+    monkeypatch.setattr(progress_module.time, 'perf_counter', lambda: now[0])
+    out = io.StringIO()
+    console = Console(file=out, width=200)                   # a file: not a terminal
+    with progress_module.ProgressLine('training', total=1000, console=console, interval=30.0) as line:
+        assert line.plain
+        for step in range(1, 11):
+            now[0] += 10.0                                   # 10 s per update
+            line.update(completed=100 * step, status=f'coverage 0.{step}')
+    lines = out.getvalue().splitlines()
+    assert lines[0] == 'training: 0/1,000 (0%) elapsed 0:00:00 eta -:--:--'
+    assert lines[1] == 'training: 300/1,000 (30%) elapsed 0:00:30 eta 0:01:10  coverage 0.3'
+    assert len(lines) == 1 + 3 + 1 and lines[-1].startswith('training: 1,000/1,000 (100%) elapsed 0:01:40 eta 0:00:00')
+    assert '\x1b' not in out.getvalue()
+
+
+def test_a_terminal_gets_the_bar():
+    out = io.StringIO()
+    console = Console(file=out, width=100, force_terminal=True, color_system=None)
+    with ProgressLine('evaluating', total=10, console=console) as line:
+        assert not line.plain
+        line.update(advance=5, status='x')
+    assert 'evaluating' in out.getvalue() and '5/10' in out.getvalue()

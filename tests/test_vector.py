@@ -220,7 +220,7 @@ def test_invalid_actions_are_refused_clearly():
     camera, target = envs.sample_actions(0)
     with pytest.raises(ValueError, match='pair'):
         envs.step((camera, target, target))
-    with pytest.raises(ValueError, match=r'camera actions have shape \(4, 2\); expected shape \(2, 4, 2\)'):
+    with pytest.raises(ValueError, match=r'camera actions must have shape \(2, 4, 2\) .*; got \(4, 2\)'):
         envs.step((camera[0], target))
     bad = target.copy()
     bad[1, 3, 0] = np.nan
@@ -228,7 +228,50 @@ def test_invalid_actions_are_refused_clearly():
         envs.step((camera, bad))
     with pytest.raises(ValueError, match='not numeric'):
         envs.step((camera, 'fast'))
-    envs.step((camera.reshape(2, -1), target))  # (B, 2 Nc) is unambiguous and accepted
+    envs.step((camera.reshape(2, -1), target))  # (B, 2 Nc) is unambiguous and accepted (docs/vector.md)
+
+
+# The right number of values in the wrong shape: refused, never reshaped (issue 30). B = 2, Nc = 4, Nt = 8.
+VECTOR_WRONG_SHAPES = [
+    ('camera', (2, 2, 4)),   # (B, 2, Nc): transposed per env
+    ('camera', (4, 2, 2)),   # (Nc, B, 2)
+    ('camera', (8, 2)),      # (B Nc, 2)
+    ('camera', (16,)),       # flat
+    ('target', (2, 2, 8)),
+    ('target', (2, 8, 2, 1)),
+    ('target', (32,)),
+]
+
+
+@pytest.mark.parametrize('team, shape', VECTOR_WRONG_SHAPES, ids=[f'{t}-{s}' for t, s in VECTOR_WRONG_SHAPES])
+def test_actions_of_the_right_size_but_the_wrong_shape_are_refused(team, shape):
+    envs = mate.make_vec(ID, num_envs=2)
+    envs.reset(seed=0)
+    camera, target = envs.sample_actions(0)
+    state = envs.state()
+    actions = (camera.reshape(shape), target) if team == 'camera' else (camera, target.reshape(shape))
+    expected = ('(2, 4, 2) (num_envs x 4 cameras x [rotate, zoom]) or (2, 8)' if team == 'camera' else
+                '(2, 8, 2) (num_envs x 8 targets x [dx, dy]) or (2, 16)')
+    with pytest.raises(ValueError) as error:
+        envs.step(actions)
+    assert str(error.value) == f'{team} actions must have shape {expected}; got {shape}'
+    np.testing.assert_array_equal(envs.state(), state)   # nothing was stepped
+    # the accepted forms: (B, N, 2) of any real dtype and (B, 2N), the same actions either way
+    reference = mate.make_vec(ID, num_envs=2)
+    reference.reset(seed=0)
+    expected_obs = reference.step((camera, target))[0]
+    observations = envs.step((camera.reshape(2, -1), target.reshape(2, -1)))[0]
+    np.testing.assert_array_equal(observations[0], expected_obs[0])
+    np.testing.assert_array_equal(observations[1], expected_obs[1])
+    envs.step((np.zeros((2, 4, 2), dtype=np.int32), target.tolist()))
+
+
+def test_ragged_actions_are_refused_as_a_wrong_shape():
+    envs = mate.make_vec(ID, num_envs=2)
+    envs.reset(seed=0)
+    camera, target = envs.sample_actions(0)
+    with pytest.raises(ValueError, match=r'target actions must have shape \(2, 8, 2\) .*; got a ragged sequence'):
+        envs.step((camera, [target[0].tolist(), target[1, :7].tolist()]))
 
 
 def test_make_vec_arguments():

@@ -10,13 +10,15 @@
 Agents: `camera_0 .. camera_{Nc-1}` then `target_0 .. target_{Nt-1}` (slot order of the single
 env's joint observations and actions). Every agent acts every step (simultaneous moves); in
 the AEC version (`parallel_to_aec`) agents take turns in that order and the world advances
-once all of them have acted.
+once all of them have acted (an action of the wrong shape is refused at its agent's turn).
 
 Spaces: each agent has its own space objects, built once (`observation_space(agent)` returns
 the same object every call; seeding one agent's space leaves the others alone). Observations
 are float64 vectors of the layouts in `mate.spaces`; a camera acts with (rotation, zoom) in
-degrees, a target with a displacement (dx, dy). An agent missing from the actions dict stays
-still (a zero action). `state()` is the global state vector, `state_space` its Box.
+degrees, a target with a displacement (dx, dy): one agent's action is an array (or sequence) of
+the shape of its action space, (2,), in any real dtype; any other shape raises a ValueError naming
+the agent and the expected shape (nothing is reshaped). An agent missing from the actions dict
+stays still (a zero action). `state()` is the global state vector, `state_space` its Box.
 
 Rewards: team rewards, repeated for every agent of the team (camera reward == -target reward).
 infos: the single env's per-agent info dicts (coverage_rate, raw_reward, messages, ...).
@@ -35,9 +37,10 @@ from typing import Any
 
 import numpy as np
 from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from ..env import MultiAgentTracking
+from ..env import MultiAgentTracking, agent_action
 
 __all__ = ['MateParallelEnv', 'parallel_env', 'env', 'raw_env']
 
@@ -95,13 +98,10 @@ class MateParallelEnv(ParallelEnv):
         for agent, action in actions.items():
             if action is None:  # a done agent's turn in the AEC conversion
                 continue
+            if agent not in self.action_spaces:
+                raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}')
             team = self._camera_actions if agent.startswith('camera_') else self._target_actions
-            try:
-                team[self._index[agent]] = action
-            except KeyError:
-                raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}') from None
-            except ValueError as exc:
-                raise ValueError(f'action of {agent} must be 2 numbers, got {action!r}: {exc}') from None
+            team[self._index[agent]] = self._agent_action(agent, action)
         (camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, infos = self.env.step(
             (self._camera_actions, self._target_actions))
         self.num_cycles += 1
@@ -115,6 +115,10 @@ class MateParallelEnv(ParallelEnv):
         if terminated or truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
+
+    def _agent_action(self, agent: str, action) -> np.ndarray:
+        """One agent's action as a float64 array of its action space's shape; ValueError for another shape."""
+        return agent_action(agent, action, self.action_spaces[agent].shape)
 
     def _per_agent(self, camera_values, target_values) -> dict[str, Any]:
         out = dict(zip(self.camera_agents, camera_values, strict=True))
@@ -140,10 +144,23 @@ def parallel_env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max
     return MateParallelEnv(config, render_mode=render_mode, max_cycles=max_cycles, **overrides)
 
 
+class _CheckedParallelToAEC(parallel_to_aec_wrapper):
+    """PettingZoo's Parallel-to-AEC conversion, refusing an action of the wrong shape at its agent's own
+    turn (the turn does not pass), rather than when the last agent's turn advances the world."""
+
+    def step(self, action) -> None:
+        agent = self.agent_selection
+        if action is not None and not (self.terminations[agent] or self.truncations[agent]):
+            self.env._agent_action(agent, action)
+        super().step(action)
+
+
 def env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
         **overrides: Any):
-    """MATE under PettingZoo's AEC API: `parallel_to_aec(parallel_env(...))` (order-enforced)."""
-    return parallel_to_aec(parallel_env(config, render_mode=render_mode, max_cycles=max_cycles, **overrides))
+    """MATE under PettingZoo's AEC API: `parallel_to_aec(parallel_env(...))` (order-enforced); an action
+    of the wrong shape is refused at its agent's turn, which then does not pass."""
+    return OrderEnforcingWrapper(_CheckedParallelToAEC(
+        parallel_env(config, render_mode=render_mode, max_cycles=max_cycles, **overrides)))
 
 
 raw_env = env

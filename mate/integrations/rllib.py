@@ -6,29 +6,8 @@
     algo = config.build_algo()
     print(algo.train()['env_runners']['episode_return_mean'])
 
-`MateMultiAgentEnv(env_config)` wraps one `MultiAgentTracking` env. RLlib controls one team (or
-both); the other team is played by an opponent inside the env. env_config keys:
-
-    config                 preset name, YAML/JSON path or dict (default 'MATE-4v8-9')
-    overrides              dict deep-merged into the configuration (e.g. {'max_episode_steps': 500})
-    team                   'camera' (default), 'target' or 'both': the agents RLlib controls
-    opponent               the other team (ignored for 'both'):
-                             'greedy' (default), 'naive', 'random'  -> mate.agents' rule-based agents
-                             'uniform'                              -> i.i.d. uniform actions (built in)
-                             'package.module:name'                  -> imported, then as below
-                             an agent instance or class of mate.agents (spawned, driven with
-                               group_reset / group_step, messages included)
-                             any other callable f(joint_obs (N, D)) -> actions (N, 2)
-    rescale_observations   divide every observation entry by its finite space bound (default True):
-                           coordinates / 2000, angles / 180, flags unchanged, counts unchanged
-
-Agents: `camera_0 .. camera_{Nc-1}`, `target_0 .. target_{Nt-1}` (those of the controlled team).
-Observations are float32 vectors (`observation_spaces`), actions float32 Box(2) (`action_spaces`):
-(rotation, zoom) degrees for a camera, (dx, dy) for a target; out-of-bounds values are clipped
-by the core; an agent missing from the action dict stays still. Rewards are the team reward
-repeated for each agent. terminateds/truncateds carry "__all__" (the whole team ends together).
-infos: per agent, the coverage_rate, real_coverage_rate, mean_transport_rate,
-num_delivered_cargoes of the step and episode_coverage_rate (mean over the episode so far).
+The class docstring of `MateMultiAgentEnv` describes the env: its env_config keys, agents, spaces,
+rewards, episode end and infos (`help(MateMultiAgentEnv)`, or the API page of the docs).
 """
 
 from __future__ import annotations
@@ -42,7 +21,7 @@ from gymnasium import spaces
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
-from ..env import MultiAgentTracking
+from ..env import MultiAgentTracking, agent_action
 
 __all__ = ['ENV_NAME', 'MateMultiAgentEnv', 'MateMetricsCallback', 'register', 'ppo_config', 'policy_mapping_fn',
            'train']
@@ -136,12 +115,49 @@ def _opponent(spec, team: str, env: MultiAgentTracking):
 
 # --------------------------------------------------------------------------- env
 class MateMultiAgentEnv(MultiAgentEnv):
-    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv`.
+    """One `MultiAgentTracking` env as an RLlib `MultiAgentEnv` (new API stack).
 
-    The `env_config` keys are described in the module `mate.integrations.rllib` and in docs/rllib.md.
+    RLlib controls one team (or both); the other team is played by an opponent inside the env.
+    `register()` makes it RLlib's env `'mate'`, built from the algorithm's `env_config`.
+
+    **env_config keys.**
+
+    - `config`: a preset name, a YAML/JSON path or a dict (default `'MATE-4v8-9'`).
+    - `overrides`: a dict deep-merged into the configuration (e.g. `{'max_episode_steps': 500}`).
+    - `team`: `'camera'` (default), `'target'` or `'both'`: the agents RLlib controls.
+    - `opponent`: the other team (ignored for `'both'`). `'greedy'` (default), `'naive'`, `'random'`:
+      the rule-based agents of `mate.agents`, spawned one per slot and driven with `group_reset` /
+      `group_step`, messages included; `'uniform'`: i.i.d. uniform actions (built in);
+      `'package.module:name'`: imported, then as below; an agent instance or class of `mate.agents`;
+      or any callable `f(joint_obs (N, D)) -> actions (N, 2)`. `reset(seed=s)` reseeds the opponent.
+    - `rescale_observations`: divide every observation entry by its finite space bound (default
+      True): coordinates / 2000, angles / 180, flags and counts unchanged.
+
+    **Agents.** `camera_0 .. camera_{Nc-1}`, `target_0 .. target_{Nt-1}`: those of the controlled
+    team(s), in `possible_agents`.
+
+    **Action space.** `action_spaces[agent]` is a float32 `Box(2)`: `[rotate, zoom]` in degrees for a
+    camera, a displacement `[dx, dy]` for a target. An agent's action must have that shape `(2,)`
+    (any real dtype); another shape raises a `ValueError` naming the agent and the expected shape
+    (nothing is reshaped). Out-of-bounds values are clipped by the core; an agent missing from the
+    action dict stays still.
+
+    **Observation space.** `observation_spaces[agent]` is a float32 `Box` of the team's observation
+    layout (`mate.spaces`), rescaled as `rescale_observations` says.
+
+    **Rewards.** The team reward, repeated for each agent of the team (zero-sum between the teams).
+
+    **Episode end.** The whole team ends together: `terminateds` / `truncateds` hold every agent and
+    `'__all__'`; terminated once every cargo unit is delivered, truncated at `max_episode_steps`.
+
+    **infos.** Per agent: `coverage_rate`, `real_coverage_rate`, `mean_transport_rate` and
+    `num_delivered_cargoes` of the step, and `episode_coverage_rate` (the mean over the episode so
+    far). `reset` returns empty infos.
+
+    Args:
+        config: the env_config dict (keys above); None or `{}` for every default. Unknown keys
+            raise `ValueError`.
     """
-
-    __doc__ = __doc__  # help() shows the module's full description
 
     def __init__(self, config: dict | None = None) -> None:
         super().__init__()
@@ -203,10 +219,10 @@ class MateMultiAgentEnv(MultiAgentEnv):
     def step(self, action_dict: dict):
         joint_actions = [np.zeros((self.env.num_cameras, 2)), np.zeros((self.env.num_targets, 2))]
         for agent, action in action_dict.items():
-            team, index = agent.rsplit('_', 1)
-            if agent not in self.observation_spaces:
+            if agent not in self.action_spaces:
                 raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}')
-            joint_actions[team == 'target'][int(index)] = action
+            team, index = agent.rsplit('_', 1)
+            joint_actions[team == 'target'][int(index)] = agent_action(agent, action, self.action_spaces[agent].shape)
         if self._opponent_team is not None:
             other = 1 if self.team == 'camera' else 0
             joint_actions[other] = self._opponent_team.act(self.env, self._joint_obs[other], self._joint_infos[other])

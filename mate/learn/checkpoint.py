@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-__all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'save_checkpoint']
+__all__ = ['CHECKPOINT_FORMAT', 'FLAGS', 'CheckpointError', 'describe_difference', 'load_checkpoint', 'save_checkpoint']
 
 CHECKPOINT_FORMAT = 'mate.learn/1'
 REQUIRED = ('actor', 'meta', 'config')
@@ -62,9 +62,38 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
     meta = data['meta']
     if not isinstance(meta, dict):
         raise CheckpointError(f"checkpoint {str(path)!r} is corrupt: its 'meta' entry is a {type(meta).__name__}, not a dict")
-    for key, value in (expect or {}).items():
-        found = meta.get(key, META_DEFAULTS.get(key))
+    expect = expect or {}
+    for key in sorted(expect, key=lambda k: (k not in FLAGS, list(FLAGS).index(k) if k in FLAGS else 0)):
+        found, value = meta.get(key, META_DEFAULTS.get(key)), expect[key]
         if found != value:
-            raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: {key} is '
-                                  f'{found!r} in the checkpoint, {value!r} here')
+            raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: '
+                                  f'{describe_difference(key, found, value)}')
     return data
+
+
+FLAGS = {'team': '--team', 'env_id': '--config', 'algo': 'the algorithm', 'hrl': '--hrl',
+         'joint_selection': '--selection', 'comm': '--comm', 'actor': '--actor', 'lstm': '--lstm',
+         'full_observability': '--full-observability', 'memory': '--memory', 'velocity': '--velocity',
+         'credit': '--credit', 'frame_skip': '--frame-skip', 'levels': 'levels', 'message_dropout': '--message-dropout',
+         'communication_range': '--communication-range', 'message_delay': '--message-delay'}
+"""Metadata a run's flags decide, in the order a mismatch is reported (the cause before derived sizes such as
+`num_actions`), with the flag that sets each."""
+
+
+def describe_difference(key: str, saved, wanted) -> str:
+    """One phrase saying how a checkpoint's `key` (`saved`) differs from this run's (`wanted`), by the flag
+    that sets it: 'trained with --hrl; this run is without it', 'trained with --memory 25; this run has
+    --memory 0', 'trained for MATE-4v8-9-v0; this run plays MATE-8v8-9-v0'."""
+    flag = FLAGS.get(key)
+    if key == 'env_id':
+        return f'trained for {saved}; this run plays {wanted} (--config)'
+    if key == 'team':
+        return f'trained for the {saved} team; this run trains the {wanted} team (--team)'
+    if key == 'algo':
+        return f'trained by {saved}; this run is {wanted}'
+    if flag is None or not flag.startswith('--'):
+        return f'{key} is {saved!r} in the checkpoint, {wanted!r} here'
+    if isinstance(saved, bool) or isinstance(wanted, bool):
+        return f'trained with {flag}; this run is without it' if saved else f'trained without {flag}; this run has it'
+    trained = f'trained without {flag}' if saved is None else f'trained with {flag} {saved}'
+    return trained + ('; this run is without it' if wanted is None else f'; this run has {flag} {wanted}')

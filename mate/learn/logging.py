@@ -15,6 +15,9 @@ import numpy as np
 
 __all__ = ['EPISODE_WINDOW', 'Logger', 'RunReport', 'mean_or_nan', 'training_bar']
 
+TENSORBOARD_MISSING = ("TensorBoard is not installed: the run logs to progress.csv only (for TensorBoard scalars: "
+                       "pip install tensorboard, or the train extra: pip install -e '.[train]')")
+"""What a run with a progress display says once at its start when `torch.utils.tensorboard` cannot be imported."""
 EPISODE_WINDOW = 25
 """Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
 
@@ -43,6 +46,8 @@ class RunReport:
                  callback: Callable[[dict], None] | None, best_return: float, save_best: Callable[[], None]) -> None:
         self.episodes = deque(maxlen=EPISODE_WINDOW)
         self.logger = Logger(run_dir, resume=done_steps > 0)
+        if progress and self.logger.tb is None:
+            print(TENSORBOARD_MISSING, flush=True)
         self.bar = training_bar(total_steps, done_steps) if progress else None
         self.callback, self.best_return, self.save_best = callback, best_return, save_best
 

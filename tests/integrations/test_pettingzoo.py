@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import types
 
 import numpy as np
 import pytest
 
-pytest.importorskip('pettingzoo')
+pytest.importorskip('pettingzoo', reason="needs pettingzoo, from the pettingzoo extra: pip install -e '.[pettingzoo]'")
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
 from mate.env import MultiAgentTracking  # noqa: E402
@@ -82,28 +83,76 @@ def test_agents_spaces_rewards_state_and_equivalence_with_the_single_env():
         env.step({'camera_7': [0.0, 0.0]})
 
 
-def _rendering_available() -> bool:
-    return 'rgb_array' in MultiAgentTracking.metadata.get('render_modes', [])
-
-
-@pytest.mark.skipif(not _rendering_available(), reason='the renderer has not landed yet (render_mode is refused)')
 def test_render(monkeypatch):
+    pytest.importorskip('pygame', reason="needs pygame, from the render extra: pip install -e '.[render]'")
     monkeypatch.setenv('SDL_VIDEODRIVER', 'dummy')
     render_test(lambda render_mode=None: mate_pz.env(**SMALL, render_mode=render_mode))
 
 
 def test_render_mode_is_passed_to_the_single_env():
-    if _rendering_available():
-        frame = mate_pz.parallel_env(**SMALL, render_mode='rgb_array')
-        frame.reset(seed=0)
-        image = frame.render()
-        assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8
-    else:
-        with pytest.raises(NotImplementedError, match='render'):
-            mate_pz.parallel_env(**SMALL, render_mode='rgb_array')
+    pytest.importorskip('pygame', reason="needs pygame, from the render extra: pip install -e '.[render]'")
+    env = mate_pz.parallel_env(**SMALL, render_mode='rgb_array')
+    assert env.env.render_mode == 'rgb_array'
+    env.reset(seed=0)
+    image = env.render()
+    assert image.shape == (800, 800, 3) and image.dtype == np.uint8
     assert mate_pz.parallel_env(**SMALL).render_mode is None
 
 
 def test_module_is_importable_without_side_effects():
-    assert 'ray' not in sys.modules or True  # pettingzoo adapter never imports ray
+    # a fresh interpreter: this one may have imported ray already (the RLlib tests)
+    code = 'import sys, mate.integrations.pettingzoo; print(sorted(m for m in sys.modules if m.split(".")[0] == "ray"))'
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == '[]', f'importing the PettingZoo adapter imported ray: {result.stdout}'
     assert mate_pz.parallel_env(**SMALL).metadata['name'] == 'mate_v0'
+
+
+# --------------------------------------------------------------------------- action shapes (issue 30)
+
+# One agent's action of the wrong shape: (team agent, action, the shape given); (2,) is expected.
+WRONG_SHAPES = [
+    ('camera_1', np.zeros((1, 2)), '(1, 2)'),
+    ('camera_1', np.zeros((2, 1)), '(2, 1)'),
+    ('camera_1', 1.0, '()'),          # a scalar is not broadcast to both entries
+    ('target_2', np.zeros(4), '(4,)'),
+    ('target_2', [[0.0], [0.0]], '(2, 1)'),
+]
+
+
+def _message(agent: str, given: str) -> str:
+    fields = '[rotate, zoom]' if agent.startswith('camera') else '[dx, dy]'
+    return f'action of {agent} must have shape (2,) {fields}; got {given}'
+
+
+@pytest.mark.parametrize('agent, action, given', WRONG_SHAPES, ids=[f'{a}-{g}' for a, _, g in WRONG_SHAPES])
+def test_parallel_refuses_an_action_of_the_wrong_shape(agent, action, given):
+    env = mate_pz.parallel_env('MATE-2v4-9')
+    env.reset(seed=0)
+    state = env.state()
+    actions = {a: np.zeros(2) for a in env.agents}
+    actions[agent] = action
+    with pytest.raises(ValueError) as error:
+        env.step(actions)
+    assert str(error.value) == _message(agent, given)
+    np.testing.assert_array_equal(env.state(), state)   # the world did not advance
+    assert env.num_cycles == 0
+    # right shapes, of any real dtype and as lists, are accepted
+    actions[agent] = np.array([1, -1], dtype=np.int32)
+    actions['target_0'] = [0.5, 0.5]
+    env.step(actions)
+    assert env.num_cycles == 1
+
+
+@pytest.mark.parametrize('agent, action, given', WRONG_SHAPES, ids=[f'{a}-{g}' for a, _, g in WRONG_SHAPES])
+def test_aec_refuses_an_action_of_the_wrong_shape_at_its_turn(agent, action, given):
+    env = mate_pz.env('MATE-2v4-9')
+    env.reset(seed=0)
+    while env.agent_selection != agent:
+        env.step(np.zeros(2))
+    with pytest.raises(ValueError) as error:
+        env.step(action)
+    assert str(error.value) == _message(agent, given)
+    assert env.agent_selection == agent              # the turn did not pass: the agent acts again
+    for _ in env.possible_agents[env.possible_agents.index(agent):]:
+        env.step(np.zeros(2, dtype=np.float32))
+    assert env.unwrapped.num_cycles == 1             # the world advanced once, with every action right

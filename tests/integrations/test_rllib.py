@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip('ray.rllib')
+pytest.importorskip('ray.rllib', reason="needs ray.rllib, from the rllib extra: pip install -e '.[rllib]'")
 from ray.rllib.utils.pre_checks.env import check_multiagent_environments  # noqa: E402
 
 from mate.env import MultiAgentTracking  # noqa: E402
@@ -48,13 +48,69 @@ def test_observations_are_the_single_env_rescaled():
     assert rewards['camera_0'] == -rewards['target_0']
 
 
-@pytest.mark.parametrize('opponent', ['greedy', 'naive', 'random', 'mate.agents:GreedyTargetAgent',
-                                      lambda joint_obs: np.zeros((len(joint_obs), 2))])
+def _target_positions(env) -> np.ndarray:
+    return env.env.get_world()['target_state'][:, :2].copy()
+
+
+def _still(joint_obs):
+    return np.zeros((len(joint_obs), 2))
+
+
+@pytest.mark.parametrize('opponent', ['greedy', 'naive', 'random', 'uniform', 'mate.agents:GreedyTargetAgent', _still],
+                         ids=['greedy', 'naive', 'random', 'uniform', 'import-path', 'zeros-callable'])
 def test_opponents(opponent):
-    pytest.importorskip('mate.agents')
+    """The opponent plays the targets: the rule-based, uniform and imported ones move them at every
+    step, the callable returning zeros leaves them where they are; the cameras (absent from the action
+    dicts) stay still, and what RLlib gets back is well formed."""
     env = mate_rllib.MateMultiAgentEnv({**SMALL, 'opponent': opponent})
     env.reset(seed=0)
-    for _ in range(3):
+    for step in range(1, 4):
+        before = _target_positions(env)
+        observations, rewards, terminateds, truncateds, infos = env.step({})
+        moved = np.abs(_target_positions(env) - before).max()
+        if opponent is _still:
+            assert moved == 0.0
+        else:
+            assert moved > 1.0, f'the targets did not move at step {step}'
+        assert env.env.episode_step == step
+        assert set(observations) == set(rewards) == set(infos) == {'camera_0', 'camera_1'}
+        for agent, obs in observations.items():
+            assert obs.dtype == np.float32 and np.isfinite(obs).all()
+            assert env.observation_spaces[agent].contains(obs)
+        assert np.isfinite(rewards['camera_0']) and rewards['camera_0'] == rewards['camera_1']
+        assert terminateds['__all__'] is False and truncateds['__all__'] is False
+
+
+def test_an_opponent_named_by_its_import_path_is_the_named_agent():
+    paths = []
+    for opponent in ('greedy', 'mate.agents:GreedyTargetAgent'):
+        env = mate_rllib.MateMultiAgentEnv({**SMALL, 'opponent': opponent})
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step({})
+        paths.append(_target_positions(env))
+    np.testing.assert_array_equal(*paths)
+
+
+@pytest.mark.parametrize('action, given', [(np.zeros((1, 2)), '(1, 2)'), (np.zeros(4), '(4,)'), (0.0, '()')],
+                         ids=['(1, 2)', '(4,)', 'scalar'])
+def test_an_action_of_the_wrong_shape_is_refused(action, given):
+    env = mate_rllib.MateMultiAgentEnv({**SMALL, 'team': 'both'})
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as error:
+        env.step({'camera_0': np.zeros(2, np.float32), 'target_3': action})
+    assert str(error.value) == f'action of target_3 must have shape (2,) [dx, dy]; got {given}'
+    assert env.env.episode_step == 0          # the world did not advance
+    with pytest.raises(ValueError, match=r"unknown agent 'referee'"):
+        env.step({'referee': np.zeros(2)})
+    env.step({'camera_0': np.zeros(2, np.float32), 'target_3': [1, 1]})   # (2,), any real dtype
+    assert env.env.episode_step == 1
+
+
+def test_an_opponent_returning_a_flat_vector_is_refused():
+    env = mate_rllib.MateMultiAgentEnv({**SMALL, 'opponent': lambda joint_obs: np.zeros(2 * len(joint_obs))})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r'target joint action must have shape \(4, 2\) .*; got \(8,\)'):
         env.step({})
 
 

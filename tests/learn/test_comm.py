@@ -109,7 +109,7 @@ def test_tarmac_checkpoints_resume_refuse_another_comm_and_play_batched(tmp_path
     longer = PPOConfig(**{**config.__dict__, 'total_steps': 3 * 4 * 4})
     resumed = train(longer, tmp_path, progress=False)
     assert resumed['env_steps'] == 48 and resumed['iteration'] == 3
-    with pytest.raises(CheckpointError, match="comm is 'tarmac' in the checkpoint, 'none' here"):
+    with pytest.raises(CheckpointError, match='trained with --comm tarmac; this run has --comm none'):
         train(PPOConfig(**{**longer.__dict__, 'comm': 'none', 'total_steps': 4 * 4 * 4}), tmp_path, progress=False)
 
     policy = load_policy(tmp_path / 'final.pt', 'target')

@@ -231,9 +231,9 @@ def test_channel_settings_are_in_the_checkpoint_and_a_resume_refuses_others(tmp_
     assert (meta['message_dropout'], meta['communication_range']) == (0.25, 400.0)
     longer = PPOConfig(**{**config.__dict__, 'total_steps': 2 * 2 * 3})
     assert train(longer, tmp_path, progress=False)['env_steps'] == 12
-    with pytest.raises(CheckpointError, match='message_dropout is 0.25 in the checkpoint, 0.0 here'):
+    with pytest.raises(CheckpointError, match='trained with --message-dropout 0.25; this run has --message-dropout 0.0'):
         train(PPOConfig(**{**longer.__dict__, 'message_dropout': 0.0}), tmp_path, progress=False)
-    with pytest.raises(CheckpointError, match='communication_range is 400.0 in the checkpoint, None here'):
+    with pytest.raises(CheckpointError, match='trained with --communication-range 400.0; this run is without it'):
         train(PPOConfig(**{**longer.__dict__, 'communication_range': None}), tmp_path, progress=False)
 
 
@@ -345,7 +345,7 @@ def test_delay_in_training_replays_and_is_in_the_checkpoint(tmp_path):
           callback=rows.append, envs=_envs())
     assert all(row['approx_kl'] < 1e-9 for row in rows), rows
     assert load_checkpoint(tmp_path / 'final.pt')['meta']['message_delay'] == 2
-    with pytest.raises(CheckpointError, match='message_delay is 2 in the checkpoint, 1 here'):
+    with pytest.raises(CheckpointError, match='trained with --message-delay 2; this run has --message-delay 1'):
         train(_config(message_delay=1, message_dropout=0.3, total_steps=3 * 4 * 4), tmp_path, progress=False,
               envs=_envs())
     with pytest.raises(ValueError, match="message_delay is a TarMAC option"):

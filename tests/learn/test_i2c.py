@@ -195,7 +195,7 @@ def test_i2c_checkpoints_resume_and_play_batched(tmp_path):
     resumed = train(_config(total_steps=3 * 4 * 4), tmp_path, progress=False)
     assert resumed['iteration'] == 3
     assert int(load_checkpoint(tmp_path / 'checkpoint.pt')['comm_training']['threshold.count']) == 3 * 6 * 4 * 3
-    with pytest.raises(CheckpointError, match="comm is 'i2c' in the checkpoint, 'tarmac' here"):
+    with pytest.raises(CheckpointError, match='trained with --comm i2c; this run has --comm tarmac'):
         train(_config(comm='tarmac', total_steps=4 * 4 * 4), tmp_path, progress=False)
 
     policy = load_policy(tmp_path / 'final.pt', 'target')

@@ -24,6 +24,8 @@ from mate.learn.population.psro import LocalRunner, PSROError, PSROSettings, Ray
 from mate.learn.population.solvers import exploitability
 from mate.learn.ppo import PPOConfig, train
 
+from conftest import needs_extra
+
 from .test_batched_evaluation import COUNTS, _policy
 from .toy import CueMatching
 
@@ -196,30 +198,49 @@ def test_psro_end_to_end_then_plots(tmp_path, capsys):
         assert image.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and image.stat().st_size > 10_000
 
 
+# Runs `mate psro ARGS` in-process (jobs in this process: --workers 1) with the target best response replaced by
+# one that says it started (a file) and then waits: the test kills the run at exactly that stage.
+STALLING_DRIVER = """
+import sys, time
+from pathlib import Path
+from mate.cli import main
+from mate.learn.population import jobs
+started, train_best_response = Path(sys.argv[1]), jobs.best_response
+
+def best_response(team, **kwargs):
+    if team == 'target':
+        started.write_text('the target best response started')
+        time.sleep(3600)
+    return train_best_response(team=team, **kwargs)
+
+jobs.best_response = best_response
+sys.exit(main(sys.argv[2:]))
+"""
+
+
 def test_psro_resumes_after_a_kill(tmp_path):
-    """Kill the process once the first camera best response is in the pool (the target one is training),
+    """Kill the process while the target best response of iteration 1 trains (the camera one is in the pool),
     start the same command again: the finished stages are kept, the run completes."""
-    out = tmp_path / 'run'
-    command = [sys.executable, '-m', 'mate.cli', 'psro', '--workers', '1', '--iterations', '2', '--br-steps', '400', '--num-envs', '4',
-               '--eval-episodes', '3', '--eval-steps', '120', '--out', str(out)]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               env=dict(os.environ, MATE_COMPILE_NOTICE='0'))
+    out, started = tmp_path / 'run', tmp_path / 'target-started'
+    arguments = ['psro', '--workers', '1', '--iterations', '2', '--br-steps', '400', '--num-envs', '4',
+                 '--eval-episodes', '3', '--eval-steps', '120', '--out', str(out)]
+    env = dict(os.environ, MATE_COMPILE_NOTICE='0')
+    process = subprocess.Popen([sys.executable, '-c', STALLING_DRIVER, str(started), *arguments],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     deadline = time.time() + 600
     try:
-        while time.time() < deadline and process.poll() is None:
-            state = load_state(out) if (out / 'state.json').exists() else None
-            if state and len(state['pools']['camera']) >= 2:
-                break
+        while time.time() < deadline and process.poll() is None and not started.exists():
             time.sleep(0.05)
     finally:
         process.send_signal(signal.SIGKILL)
         process.wait()
-    assert process.returncode == -signal.SIGKILL, process.stderr.read().decode()[-2000:]
+    assert started.exists() and process.returncode == -signal.SIGKILL, process.stderr.read().decode()[-2000:]
     before = load_state(out)
     assert len(before['iterations']) == 1 and len(before['pools']['target']) == 1   # killed mid-iteration 1
+    assert before['pools']['camera'] == ['random', 'players/camera-1.pt']
     camera_policy = (out / 'players/camera-1.pt').read_bytes()
 
-    resumed = subprocess.run(command, capture_output=True, text=True, env=dict(os.environ, MATE_COMPILE_NOTICE='0'))
+    resumed = subprocess.run([sys.executable, '-m', 'mate.cli', *arguments], capture_output=True, text=True, env=env)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     assert 'resuming' in resumed.stdout and 'training the target best response' in resumed.stdout
     assert 'training the camera and target' not in resumed.stdout.split('iteration 2')[0]   # camera 1 not retrained
@@ -230,7 +251,7 @@ def test_psro_resumes_after_a_kill(tmp_path):
 
 
 def test_psro_on_a_local_ray_instance(tmp_path):
-    import ray   # the rllib extra (CI installs it)
+    ray = needs_extra('ray')   # the rllib extra (CI installs it)
 
     runner = RayRunner(None, num_cpus=2)
     try:
@@ -259,3 +280,18 @@ def test_psro_settings_are_checked(tmp_path, capsys):
     (tmp_path / 'bad' / 'state.json').write_text('{"format": "other"}')
     with pytest.raises(PSROError, match='not a PSRO state'):
         run_psro(PSROSettings(), tmp_path / 'bad', LocalRunner(1))
+
+
+def test_exploitability_plot_of_one_iteration_has_integer_ticks(tmp_path, monkeypatch):
+    from mate.learn.population import plots
+
+    state = dict(settings=dict(solver='nash'), iterations=[
+        dict(iteration=0, exploitability=None, camera_strategy=[1.0], target_strategy=[1.0]),
+        dict(iteration=1, exploitability=dict(camera=0.1, target=0.2, mean=0.15), camera_strategy=[0.5, 0.5],
+             target_strategy=[1.0, 0.0])])
+    figures = []
+    saved = plots._save
+    monkeypatch.setattr(plots, '_save', lambda plt, figure, path: (figures.append(figure), saved(plt, figure, path))[1])
+    plots.plot_exploitability([state], tmp_path / 'exploitability.png')
+    ticks = [tick for ax in figures[0].axes for tick in ax.get_xticks() if ax.get_xlim()[0] <= tick <= ax.get_xlim()[1]]
+    assert ticks and all(float(tick).is_integer() for tick in ticks), ticks

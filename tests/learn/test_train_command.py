@@ -37,3 +37,15 @@ def test_a_run_out_of_minutes_says_so(tmp_path, capsys):
     assert main(['train', 'mappo', '--steps', '1e9', '--minutes', '0.005', '--run-dir', str(tmp_path)]) == 0
     out = ' '.join(capsys.readouterr().out.split())
     assert 'run already done:' in out and '>= --minutes 0.005' in out and 'raise --minutes' in out
+
+
+def test_resuming_with_another_flag_names_the_flag(tmp_path, capsys):
+    """A run directory of an HRL run resumed without --hrl: the message names --hrl, not the derived action count."""
+    arguments = ['train', 'mappo', '--steps', '10', '--num-envs', '2', '--rollout-length', '5', '--epochs', '1',
+                 '--threads', '1', '--no-progress', '--run-dir', str(tmp_path)]
+    assert main([*arguments, '--hrl']) == 0
+    capsys.readouterr()
+    assert main(arguments + ['--steps', '20']) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('mate train: error: ') and len(err.strip().splitlines()) == 1
+    assert 'trained with --hrl; this run is without it' in err and 'num_actions' not in err

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import needs_extra
 from wrapper_scene import SCENE, ZERO_ACTION, make_env, set_scene
 
 import mate
@@ -159,7 +160,7 @@ def test_render_communication_bookkeeping_and_arrows():
 
 
 def test_render_communication_registers_its_callback():
-    pytest.importorskip('pygame')
+    needs_extra('pygame')
     env = make_env(wrappers=[mate.RenderCommunication], render_mode='rgb_array')
     assert env.unwrapped.render_callbacks['communication'] == env.draw
     set_scene(env, **SCENE)

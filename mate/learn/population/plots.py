@@ -56,6 +56,8 @@ def exploitability_table(states: list[dict]) -> dict[str, dict[str, np.ndarray]]
 def plot_exploitability(states: list[dict], path) -> Path:
     """Fig. 7: exploitability against iteration for each solver (mean ± std over its runs)."""
     plt = _pyplot()
+    from matplotlib.ticker import MaxNLocator
+
     table = exploitability_table(states)
     if not table:
         raise ValueError('no run has finished an iteration with best responses (iteration 1) yet')
@@ -71,6 +73,9 @@ def plot_exploitability(states: list[dict], path) -> Path:
             ax.fill_between(x, mean - std, mean + std, alpha=0.2)
         ax.set_title(title)
         ax.set_xlabel('iteration')
+        last = max(terms['mean'].shape[1] for terms in table.values())
+        ax.set_xlim(0.5, last + 0.5)                              # iterations are whole numbers (one iteration too)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
         ax.grid(alpha=0.3)
     axes[0].set_ylabel('normalised target-team return')
     axes[0].legend(fontsize=8)

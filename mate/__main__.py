@@ -1,0 +1,7 @@
+"""`python -m mate ...`: the `mate` command (the same parser, errors and exit statuses)."""
+
+import sys
+
+from mate.cli import main
+
+sys.exit(main())
