@@ -1,0 +1,424 @@
+"""Golden runs of `mate train` and `mate psro`: one short fixed-seed CPU run per trainer variant, whose log rows
+and final weights are kept as test data (tests/data/golden/NAME.json), so that a change of the learning code can
+be shown to reproduce them exactly, or said to change them on purpose.
+
+    python tests/learn/golden.py --record [NAMES...]   run the variants, write tests/data/golden/NAME.json
+    python tests/learn/golden.py --check [NAMES...]    rerun them; per variant: bitwise equal, or the largest
+                                                       relative difference and the first differences
+    python tests/learn/golden.py --list                the variants and their command lines
+
+The runs go through the command line (`mate.cli.main(argv)`, in this process), whose flags outlive the
+Python API. What is compared (`run_variant`):
+
+* `logs`: every log row of `progress.csv` (and, for PSRO, of each best response's `progress.csv`), without the
+  wall-clock columns (`TIMING_COLUMNS`);
+* `weights`: per policy file (`final.pt`; PSRO: `players/*.pt`) and per network entry of it (each state dict
+  but the optimisers'): the sha256 of its tensors' bytes in state-dict order, and per tensor its name, dtype,
+  shape, exact float64 sum and sum of absolute values (`math.fsum`: independent of summation order) for a
+  tolerant comparison;
+* PSRO `state`: the payoff matrices, pools, per-iteration meta-strategies, camera value and exploitability,
+  and the best responses' summaries, without their `seconds`.
+
+Everything runs with one torch thread (`torch.set_num_threads(1)` and `--threads 1`) on the CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import datetime
+import hashlib
+import io
+import json
+import math
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+DATA = ROOT / 'tests' / 'data' / 'golden'
+RUN_DIR = '{run_dir}'
+"""Placeholder of the run directory in a command line (replaced by a fresh folder per run)."""
+
+# ---------------------------------------------------------------------------- the variants
+
+# PPO (cameras: MATE-4v8-9, frame skip 5): 4 envs x 10 decisions per iteration, 3 iterations of 2 epochs x 2
+# minibatches; --horizon 40 raw steps = 8 decisions (targets: 80 raw steps, frame skip 10), so episodes end by
+# truncation inside the rollouts (bootstrapped from the critic) and the episode columns are filled.
+_PPO = ['--seed', '1', '--steps', '120', '--num-envs', '4', '--rollout-length', '10', '--epochs', '2',
+        '--minibatches', '2']
+# Off-policy (IQL, QMIX, MADDPG): one log row per 5,120 decision steps (not a CLI option) and one at the end.
+# 32 envs x 180 decisions = 5,760 decision steps: 2 rows, ~86 updates from step 256 on, hard target copies
+# (IQL, QMIX) every 500 steps, replay rings of 4,000 that wrap; --horizon 100 raw steps = 20 decisions (cameras).
+_OFF = ['--seed', '1', '--steps', '5760', '--num-envs', '32', '--horizon', '100', '--buffer-size', '4000',
+        '--batch-size', '32', '--update-every', '64', '--learning-starts', '256']
+_COMMON = ['--threads', '1', '--no-progress', '--fresh', '--run-dir', RUN_DIR]
+
+VARIANTS: dict[str, list[str]] = {
+    'mappo-camera': ['train', 'mappo', *_PPO, '--horizon', '40', *_COMMON],
+    'ippo-camera': ['train', 'ippo', *_PPO, '--horizon', '40', *_COMMON],
+    'mappo-camera-mlp': ['train', 'mappo', '--actor', 'mlp', *_PPO, '--horizon', '40', *_COMMON],
+    # --paper: the MLP actor, the adaptive KL penalty (kl_coeff column) and the paper's schedules
+    'mappo-camera-paper': ['train', 'mappo', '--paper', *_PPO, '--horizon', '40', *_COMMON],
+    'hrl-mappo-camera': ['train', 'mappo', '--hrl', *_PPO, '--horizon', '40', *_COMMON],
+    'mappo-camera-lstm': ['train', 'mappo', '--actor', 'mlp', '--lstm', '16', *_PPO, '--horizon', '40', *_COMMON],
+    'mappo-camera-tarmac': ['train', 'mappo', '--comm', 'tarmac', '--lstm', '16', *_PPO, '--horizon', '40',
+                            *_COMMON],
+    'mappo-camera-i2c': ['train', 'mappo', '--comm', 'i2c', '--lstm', '16', '--influence-samples', '4', *_PPO,
+                         '--horizon', '40', *_COMMON],
+    'mappo-target': ['train', 'mappo', '--team', 'target', *_PPO, '--horizon', '80', *_COMMON],
+    'mappo-camera-memory-velocity-difference': ['train', 'mappo', '--memory', '25', '--velocity', '--credit',
+                                                'difference', *_PPO, '--horizon', '40', *_COMMON],
+    'iql-camera': ['train', 'iql', *_OFF, *_COMMON],
+    'hrl-iql-camera': ['train', 'iql', '--hrl', '--selection', 'joint', *_OFF, *_COMMON],
+    'qmix-camera': ['train', 'qmix', *_OFF, '--sequence-length', '8', *_COMMON],
+    # MADDPG acts uniformly at random for its first 10,000 decision steps (not a CLI option): 10,560 steps
+    # (3 rows) end with 17 decisions of the actors plus exploration noise
+    'maddpg-target': ['train', 'maddpg', '--team', 'target', *[a if a != '5760' else '10560' for a in _OFF],
+                      *_COMMON],
+    # one PSRO iteration on MATE-2v4-0: two best responses (HRL-MAPPO cameras with the mixed reward, MAPPO
+    # targets; 2 envs x 25 decisions per iteration, 3 iterations each) and the 2 x 2 payoff matrix (2 episodes
+    # of 20 raw steps per entry)
+    'psro': ['psro', '--iterations', '1', '--br-steps', '150', '--eval-episodes', '2', '--eval-steps', '20',
+             '--num-envs', '2', '--workers', '1', '--seed', '1', '--out', RUN_DIR],
+}
+"""Variant name -> the arguments of `mate.cli.main` (RUN_DIR: the run directory)."""
+
+TIMING_COLUMNS = frozenset({'wall_seconds', 'steps_per_second', 'collect_share', 'seconds',
+                            'env_steps_per_second'})
+"""Wall-clock columns and keys, left out of what is compared."""
+PSRO_STATE_KEYS = ('payoff', 'payoff_sem', 'coverage', 'real_coverage', 'pools', 'iterations', 'best_responses')
+
+# ---------------------------------------------------------------------------- running and reading a run
+
+
+def command_line(name: str, folder) -> list[str]:
+    return [str(folder) if arg == RUN_DIR else arg for arg in VARIANTS[name]]
+
+
+def run_variant(name: str, folder) -> dict:
+    """Run variant `name` with its run directory in `folder` (created) and return what is compared:
+    {'logs': {file: {'columns', 'rows'}}, 'weights': {file: {entry: {'sha256', 'tensors'}}}[, 'state']}."""
+    import torch
+
+    from mate.cli import main
+
+    torch.set_num_threads(1)
+    folder = Path(folder)
+    argv = command_line(name, folder)
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        status = main(argv)
+    if status != 0:
+        raise RuntimeError(f'golden run {name}: `mate {" ".join(argv)}` exited with {status}:\n{out.getvalue()}')
+    if VARIANTS[name][0] == 'psro':
+        state = json.loads((folder / 'state.json').read_text())
+        players = sorted(p for p in (folder / 'players').glob('*.pt'))
+        return dict(logs={str(p.relative_to(folder)): read_log(p)
+                          for p in sorted((folder / 'players').glob('*/progress.csv'))},
+                    weights={str(p.relative_to(folder)): weight_summary(p) for p in players},
+                    state=without_timing({key: state[key] for key in PSRO_STATE_KEYS}))
+    return dict(logs={'progress.csv': read_log(folder / 'progress.csv')},
+                weights={'final.pt': weight_summary(folder / 'final.pt')})
+
+
+def _value(text: str):
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_log(path) -> dict:
+    """The rows of a progress.csv without the timing columns: {'columns': [...], 'rows': [[value, ...], ...]}
+    (numbers parsed: Python's csv writes floats with repr, so they round-trip exactly)."""
+    with open(path, newline='') as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        keep = [i for i, column in enumerate(header) if column not in TIMING_COLUMNS]
+        rows = [[_value(row[i]) for i in keep] for row in reader]
+    return dict(columns=[header[i] for i in keep], rows=rows)
+
+
+def _is_state_dict(value) -> bool:
+    import torch
+
+    return (isinstance(value, dict) and len(value) > 0 and all(isinstance(v, torch.Tensor) for v in value.values()))
+
+
+def tensor_bytes(tensor) -> bytes:
+    tensor = tensor.detach().cpu().contiguous()
+    return tensor.numpy().tobytes()
+
+
+def weight_summary(path) -> dict:
+    """{entry: {'sha256', 'tensors': [[name, dtype, shape, fsum, fsum of abs], ...]}} of every network entry
+    (a state dict: a non-empty dict of tensors, the optimisers' excluded) of the torch file `path`."""
+    import numpy as np
+    import torch
+
+    data = torch.load(path, map_location='cpu', weights_only=True)
+    summary = {}
+    for entry, value in data.items():
+        if 'optimizer' in entry or not _is_state_dict(value):
+            continue
+        digest, tensors = hashlib.sha256(), []
+        for key, tensor in value.items():
+            digest.update(tensor_bytes(tensor))
+            values = tensor.detach().cpu().to(torch.float64).numpy().ravel()
+            tensors.append([key, str(tensor.dtype).removeprefix('torch.'), list(tensor.shape),
+                            math.fsum(values.tolist()), math.fsum(np.abs(values).tolist())])
+        summary[entry] = dict(sha256=digest.hexdigest(), tensors=tensors)
+    return summary
+
+
+def without_timing(value):
+    if isinstance(value, dict):
+        return {k: without_timing(v) for k, v in value.items() if k not in TIMING_COLUMNS}
+    if isinstance(value, list):
+        return [without_timing(v) for v in value]
+    return value
+
+
+def versions() -> dict:
+    import numpy
+    import torch
+
+    return dict(python=platform.python_version(), torch=torch.__version__, numpy=numpy.__version__,
+                machine=platform.machine(), processor=platform.processor() or None)
+
+
+# ---------------------------------------------------------------------------- comparison
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _same(a, b) -> bool:
+    """Exactly equal (NaN equal to NaN)."""
+    if _number(a) and _number(b):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    return a == b
+
+
+def _close(a, b, rtol: float, atol: float, scale: float | None = None) -> bool:
+    """|a - b| <= atol + rtol * scale (default |b|); NaN only equal to NaN, infinities only to themselves."""
+    if _same(a, b):
+        return True
+    if not (_number(a) and _number(b)) or any(math.isnan(x) or math.isinf(x) for x in (a, b)):
+        return False
+    return abs(a - b) <= atol + rtol * (abs(b) if scale is None else scale)
+
+
+def relative_difference(a, b, scale: float | None = None) -> float:
+    if _same(a, b):
+        return 0.0
+    if not (_number(a) and _number(b)) or any(math.isnan(x) or math.isinf(x) for x in (a, b)):
+        return math.inf
+    return abs(a - b) / max(abs(b) if scale is None else scale, 1e-300)
+
+
+ROW_RTOL, ROW_ATOL = 1e-5, 1e-7
+TENSOR_RTOL, TENSOR_ATOL = 1e-5, 1e-6
+
+
+class Comparison:
+    """The differences between a recorded result (`expected`) and a rerun (`found`) of one variant.
+
+    `problems`: messages of the differences beyond the tolerances (all of them, in exact mode, once anything
+    differs bitwise: the digests); `exact`: whether everything is bitwise equal; `max_relative`: the largest
+    relative difference of any compared number (tensor sums relative to their sums of absolute values)."""
+
+    def __init__(self, name: str, expected: dict, found: dict, rtol: float = ROW_RTOL, atol: float = ROW_ATOL,
+                 tensor_rtol: float = TENSOR_RTOL, tensor_atol: float = TENSOR_ATOL, exact_digests: bool = False):
+        self.name, self.problems, self.differences, self.exact, self.max_relative = name, [], [], True, 0.0
+        self.rtol, self.atol, self.tensor_rtol, self.tensor_atol = rtol, atol, tensor_rtol, tensor_atol
+        self._logs(expected.get('logs', {}), found.get('logs', {}))
+        self._weights(expected.get('weights', {}), found.get('weights', {}), exact_digests)
+        if 'state' in expected or 'state' in found:
+            self._tree('state', expected.get('state'), found.get('state'))
+
+    def _problem(self, text: str) -> None:
+        self.exact = False
+        self.problems.append(f'golden run {self.name}: {text}')
+
+    def _number_pair(self, where: str, a, b, rtol: float, atol: float, scale: float | None = None) -> None:
+        if _same(a, b):
+            return
+        self.exact = False
+        rel = relative_difference(b, a, scale)
+        self.max_relative = max(self.max_relative, rel)
+        self.differences.append(f'{where}: recorded {a!r}, now {b!r} (relative {rel:.3g})')
+        if not _close(b, a, rtol, atol, scale):
+            self._problem(f'{where}: recorded {a!r}, now {b!r} (relative difference {rel:.3g}, '
+                          f'beyond rtol {rtol:g} / atol {atol:g})')
+
+    def _logs(self, expected: dict, found: dict) -> None:
+        if sorted(expected) != sorted(found):
+            self._problem(f'log files differ: recorded {sorted(expected)}, now {sorted(found)}')
+        for file in sorted(set(expected) & set(found)):
+            a, b = expected[file], found[file]
+            if a['columns'] != b['columns']:
+                self._problem(f'{file}: columns differ: recorded {a["columns"]}, now {b["columns"]} '
+                              f'(missing {[c for c in a["columns"] if c not in b["columns"]]}, '
+                              f'new {[c for c in b["columns"] if c not in a["columns"]]})')
+            if len(a['rows']) != len(b['rows']):
+                self._problem(f'{file}: {len(a["rows"])} rows recorded, {len(b["rows"])} now')
+            for r, (row_a, row_b) in enumerate(zip(a['rows'], b['rows'])):
+                values_b = dict(zip(b['columns'], row_b))
+                for column, value_a in zip(a['columns'], row_a):
+                    if column not in values_b:
+                        continue
+                    value_b = values_b[column]
+                    iteration = f' (iteration {row_a[0]})' if a['columns'][0] == 'iteration' else ''
+                    where = f'{file} row {r}{iteration} column {column!r}'
+                    if _number(value_a) and _number(value_b):
+                        self._number_pair(where, value_a, value_b, self.rtol, self.atol)
+                    elif value_a != value_b:
+                        self._problem(f'{where}: recorded {value_a!r}, now {value_b!r}')
+
+    def _weights(self, expected: dict, found: dict, exact_digests: bool) -> None:
+        if sorted(expected) != sorted(found):
+            self._problem(f'weight files differ: recorded {sorted(expected)}, now {sorted(found)}')
+        for file in sorted(set(expected) & set(found)):
+            a, b = expected[file], found[file]
+            if list(a) != list(b):
+                self._problem(f'{file}: network entries differ: recorded {list(a)}, now {list(b)}')
+            for entry in [e for e in a if e in b]:
+                tensors_a, tensors_b = a[entry]['tensors'], b[entry]['tensors']
+                if a[entry]['sha256'] != b[entry]['sha256']:
+                    self.exact = False
+                    if exact_digests:
+                        self._problem(f'{file} {entry}: sha256 of the tensors differs (recorded '
+                                      f'{a[entry]["sha256"][:16]}..., now {b[entry]["sha256"][:16]}...; '
+                                      'MATE_GOLDEN_EXACT=1 asks for bitwise equal weights)')
+                layout_a = [t[:3] for t in tensors_a]
+                layout_b = [t[:3] for t in tensors_b]
+                if layout_a != layout_b:
+                    self._problem(f'{file} {entry}: tensors (name, dtype, shape) differ: recorded {layout_a}, '
+                                  f'now {layout_b}')
+                    continue
+                for (key, _, _, sum_a, abs_a), (_, _, _, sum_b, abs_b) in zip(tensors_a, tensors_b):
+                    scale = max(abs(abs_a), abs(abs_b))
+                    self._number_pair(f'{file} {entry} tensor {key!r} sum', sum_a, sum_b, self.tensor_rtol,
+                                      self.tensor_atol, scale)
+                    self._number_pair(f'{file} {entry} tensor {key!r} sum of |x|', abs_a, abs_b, self.tensor_rtol,
+                                      self.tensor_atol)
+
+    def _tree(self, where: str, a, b) -> None:
+        if isinstance(a, dict) and isinstance(b, dict):
+            if sorted(a) != sorted(b):
+                self._problem(f'{where}: keys differ: recorded {sorted(a)}, now {sorted(b)}')
+            for key in [k for k in a if k in b]:
+                self._tree(f'{where}.{key}', a[key], b[key])
+        elif isinstance(a, list) and isinstance(b, list):
+            if len(a) != len(b):
+                self._problem(f'{where}: {len(a)} items recorded, {len(b)} now')
+            for i, (x, y) in enumerate(zip(a, b)):
+                self._tree(f'{where}[{i}]', x, y)
+        elif _number(a) and _number(b):
+            self._number_pair(where, a, b, self.rtol, self.atol)
+        elif a != b:
+            self._problem(f'{where}: recorded {a!r}, now {b!r}')
+
+    def report(self, limit: int = 20) -> str:
+        lines = self.problems[:limit]
+        if len(self.problems) > limit:
+            lines.append(f'... and {len(self.problems) - limit} more')
+        return '\n'.join(lines)
+
+
+def record_path(name: str) -> Path:
+    return DATA / f'{name}.json'
+
+
+def load_record(name: str) -> dict:
+    return json.loads(record_path(name).read_text())
+
+
+def rerecord_hint(name: str) -> str:
+    return (f'if this change is meant, re-record with `python tests/learn/golden.py --record {name}` and say '
+            'in the commit which change it is and why')
+
+
+# ---------------------------------------------------------------------------- entry point
+
+def _timed_run(name: str) -> tuple[dict, float]:
+    with tempfile.TemporaryDirectory(prefix=f'mate-golden-{name}-') as folder:
+        started = time.perf_counter()
+        result = run_variant(name, Path(folder) / 'run')
+        return result, time.perf_counter() - started
+
+
+def record(names: list[str]) -> None:
+    DATA.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        result, seconds = _timed_run(name)
+        payload = dict(name=name, command=['mate', *VARIANTS[name]], versions=versions(),
+                       recorded=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
+                       seconds=round(seconds, 2), **result)
+        record_path(name).write_text(json.dumps(payload, indent=1, allow_nan=True) + '\n')
+        print(f'{name}: recorded in {seconds:.1f} s -> {record_path(name).relative_to(ROOT)}', flush=True)
+
+
+def check(names: list[str]) -> int:
+    failures = 0
+    for name in names:
+        if not record_path(name).exists():
+            print(f'{name}: no recording ({record_path(name).relative_to(ROOT)}); run --record {name}')
+            failures += 1
+            continue
+        expected = load_record(name)
+        found, seconds = _timed_run(name)
+        if expected['command'] != ['mate', *VARIANTS[name]]:
+            print(f'{name}: NOTE the command line changed since the recording: {expected["command"]}')
+        comparison = Comparison(name, expected, found, exact_digests=True)
+        if comparison.exact:
+            print(f'{name}: EXACT (log rows, state and weight digests bitwise equal; {seconds:.1f} s)', flush=True)
+            continue
+        failures += 1
+        within = 'within tolerance' if not comparison.problems else 'BEYOND TOLERANCE'
+        print(f'{name}: DIFFERENT ({within}); largest relative difference {comparison.max_relative:.3g}; '
+              f'{seconds:.1f} s', flush=True)
+        for label, lines in (('differs', comparison.differences), ('FAILS the test', comparison.problems)):
+            for line in lines[:10]:
+                print(f'    {label}: {line}')
+            if len(lines) > 10:
+                print(f'    {label}: ... and {len(lines) - 10} more')
+    return 1 if failures else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    action = parser.add_mutually_exclusive_group(required=True)
+    action.add_argument('--record', action='store_true', help='run the variants and write their JSON files')
+    action.add_argument('--check', action='store_true', help='rerun the variants and compare bitwise')
+    action.add_argument('--list', action='store_true', help='print the variants and their command lines')
+    parser.add_argument('names', nargs='*', metavar='NAME', help=f'variants (default all): {", ".join(VARIANTS)}')
+    args = parser.parse_args(argv)
+    unknown = [n for n in args.names if n not in VARIANTS]
+    if unknown:
+        parser.error(f'unknown variants {unknown}; known: {", ".join(VARIANTS)}')
+    names = args.names or list(VARIANTS)
+    if args.list:
+        for name in names:
+            print(f'{name}: mate {" ".join(VARIANTS[name])}')
+        return 0
+    import torch
+
+    torch.set_num_threads(1)
+    if args.record:
+        record(names)
+        return 0
+    return check(names)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
