@@ -12,66 +12,20 @@ Any other exception is a bug and shows its traceback.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import traceback
-from contextlib import contextmanager
-from typing import Callable
 
 from rich.console import Console
 from rich.table import Table
+
+from .arguments import ArgumentParser, CommandError, non_negative_int, number, positive_int, resolving_arguments
 
 console = Console()
 TEAM_CHOICES = ('both', 'camera', 'target', 'none')
 USER_OS_ERRORS = (FileNotFoundError, FileExistsError, IsADirectoryError, NotADirectoryError, PermissionError)
 """Errors about the user's paths, reported in one line like argument mistakes."""
 DEBUG_HELP = 'on an error, also print the traceback (or set the environment variable MATE_DEBUG=1)'
-
-
-class CommandError(SystemExit):
-    """A mistake in a command's arguments: `main` prints `mate COMMAND: error: MESSAGE` and returns 2.
-
-    A SystemExit (carrying the message), so that code running a sub-command without `main` stops
-    with the message too, as it does on argparse's errors."""
-
-
-@contextmanager
-def resolving_arguments():
-    """Report the ValueError / TypeError of turning arguments into objects (agent names, keyword
-    arguments, configs, checkpoints) as a CommandError with the same message."""
-    try:
-        yield
-    except (ValueError, TypeError) as exc:
-        raise CommandError(str(exc)) from exc
-
-
-def number(kind: type = int, minimum: float | None = None, above: float | None = None) -> Callable[[str], float]:
-    """argparse type: a finite `kind` (int or float) that is >= `minimum` and/or > `above`."""
-    bounds = [f'{relation} {bound:g}' for relation, bound in (('>=', minimum), ('>', above)) if bound is not None]
-    expected = f"{'an integer' if kind is int else 'a number'}{' ' if bounds else ''}{' and '.join(bounds)}"
-
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            value = math.nan
-        if not math.isfinite(value) or (minimum is not None and value < minimum) or (above is not None and value <= above):
-            raise argparse.ArgumentTypeError(f'expected {expected}, got {text!r}')
-        return value
-
-    return parse
-
-
-positive_int, non_negative_int = number(int, minimum=1), number(int, minimum=0)
-
-
-class ArgumentParser(argparse.ArgumentParser):
-    """argparse's parser whose errors are two short lines (the message, then where to find the
-    options) instead of the long usage text."""
-
-    def error(self, message: str):
-        self.exit(2, f'{self.prog}: error: {message}\n(see {self.prog} -h)\n')
 
 
 def _debugging(args: argparse.Namespace) -> bool:
@@ -122,7 +76,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .progress import ProgressLine
     from .registration import make
 
-    if args.batched:
+    batched, reason = _evaluation_path(args)
+    if batched:
         return _evaluate_batched(args)
     with resolving_arguments():
         camera_cls = ev.resolve_agent(args.camera_agent, Team.CAMERA)
@@ -139,11 +94,10 @@ def _evaluate(args: argparse.Namespace) -> int:
             raise CommandError(f'{flag}: {exc}') from exc
     with resolving_arguments():          # agents that refuse this game (a policy trained for another preset) say so now
         ev.check_agents_fit(env, camera_factory, target_factory, args.seed)
-    console.print(f'environment: {env}')
+    console.print(f'environment: {env} (single env, one episode after the other: {reason})', soft_wrap=True)
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
 
-    recorder = None if args.no_render or not (args.save_gif or args.save_video) else ev.FrameRecorder(
-        args.frame_size, args.frame_every, hud=not args.no_hud, max_episode_steps=args.max_episode_steps)
+    recorder = _recorder(args)
     results = []
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         for episode in range(args.episodes):
@@ -153,11 +107,51 @@ def _evaluate(args: argparse.Namespace) -> int:
             progress.update(advance=1, status=f'coverage {result.coverage_rate:.3f}, '
                                               f'{result.steps_per_second:,.0f} steps/s')
     summary = _report(env, args, results)
+    _finish_recording(recorder, args)
+    _write_results(args, results, summary)
+    return 0
+
+
+def _evaluation_path(args: argparse.Namespace) -> tuple[bool, str]:
+    """(whether `mate evaluate` plays batched, why the single env if not): batched whenever both teams have a
+    batched form and no wrapper is asked for, unless --single-env; --batched insists (one-line error if it
+    cannot be)."""
+    from . import evaluate as ev
+
+    wrappers = [f'--{flag.replace("_", "-")}' for flag in ('enhanced_observation', 'shared_field_of_view',
+                                                            'no_communication') if getattr(args, flag) != 'none']
+    if args.render_communication:
+        wrappers.append('--render-communication')
+    unbatched = [agent for agent in (args.camera_agent, args.target_agent) if not ev.has_batched_team(agent)]
+    if args.batched and args.single_env:
+        raise CommandError('--batched and --single-env exclude each other')
+    if args.batched and (wrappers or unbatched):
+        problem = (f'plays the game without wrappers; drop {", ".join(wrappers)}' if wrappers else
+                   f'has no batched form of {", ".join(unbatched)} (batched agents: random, greedy, checkpoint:PATH, '
+                   'pretrained:NAME)')
+        raise CommandError(f'--batched {problem}, or --batched')
+    if args.single_env:
+        return False, '--single-env'
+    if wrappers:
+        return False, f'the wrappers {", ".join(wrappers)} need it'
+    if unbatched:
+        return False, f'{", ".join(unbatched)} has no batched form'
+    return True, ''
+
+
+def _recorder(args: argparse.Namespace):
+    from . import evaluate as ev
+
+    if args.no_render or not (args.save_gif or args.save_video):
+        return None
+    return ev.FrameRecorder(args.frame_size, args.frame_every, hud=not args.no_hud,
+                            max_episode_steps=args.max_episode_steps)
+
+
+def _finish_recording(recorder, args: argparse.Namespace) -> None:
     if recorder is not None:
         recorder.close()
         _save_frames(recorder.frames, args)
-    _write_results(args, results, summary)
-    return 0
 
 
 def _report(env, args: argparse.Namespace, results: list) -> list[dict]:
@@ -181,28 +175,32 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
     from .progress import ProgressLine
     from .registration import make
 
-    wrappers = [f'--{flag.replace("_", "-")}' for flag in ('enhanced_observation', 'shared_field_of_view',
-                                                            'no_communication') if getattr(args, flag) != 'none']
-    if args.render_communication:
-        wrappers.append('--render-communication')
-    if wrappers:
-        raise CommandError(f'--batched plays the game without wrappers; drop {", ".join(wrappers)} or --batched')
+    from .messages import Team
+
     with resolving_arguments():
         camera_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs')
         target_kwargs = _json_kwargs(args.target_kwargs, '--target-kwargs')
         env = make('MultiAgentTracking-v0', config=args.config)
-        cameras, targets = ev.batched_teams(env, args.camera_agent, args.target_agent, args.episodes, args.seed,
-                                            camera_kwargs, target_kwargs)
-    console.print(f'environment: {env} (batched: {args.episodes} games at once)')
+        for agent, team in ((args.camera_agent, Team.CAMERA), (args.target_agent, Team.TARGET)):
+            ev.resolve_agent(agent, team)        # unknown names first, with the usual message
+    teams = []
+    for agent, team, kwargs, flag in ((args.camera_agent, Team.CAMERA, camera_kwargs, '--camera-kwargs'),
+                                      (args.target_agent, Team.TARGET, target_kwargs, '--target-kwargs')):
+        try:
+            teams.append(ev.batched_team(env, agent, team, args.episodes, args.seed, kwargs))
+        except (TypeError, ValueError) as exc:
+            raise CommandError(f'{flag}: {exc}' if kwargs else str(exc)) from exc
+    cameras, targets = teams
+    console.print(f'environment: {env} (batched: {args.episodes} games at once in one vector env)', soft_wrap=True)
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
-    if not args.no_render:
-        console.print('--batched records no GIF or video (run without it to record the first episode)')
+    recorder = _recorder(args)
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
-                                  progress=lambda done, total: progress.update(completed=done))
+                                  progress=lambda done, total: progress.update(completed=done), recorder=recorder)
     summary = _report(env, args, results)
     console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
                   'env-steps/s (whole batch)')
+    _finish_recording(recorder, args)
     _write_results(args, results, summary)
     return 0
 
@@ -377,11 +375,13 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument('--frame-every', type=positive_int, default=4, help='record every N-th step (default 4)')
     evaluate.add_argument('--json', default=None, metavar='PATH', help='write per-episode results and the summary')
     evaluate.add_argument('--batched', action='store_true',
-                          help='play every episode at once in one vector env with batched agents (random, greedy, '
-                               'checkpoint:PATH, pretrained:NAME; tens of times faster for learned policies); off by '
-                               'default. The batched greedy cameras share sightings at once, so greedy scores differ a '
-                               'little from the Python agents\'; agents draw from other random streams; no wrappers, '
-                               'no GIF')
+                          help='insist on playing every episode at once in one vector env (the default whenever both '
+                               'agents have a batched form: random, greedy, checkpoint:PATH, pretrained:NAME, and no '
+                               'wrapper is asked for): an error if it cannot. The rule agents play the same episodes '
+                               'either way; policies that sample draw from other random streams')
+    evaluate.add_argument('--single-env', action='store_true',
+                          help='play the episodes one after the other in the single env with per-agent objects (the '
+                               'path of agents without a batched form, and of wrappers)')
     evaluate.set_defaults(run=_evaluate)
 
     generate = command('generate-config', help='write a config with camera placement covering the terrain')

@@ -36,6 +36,7 @@ from .agents import (
     group_step,
 )
 from .messages import Team
+from .teams.play import EpisodeSummary
 
 BUILT_IN_AGENTS = {
     Team.CAMERA: {'random': RandomCameraAgent, 'naive': NaiveCameraAgent, 'greedy': GreedyCameraAgent,
@@ -75,20 +76,6 @@ def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
 
 
 @dataclass
-class EpisodeSummary:
-    """Summary of one episode (rates are means over its steps, returns are sums)."""
-    seed: int
-    coverage_rate: float
-    real_coverage_rate: float
-    transport_rate: float
-    camera_return: float
-    target_return: float
-    normalized_target_return: float
-    delivered_cargoes: int
-    episode_length: int
-
-
-@dataclass
 class EpisodeResult(EpisodeSummary):
     """An `EpisodeSummary` with the speed of its play (env steps per second)."""
     steps_per_second: float
@@ -106,12 +93,21 @@ class FrameRecorder:
         self.every, self.max_frames, self.frames = every, max_frames, []
         self.max_episode_steps = max_episode_steps
 
+    def _cap(self, env) -> int:
+        return env.max_episode_steps if self.max_episode_steps is None else min(env.max_episode_steps,
+                                                                                 self.max_episode_steps)
+
     def __call__(self, env, step: int, joint_action=None) -> None:
+        """Record a single env's current world (a `play_episode` callback)."""
         if step % self.every == 0 and len(self.frames) < self.max_frames:
             env = env.unwrapped
-            cap = env.max_episode_steps if self.max_episode_steps is None else min(
-                env.max_episode_steps, self.max_episode_steps)
-            self.frames.append(self.renderer.render(env, max_episode_steps=cap))
+            self.frames.append(self.renderer.render(env, max_episode_steps=self._cap(env)))
+
+    def record_row(self, vec, step: int) -> None:
+        """Record row 0 of a vector env (a `play_batch` callback: the first game of a batched evaluation)."""
+        if step % self.every == 0 and len(self.frames) < self.max_frames:
+            self.frames.append(self.renderer.frame(vec.get_world(0), transmittance=float(vec.params.transmittance),
+                                                   name=vec.name, max_episode_steps=self._cap(vec)))
 
     def close(self) -> None:
         self.renderer.close()
@@ -186,31 +182,53 @@ SUMMARY_ROWS = (
 )
 
 
+BATCHED = ('random', 'greedy')
+"""Built-in agents with a batched team (`mate.teams`); learned policies (checkpoint:, pretrained:) have one too."""
+
+
+def has_batched_team(agent: str) -> bool:
+    """Whether the `mate evaluate` agent name `agent` can play as a batched team (`batched_teams`)."""
+    return agent in BATCHED or agent.partition(':')[0] in ('checkpoint', 'pretrained')
+
+
+def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: dict | None = None):
+    """The batched team of `mate evaluate`'s agent name `agent` for `team` (random, greedy: `mate.teams`;
+    checkpoint:PATH, pretrained:NAME: `mate.learn.policy.PolicyTeam`; `kwargs`: the agents' options, e.g.
+    `frame_skip`, `memory_period`, and `deterministic` for policies) for `episodes` games of `env`'s sizes, seeded
+    with `seed`: row i plays as the agents of `play_episode`'s episode i (for the rule agents, the same episode).
+    ValueError for an unknown agent or one without a batched version; TypeError/ValueError for bad options."""
+    from . import teams
+
+    resolve_agent(agent, team)                       # unknown names: the usual message
+    counts = (env.num_cameras, env.num_targets, env.num_obstacles)
+    if agent in teams.RULE_TEAMS:
+        return teams.make_team(agent, team, episodes, counts, seed=seed, **(kwargs or {}))
+    try:
+        from .learn.policy import make_team
+    except ImportError as exc:
+        raise ValueError(f"{agent}: batched policies need the training extra (pip install 'mate[train]'): "
+                         f'{exc}') from None
+    return make_team(agent, team, episodes, counts, seed=seed, **(kwargs or {}))
+
+
 def batched_teams(env, camera_agent: str, target_agent: str, episodes: int, seed: int,
                   camera_kwargs: dict | None = None, target_kwargs: dict | None = None) -> tuple:
-    """The batched agents of `mate.learn.evaluate` for `mate evaluate --batched` (random, greedy,
-    checkpoint:PATH, pretrained:NAME; kwargs: `frame_skip`, and `deterministic` for policies) for
-    `episodes` games of `env`'s sizes, the camera team seeded with `seed` and the target team with
-    `seed + 1`. ValueError for an unknown agent or one without a batched version."""
-    try:
-        from .learn.evaluate import make_team
-    except ImportError as exc:
-        raise ValueError(f"--batched needs the training extra (pip install 'mate[train]'): {exc}") from None
-    for spec, team in ((camera_agent, Team.CAMERA), (target_agent, Team.TARGET)):
-        resolve_agent(spec, team)                       # unknown names: the usual message
-    counts = (env.num_cameras, env.num_targets, env.num_obstacles)
-    return (make_team(camera_agent, Team.CAMERA, episodes, counts, seed=seed, **(camera_kwargs or {})),
-            make_team(target_agent, Team.TARGET, episodes, counts, seed=seed + 1, **(target_kwargs or {})))
+    """(camera team, target team) of `batched_team`, both seeded with `seed`."""
+    return (batched_team(env, camera_agent, Team.CAMERA, episodes, seed, camera_kwargs),
+            batched_team(env, target_agent, Team.TARGET, episodes, seed, target_kwargs))
 
 
 def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: int,
-                 progress: Callable[[int, int], None] | None = None) -> list[EpisodeResult]:
+                 progress: Callable[[int, int], None] | None = None,
+                 recorder: FrameRecorder | None = None) -> list[EpisodeResult]:
     """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
-    (`batched_teams`); each result's `steps_per_second` is the whole batch's."""
-    from .learn.evaluate import play_batch
+    (`batched_teams`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
+    game's frames."""
+    from .teams import play_batch
     if max_steps < 1:
         raise ValueError(f'max_steps must be at least 1, got {max_steps}')
-    batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress)
+    batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress,
+                               on_step=None if recorder is None else recorder.record_row)
     return [EpisodeResult(**asdict(episode), steps_per_second=timing['env_steps_per_second']) for episode in batch]
 
 

@@ -17,6 +17,7 @@ from gymnasium.vector.utils import batch_space
 
 from . import registration
 from .core import engine
+from .core.snapshot import get_snapshot
 from .core.world import empty_world, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 
@@ -313,6 +314,49 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
             infos[key] = getattr(world, key).copy()
             infos[f'_{key}'] = self._info_mask
         return infos
+
+    def get_world(self, index: int = 0) -> dict:
+        """A snapshot of env `index`'s world as a dict of fresh arrays, as the single env's `get_world()` gives
+        (for rendering a row: `mate.render.Renderer.frame(vec.get_world(i), ...)`, or `set_world` of a single env)."""
+        if not 0 <= int(index) < self.num_envs:
+            raise IndexError(f'env index {index} out of range 0..{self.num_envs - 1}')
+        return get_snapshot(self.params, self._world, int(index))
+
+    @property
+    def observations(self) -> tuple[np.ndarray, np.ndarray]:
+        """The observations of the last `reset` or `step` (camera (B, Nc, D_c), target (B, Nt, D_t)): the buffers
+        themselves (copies with `copy=True`)."""
+        return self._observations()
+
+    # ------------------------------------------------------------------ checkpoints
+    _BUFFERS = ('_camera_obs', '_target_obs', '_camera_reward', '_target_reward', '_terminated', '_truncated',
+                '_autoreset')
+
+    def state_dict(self) -> dict:
+        """Everything the batch's future depends on, as plain data (copies): every world array (the random
+        streams included), the returned buffers and the episode flags. `load_state_dict` on an env made with
+        the same config and `num_envs` continues exactly where this one stands (a training run's exact resume)."""
+        return dict(world={name: getattr(self._world, name).copy() for name in self._world._fields},
+                    buffers={name: getattr(self, name).copy() for name in self._BUFFERS},
+                    needs_reset=self._needs_reset, np_random=None if self._np_random is None else
+                    self._np_random.bit_generator.state)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore `state_dict()`'s output in place (ValueError if it was taken from another game or batch)."""
+        world = state['world']
+        if set(world) != set(self._world._fields):
+            raise ValueError('state_dict: the world fields differ from this env\'s (another version of mate?)')
+        for name in self._world._fields:
+            target, value = getattr(self._world, name), np.asarray(world[name])
+            if value.shape != target.shape:
+                raise ValueError(f'state_dict: world field {name} has shape {value.shape}, this env {target.shape} '
+                                 '(another game or num_envs)')
+            np.copyto(target, value)
+        for name in self._BUFFERS:
+            np.copyto(getattr(self, name), np.asarray(state['buffers'][name]))
+        self._needs_reset = bool(state['needs_reset'])
+        if state.get('np_random') is not None:
+            self.np_random.bit_generator.state = state['np_random']
 
     # ------------------------------------------------------------------ helpers
     def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:

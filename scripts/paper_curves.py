@@ -86,19 +86,21 @@ FIGURE_SETTINGS = {'cameras-4v8-9': ('camera', 'MATE-4v8-9-v0'), 'targets-2v4-0'
 
 @functools.lru_cache(maxsize=None)
 def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) -> float:
-    """The greedy agent of `team` in the learner's setting: batched greedy cameras vs batched greedy targets,
+    """The greedy agent of `team` in the learner's setting: greedy cameras vs greedy targets (`mate.teams`),
     one training episode per env (the 500-decision horizon in raw steps), scored with the curve's metric:
     step-mean coverage rate (cameras) or normalised target episode reward (targets)."""
     import mate
-    from mate.learn import PAPER_SETTINGS, VecGreedyCamera, VecGreedyTarget
+    from mate.learn.envs import PAPER_SETTINGS
+    from mate.teams import GreedyTeam
 
-    horizon = PAPER_SETTINGS[team]['horizon']
+    horizon = 500 * PAPER_SETTINGS[team]['frame_skip']
     vec = mate.make_vec(env_id, num_envs=num_envs, max_episode_steps=horizon)
     (camera_obs, target_obs), _ = vec.reset(seed=seed)
-    cameras = VecGreedyCamera(num_envs, vec.num_cameras, vec.num_targets, vec.num_obstacles, seed=seed + 1)
-    targets = VecGreedyTarget(num_envs, vec.num_targets, seed=seed + 2)
-    cameras.reset(camera_obs)
-    targets.reset(target_obs)
+    counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)
+    cameras, targets = GreedyTeam('camera', num_envs, counts, seed=seed), GreedyTeam('target', num_envs, counts, seed=seed)
+    everyone = np.ones(num_envs, dtype=bool)
+    cameras.reset(camera_obs, everyone)
+    targets.reset(target_obs, everyone)
     live = np.ones(num_envs, dtype=bool)
     coverage, steps, target_return = np.zeros(num_envs), np.zeros(num_envs), np.zeros(num_envs)
     while live.any():
@@ -113,11 +115,24 @@ def greedy_reference(team: str, env_id: str, num_envs: int = 64, seed: int = 0) 
     return float(np.mean(target_return) / vec.params.max_target_team_episode_reward)
 
 
+def trainer_arguments(algo: str, arguments: list[str]) -> list[str]:
+    """`mate train` arguments of an experiment for `algo`: a communicating experiment (`--comm tarmac|i2c`) runs the
+    trainer of that name (`tarmac` with `--critic local` for IPPO)."""
+    arguments = list(arguments)
+    if '--comm' not in arguments:
+        return [algo, *arguments]
+    at = arguments.index('--comm')
+    comm = arguments[at + 1]
+    del arguments[at:at + 2]
+    return [comm, *(['--critic', 'local'] if algo == 'ippo' else []), *arguments]
+
+
 def run_one(out: Path, name: str, algo: str, seed: int, steps: float, extra: list[str]) -> int:
     run_dir = out / 'runs' / f'{algo}-{name}-seed{seed}'
     ppo = PPO_ARGUMENTS.get(name, []) if algo in PPO_ALGOS else []
-    command = [sys.executable, '-m', 'mate.cli', 'train', algo, *EXPERIMENTS[name][0], *ppo, '--steps', str(steps),
-               '--seed', str(seed), '--run-dir', str(run_dir), '--no-progress', *extra]
+    command = [sys.executable, '-m', 'mate.cli', 'train', *trainer_arguments(algo, EXPERIMENTS[name][0]), *ppo,
+               '--steps', str(int(float(steps))), '--seed', str(seed), '--run-dir', str(run_dir), '--no-progress',
+               *extra]
     print(' '.join(command), flush=True)
     return subprocess.call(command, stdout=subprocess.DEVNULL)
 

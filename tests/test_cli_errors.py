@@ -32,7 +32,9 @@ def error_of(capsys, argv: list[str], *expected: str) -> str:
     """Run a mistaken command; check the status, the shape of stderr and that it names `expected`."""
     status = run(argv)
     out, err = capsys.readouterr()
-    command = next(word for word in argv if not word.startswith('-'))
+    words = [word for word in argv if not word.startswith('-')]
+    # `mate train ALGORITHM` reads its options with the algorithm's own parser: 'mate train mappo: error: ...'
+    command = ' '.join(words[:2]) if words[0] == 'train' and err.startswith(f'mate {" ".join(words[:2])}:') else words[0]
     assert status == 2, (status, out, err)
     assert 'Traceback' not in out + err
     lines = err.strip().splitlines()
@@ -141,13 +143,13 @@ def test_a_bad_output_path(capsys, tmp_path):
     (['generate-config', '--num-cameras', '-1'], ('--num-cameras', 'integer >= 0', "'-1'")),
     (['generate-config', '--num-cargoes-per-target', '3'], ('--num-cargoes-per-target', 'integer >= 4')),
     (['train', 'mappo', '--num-envs', '0'], ('--num-envs', 'integer >= 1')),
-    (['train', 'mappo', '--steps', 'nan'], ('--steps', 'number >= 1')),
+    (['train', 'mappo', '--steps', 'nan'], ('--steps', 'integer >= 1')),
     (['train', 'mappo', '--team', 'cameras'], ('--team', "'camera', 'target'")),
     (['rllib-train', '--iterations', '0'], ('--iterations', 'integer >= 1')),
 ])
 def test_numbers_and_choices_are_checked_when_parsing(capsys, argv, expected):
     err = error_of(capsys, argv, *expected)
-    assert f'see mate {argv[0]} -h' in err
+    assert f'see mate {" ".join(argv[:2]) if argv[0] == "train" else argv[0]} -h' in err
 
 
 # ----------------------------------------------------------------------------------- tracebacks

@@ -98,3 +98,45 @@ def test_wrapper_flags_build_the_documented_stack(tmp_path):
                  '--no-communication', '--render-communication', '--save-gif', str(tmp_path / 'x.gif'),
                  '--frame-every', '5']) == 0
     assert (tmp_path / 'x.gif').is_file()
+
+
+def test_evaluate_is_batched_by_default_and_plays_the_single_env_episodes(tmp_path, capsys):
+    """Greedy vs greedy: the batched path (the default) and --single-env play the same episodes (same results,
+    same recorded frames of the first), and each says which path ran."""
+    outputs = {}
+    for path in ('batched', 'single'):
+        gif, report = tmp_path / f'{path}.gif', tmp_path / f'{path}.json'
+        flag = ['--single-env'] if path == 'single' else []
+        assert main(['evaluate', '--episodes', '3', '--max-episode-steps', '60', '--frame-every', '6', '--save-gif',
+                     str(gif), '--json', str(report), *flag]) == 0
+        outputs[path] = capsys.readouterr().out
+        episodes = json.loads(report.read_text())['episodes']
+        outputs[path + '-results'] = [{k: v for k, v in e.items() if k != 'steps_per_second'} for e in episodes]
+        with Image.open(gif) as image:
+            outputs[path + '-frames'] = [np.asarray(image.convert('RGB')).copy()
+                                         for _ in range(image.n_frames) if image.seek(_) is None]
+    assert 'batched: 3 games at once' in outputs['batched']
+    assert 'single env, one episode after the other: --single-env' in outputs['single']
+    assert outputs['batched-results'] == outputs['single-results']
+    assert len(outputs['batched-frames']) == 11
+    assert all(np.array_equal(a, b) for a, b in zip(outputs['batched-frames'], outputs['single-frames']))
+
+
+@pytest.mark.parametrize('argv, reason', [
+    (['--camera-agent', 'heuristic'], 'heuristic has no batched form'),
+    (['--no-communication'], 'the wrappers --no-communication need it'),
+])
+def test_the_single_env_path_says_why(capsys, argv, reason):
+    assert main(['evaluate', '--episodes', '1', '--max-episode-steps', '5', '--no-render', *argv]) == 0
+    assert f'(single env, one episode after the other: {reason})' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--batched', '--camera-agent', 'heuristic'], '--batched has no batched form of heuristic'),
+    (['--batched', '--shared-field-of-view'], '--batched plays the game without wrappers; drop --shared-field-of-view'),
+    (['--batched', '--single-env'], '--batched and --single-env exclude each other'),
+])
+def test_batched_refuses_what_it_cannot_play(capsys, argv, message):
+    assert main(['evaluate', '--episodes', '1', '--no-render', *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('mate evaluate: error: ') and message in err and len(err.strip().splitlines()) == 1

@@ -5,7 +5,9 @@
 
 Modules: `base` (life cycle, seeding, decoders), `group` (drive a team through a step),
 `utils` (observation helpers, state views), `geometry` (degrees, Vector2D) and one module per
-built-in family: `random`, `naive`, `greedy`, `heuristic`, `mixture`.
+built-in family: `random`, `naive`, `greedy`, `heuristic`, `mixture`. The greedy rules (and the
+targets' noisy walk) are compiled functions of `mate.teams.rules`, which the batched teams of
+`mate.teams` run on B games at once.
 """
 
 from .base import AgentBase, CameraAgentBase, TargetAgentBase

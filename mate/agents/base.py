@@ -39,39 +39,11 @@ from ..constants import (
     TARGET_DEFAULT_ACTION,
 )
 from ..messages import Message, Team
+from ..teams.streams import INT_MAX, UniformDraws, child_seed
 from ..spaces import observation_indices_of, observation_slices_of, observation_space_of
 from . import utils
 
 __all__ = ['INT_MAX', 'AgentBase', 'CameraAgentBase', 'TargetAgentBase', 'UniformDraws', 'child_seed']
-
-INT_MAX = int(np.iinfo(np.int64).max)
-"""Exclusive upper bound of child seeds drawn from an agent's generator."""
-
-
-def child_seed(generator: np.random.Generator) -> int:
-    """A seed for a child generator, drawn from `generator` (one draw)."""
-    return int(generator.integers(INT_MAX))
-
-
-class UniformDraws:
-    """Uniform floats in [0, 1) from a numpy Generator, fetched in blocks of `block` numbers.
-
-    Drawing one number from a Generator costs about a microsecond of call overhead; the built-in
-    agents draw a few per step, so they take them from a buffer instead. The sequence is fully
-    determined by the generator's state when the stream is created.
-    """
-
-    __slots__ = ('generator', 'block', '_values')
-
-    def __init__(self, generator: np.random.Generator, block: int = 128) -> None:
-        self.generator, self.block, self._values = generator, block, []
-
-    def __call__(self) -> float:
-        values = self._values
-        if not values:
-            values = self._values = self.generator.random(self.block).tolist()
-        return values.pop()
-
 
 def _not_reset(*args, **kwargs):
     raise RuntimeError('this helper is bound to the team sizes at reset(): call agent.reset(observation) first')

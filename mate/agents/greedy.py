@@ -3,61 +3,41 @@
 Both share what they learn with teammates: cameras their own state (once) and the targets they
 see; targets the warehouses they found empty. Decision rules and their quirks follow the
 original MATE (spec agents-and-wrappers.md §7.4-7.5, decisions.md "kept quirks").
+
+The rules are written once, on arrays, in `mate.teams.rules`: these agents call them on their own
+row, and the batched teams of `mate.teams` on every agent of B games, so that a batched game plays
+exactly like these agents (same seed, same episode). The agents keep the life cycle and the
+`mate.Message` protocol: messages are built here from what the rules decide.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..constants import (
-    CAMERA_STATE_DIM_PRIVATE,
-    NUM_WAREHOUSES,
-    PRESERVED_DIM,
-    TARGET_STATE_DIM_PRIVATE,
-    TARGET_STATE_DIM_PUBLIC,
-    WAREHOUSES,
-)
+from ..constants import CAMERA_STATE_DIM_PRIVATE, NUM_WAREHOUSES, PRESERVED_DIM, TARGET_STATE_DIM_PUBLIC, WAREHOUSES
 from .base import CameraAgentBase, TargetAgentBase
-from .geometry import DEG2RAD, RAD2DEG
-from .naive import NoisyWalker
+from ..teams import rules
+from ..teams.rules import MAX_VIEWING_ANGLE, RANDOM_ACTION_PROBABILITY, RANGE_FACTOR, ZOOM_ITERATIONS  # noqa: F401
+from .naive import ONE_ROW, NoisyWalker, as_row
 from .utils import CameraStatePrivate, TargetStatePublic
 
 __all__ = ['GreedyCameraAgent', 'GreedyTargetAgent']
 
 _OWN = PRESERVED_DIM
-_WAREHOUSES = WAREHOUSES.tolist()
-RANGE_FACTOR = 1.1
-"""Targets count as reachable within 1.1 x a camera's maximum sight range."""
-RANDOM_ACTION_PROBABILITY = 0.1
-"""Chance per step that an idle camera (no candidate target) draws a fresh random action."""
-MAX_VIEWING_ANGLE = 180.0
-ZOOM_ITERATIONS = 20
-_HALF_DEG2RAD = 0.5 * DEG2RAD
-_RIGHT_ANGLE = 90.0 * DEG2RAD
+_RECORD = TARGET_STATE_DIM_PUBLIC + 1
 
 
 def desired_viewing_angle(distance: float, viewing_angle: float, sight_range: float,
                           max_sight_range: float) -> float:
     """The widest viewing angle (degrees) whose sector, at constant area theta R^2, has its inscribed
-    circle centred on a target `distance` away; clipped to [min viewing angle, 180].
+    circle centred on a target `distance` away; clipped to [min viewing angle, 180]
+    (`mate.teams.rules.desired_viewing_angle`, which the agents use).
 
     Fixed-point iteration theta <- area / (distance (1 + sin(min(theta / 2, 90 deg))))^2, 20 rounds
     from 180 degrees, unless the target is beyond reach (min angle) or very close (180 degrees).
     """
-    theta_min = viewing_angle * (sight_range / max_sight_range) ** 2
-    if distance * (1.0 + math.sin(theta_min * _HALF_DEG2RAD)) >= max_sight_range:
-        return theta_min
-    area = viewing_angle * sight_range * sight_range
-    if distance <= 0.5 * math.sqrt(area / MAX_VIEWING_ANGLE):
-        return MAX_VIEWING_ANGLE
-    theta, sin = MAX_VIEWING_ANGLE, math.sin
-    for _ in range(ZOOM_ITERATIONS):
-        half = theta * _HALF_DEG2RAD
-        reach = distance * (1.0 + sin(half if half < _RIGHT_ANGLE else _RIGHT_ANGLE))
-        theta = area / (reach * reach)
-    return theta_min if theta < theta_min else MAX_VIEWING_ANGLE if theta > MAX_VIEWING_ANGLE else theta
+    return rules.desired_viewing_angle(float(distance), float(viewing_angle), float(sight_range),
+                                                float(max_sight_range))
 
 
 class GreedyCameraAgent(CameraAgentBase):
@@ -70,6 +50,10 @@ class GreedyCameraAgent(CameraAgentBase):
     the teammate's reach (1.1 x its maximum sight range). After each message to a teammate it waits
     a random U{memory_period // 4, ..., 2 memory_period - 1} steps before the next one to it; what
     could not be sent in a step is dropped.
+
+    The decisions are those of `mate.teams.rules` (`camera_observe`, `camera_outbox`, `camera_act`)
+    on the agent's own row; `message2send` holds what waits for the responses round (the own state,
+    this step's sightings) and the messages are built from what `camera_outbox` decides.
 
     Args:
         seed: seed of the agent's generator.
@@ -87,144 +71,153 @@ class GreedyCameraAgent(CameraAgentBase):
             raise ValueError(f'memory_period must be a positive integer, got {memory_period!r}')
         self.filterout_unloaded = bool(filterout_unloaded)
         self.filterout_beyond_range = bool(filterout_beyond_range)
-        self._memory = []
-        self.time2forget = []
-        self.never_loaded = []
         self.neighboring_teammate_states = {}
         self.message2send = {}
-        self.communication_delay = []
-        self._prev_action = [0.0, 0.0]
+        self._allocate(0, 0)
+        rules
         super().__init__(seed=seed)
+
+    def _allocate(self, num_cameras: int, num_targets: int) -> None:
+        """The state the rules work on, as arrays of one row of one agent (1, 1, ...)."""
+        self._memory = np.zeros((1, 1, num_targets, 4))
+        self._time2forget = np.zeros((1, 1, num_targets), dtype=np.int64)
+        self._never_loaded = np.ones((1, 1, num_targets), dtype=bool)
+        self._pending = np.zeros((1, 1, num_targets), dtype=bool)
+        self._pending_state = np.zeros((1, 1), dtype=bool)
+        self._own_state = np.zeros((1, 1, 3))
+        self._prev_action = np.zeros((1, 1, 2))
+        self._delay = np.zeros((1, 1, num_cameras), dtype=np.int64)
+        self._known = np.zeros((1, 1, num_cameras), dtype=bool)
+        self._neighbour = np.zeros((1, 1, num_cameras, 3))
+        self._sent = np.zeros((1, 1, num_cameras), dtype=bool)
+        self._sent_state = np.zeros((1, 1), dtype=bool)
+        self._sight = np.zeros((1, 1, num_cameras, num_targets), dtype=bool)
+        self._high = np.zeros((1, 1, 2))
+        self._action = np.zeros((1, 1, 2))
+        self._todo = np.ones((1, 1), dtype=bool)
+        self._short = np.zeros((1, 1), dtype=bool)
+        index = getattr(self, 'index', None)
+        self._index = np.full((1, 1), -1 if index is None else index, dtype=np.int64)
 
     def reset(self, observation) -> None:
         super().reset(observation)
         observation = np.asarray(observation, dtype=np.float64)
-        nt, period = self.num_targets, self.memory_period
-        begin = int(self.observation_indices[2])
-        records = observation[begin:begin + (TARGET_STATE_DIM_PUBLIC + 1) * nt].tolist()
-        self._memory = [records[5 * t:5 * t + 4] for t in range(nt)]
-        self.time2forget = [period if records[5 * t + 4] else 0 for t in range(nt)]
-        self.never_loaded = [True] * nt
-        self._prev_action = [0.0, 0.0]
+        self._allocate(self.num_cameras, self.num_targets)
+        self._high[0, 0] = self._action_high
+        rules.camera_reset(
+            as_row(observation), int(self.observation_indices[2]), ONE_ROW, self.memory_period, self._memory,
+            self._time2forget, self._never_loaded, self._pending, self._pending_state, self._own_state,
+            self._prev_action, self._delay, self._known)
         self.neighboring_teammate_states = {}
-        self.communication_delay = [0] * self.num_cameras
         own = observation[_OWN:_OWN + CAMERA_STATE_DIM_PRIVATE].tolist()
         self.message2send = {'state': CameraStatePrivate.from_values(own, self.index)}
 
     @property
     def memory(self) -> tuple:
         """Last known public state of every target (all zeros if never seen)."""
-        return tuple(TargetStatePublic.from_values(values, t) for t, values in enumerate(self._memory))
+        return tuple(TargetStatePublic.from_values(values, t) for t, values in enumerate(self._memory[0, 0].tolist()))
+
+    @property
+    def time2forget(self) -> np.ndarray:
+        """int64 (Nt,): steps each remembered target stays a candidate (0: not a candidate). A view."""
+        return self._time2forget[0, 0]
+
+    @property
+    def never_loaded(self) -> np.ndarray:
+        """bool (Nt,): targets never seen loaded. A view."""
+        return self._never_loaded[0, 0]
+
+    @property
+    def communication_delay(self) -> np.ndarray:
+        """int64 (Nc,): steps left before the next message to each teammate may go. A view."""
+        return self._delay[0, 0]
 
     @property
     def prev_action(self) -> np.ndarray:
-        return np.array(self._prev_action)
+        return self._prev_action[0, 0].copy()
 
     def observe(self, observation, info: dict | None = None) -> None:
         observation = self._accept(observation)
         self.last_observation, self.last_info = observation, info
-        time2forget, memory, period = self.time2forget, self._memory, self.memory_period
-        for t, left in enumerate(time2forget):
-            if left > 0:
-                time2forget[t] = left - 1
-        begin = int(self.observation_indices[2])
-        records = observation[begin:begin + (TARGET_STATE_DIM_PUBLIC + 1) * self.num_targets].tolist()
-        seen = None
-        for t in range(self.num_targets):
-            if records[5 * t + 4]:
-                values = records[5 * t:5 * t + 4]
-                memory[t] = values
-                time2forget[t] = period
-                if values[3]:
-                    self.never_loaded[t] = False
-                if seen is None:
-                    seen = self.message2send.setdefault('target_states', [])
-                seen.append(TargetStatePublic.from_values(values, t))
+        if rules.camera_observe(as_row(observation), int(self.observation_indices[2]), ONE_ROW,
+                                         self.memory_period, self._memory, self._time2forget, self._never_loaded,
+                                         self._pending):
+            begin, width = int(self.observation_indices[2]), _RECORD
+            records = observation[begin:begin + width * self.num_targets].tolist()
+            seen = self.message2send.setdefault('target_states', [])
+            for t in range(self.num_targets):
+                if records[width * t + 4]:
+                    seen.append(TargetStatePublic.from_values(records[width * t:width * t + 4], t))
 
     def send_responses(self):
-        delay = self.communication_delay
-        for c, left in enumerate(delay):
-            if left > 0:
-                delay[c] = left - 1
         pending = self.message2send
+        self._pending_state[0, 0] = 'state' in pending        # message2send may have been edited
+        sightings = pending.get('target_states')
+        if not sightings:
+            self._pending[...] = False
+        outbox = rules.camera_outbox
+        draws = self._draw
+        arguments = (self._todo, self._index, self.memory_period, self.filterout_beyond_range, self._memory,
+                     self._pending, self._pending_state, self._delay, self._known, self._neighbour, draws.values,
+                     draws.left, self._sent, self._sent_state, self._sight, self._short)
+        outbox(*arguments)
+        if self._short[0, 0]:   # the stream ran out: refill it where the agent's _draw() would
+            draws.refill()
+            outbox(*arguments)
         if not pending:
             return ()
         messages = []
-        period = self.memory_period
-        low, high = period // 4, 2 * period
-        for c in range(self.num_cameras):
-            if c == self.index or delay[c] > 0:
+        for c, sent in enumerate(self._sent[0, 0].tolist()):
+            if not sent:
                 continue
-            content = dict(pending)
-            if 'target_states' in content:
-                neighbor = self.neighboring_teammate_states.get(c)
-                if neighbor is not None and self.filterout_beyond_range:
-                    nv = neighbor.values
-                    nx, ny, reach = nv[0], nv[1], RANGE_FACTOR * nv[6]
-                    kept = [s for s in content['target_states']
-                            if math.hypot(s.values[0] - nx, s.values[1] - ny) < reach]
-                    if kept:
-                        content['target_states'] = kept
-                    else:
-                        del content['target_states']
-                else:
-                    del content['target_states']   # kept quirk: unknown neighbours get no sightings
-            if content:
-                messages.append(self.pack_message(content, recipient=c))
-                delay[c] = low + int(self._draw() * (high - low)) if high > low else low
+            content = {'state': pending['state']} if 'state' in pending else {}
+            kept = self._sight[0, 0, c].tolist()
+            if sightings and any(kept):
+                content['target_states'] = [s for s in sightings if kept[s.index]]
+            messages.append(self.pack_message(content, recipient=c))
         self.message2send = {}
         return messages
 
     def receive_responses(self, messages) -> None:
         self.last_responses = messages = tuple(messages)
-        memory, time2forget, period = self._memory, self.time2forget, self.memory_period
+        remember = None
         for message in messages:
             content = message.content
             if 'state' in content:
                 # Kept quirk: every camera that sent its state counts as a neighbour, however far.
-                self.neighboring_teammate_states[message.sender] = content['state']
+                state = self.neighboring_teammate_states[message.sender] = content['state']
+                values = state.values
+                self._known[0, 0, message.sender] = True
+                self._neighbour[0, 0, message.sender] = (values[0], values[1], values[6])
             for target in content.get('target_states', ()):
-                values = target.values
-                memory[target.index] = values
-                time2forget[target.index] = period
-                if values[3]:
-                    self.never_loaded[target.index] = False
+                remember = remember or rules.remember
+                x, y, sight_range, loaded = target.values
+                remember(self._memory, self._time2forget, self._never_loaded, 0, 0, target.index, x, y, sight_range,
+                         loaded, self.memory_period)
 
     def act(self, observation, info: dict | None = None, deterministic: bool | None = None) -> np.ndarray:
         observation = self._accept(observation)
-        x, y, _, rx, ry, theta, max_range = observation[_OWN:_OWN + 7].tolist()
-        reach = RANGE_FACTOR * max_range
-        by_range, by_load = self.filterout_beyond_range, self.filterout_unloaded
-        never_loaded = self.never_loaded
-        best, best_distance = None, math.inf
-        for t, left in enumerate(self.time2forget):
-            if left > 0:
-                values = self._memory[t]
-                distance = math.hypot(values[0] - x, values[1] - y)
-                if by_range and not distance < reach:
-                    continue
-                if by_load and not (values[3] or never_loaded[t]):
-                    continue
-                if distance < best_distance:
-                    best, best_distance = values, distance
-        if best is None:
-            if self._draw() < RANDOM_ACTION_PROBABILITY:
-                self._prev_action = self._sample_action().tolist()
-            return np.array(self._prev_action)
-        orientation = math.atan2(ry, rx) * RAD2DEG
-        bearing = math.atan2(best[1] - y, best[0] - x) * RAD2DEG
-        rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
-        zoom = desired_viewing_angle(best_distance, theta, math.hypot(rx, ry), max_range) - theta
-        low, high = self._action_low, self._action_high
-        action = [min(max(rotation, low[0]), high[0]), min(max(zoom, low[1]), high[1])]
-        self._prev_action = action
-        return np.array(action)
+        draws, space = self._draw, self._space_draw
+        if space.left[0, 0] < 2:
+            space.refill()
+        act = rules.camera_act
+        arguments = (as_row(observation), self._todo, self.filterout_unloaded, self.filterout_beyond_range,
+                     self._memory, self._time2forget, self._never_loaded, self._high, self._prev_action,
+                     draws.values, draws.left, space.values, space.left, self._action, self._short)
+        act(*arguments)
+        if self._short[0, 0]:   # the stream ran out: refill it where the agent's _draw() would
+            draws.refill()
+            act(*arguments)
+        return self._action[0, 0].copy()
 
 
 class GreedyTargetAgent(NoisyWalker, TargetAgentBase):
     """Run straight to the destination warehouse of the carried cargo; when unloaded, to a random
     warehouse still believed to have cargo. Sticky random noise (see `NoisyWalker`) is the only
     way around obstacles. Warehouses found empty are broadcast to the team (responses round).
+
+    The decisions are those of `mate.teams.rules` (`target_observe`, `target_act`) on the agent's
+    own row.
 
     Args:
         seed: seed of the agent's generator.
@@ -234,23 +227,53 @@ class GreedyTargetAgent(NoisyWalker, TargetAgentBase):
 
     def __init__(self, seed: int | None = None, noise_scale: float = 0.5) -> None:
         self.noise_scale = float(noise_scale)
-        self._goal_bits = [0.0] * NUM_WAREHOUSES
-        self.non_empty_warehouses = set(range(NUM_WAREHOUSES))
-        self.need_communication = False
+        self._goal = np.zeros((1, 1, NUM_WAREHOUSES))
+        self._non_empty = np.ones((1, 1, NUM_WAREHOUSES), dtype=bool)
+        self._need = np.zeros((1, 1), dtype=bool)
+        self._todo = np.ones((1, 1), dtype=bool)
+        self._short = np.zeros((1, 1), dtype=bool)
+        rules
         super().__init__(seed=seed)
 
     def reset(self, observation) -> None:
         super().reset(observation)
         observation = np.asarray(observation, dtype=np.float64)
         self._start_walk(observation)
-        self._goal_bits = observation[_OWN + 6:_OWN + 6 + NUM_WAREHOUSES].tolist()
-        self.non_empty_warehouses = set(range(NUM_WAREHOUSES))
-        self.need_communication = False
+        self._goal, self._non_empty = np.zeros((1, 1, NUM_WAREHOUSES)), np.ones((1, 1, NUM_WAREHOUSES), dtype=bool)
+        self._need = np.zeros((1, 1), dtype=bool)
+        rules.target_reset(as_row(observation), ONE_ROW, self._goal, self._non_empty, self._need)
+
+    @property
+    def _goal_bits(self) -> list:
+        return self._goal[0, 0].tolist()
+
+    @_goal_bits.setter
+    def _goal_bits(self, bits) -> None:
+        self._goal[0, 0] = bits
+
+    @property
+    def non_empty_warehouses(self) -> set:
+        """Warehouses this target believes still have cargo (a new set; assign one to change it)."""
+        return {w for w, believed in enumerate(self._non_empty[0, 0].tolist()) if believed}
+
+    @non_empty_warehouses.setter
+    def non_empty_warehouses(self, warehouses) -> None:
+        warehouses = set(warehouses)
+        self._non_empty[0, 0] = [w in warehouses for w in range(NUM_WAREHOUSES)]
+
+    @property
+    def need_communication(self) -> bool:
+        """Whether the target has news (warehouses found empty) for the next responses round."""
+        return bool(self._need[0, 0])
+
+    @need_communication.setter
+    def need_communication(self, value: bool) -> None:
+        self._need[0, 0] = bool(value)
 
     @property
     def goal_bits(self) -> np.ndarray:
         """int64 (4,): the current goal (cargo weight per destination, or a single 1 when unloaded)."""
-        return np.array(self._goal_bits, dtype=np.int64)
+        return self._goal[0, 0].astype(np.int64)
 
     @property
     def goal(self) -> int | None:
@@ -268,45 +291,36 @@ class GreedyTargetAgent(NoisyWalker, TargetAgentBase):
     def observe(self, observation, info: dict | None = None) -> None:
         observation = self._accept(observation)
         self.last_observation, self.last_info = observation, info
-        begin = _OWN + 6 + NUM_WAREHOUSES
-        empty = observation[begin:begin + NUM_WAREHOUSES].tolist()
-        if empty[0] or empty[1] or empty[2] or empty[3]:
-            seen_empty = {w for w, bit in enumerate(empty) if bit}
-            if seen_empty & self.non_empty_warehouses:
-                self.non_empty_warehouses -= seen_empty
-                self.need_communication = True
+        rules.target_observe(as_row(observation), ONE_ROW, self._non_empty, self._need)
 
     def send_responses(self):
-        if not self.need_communication:
+        if not self._need[0, 0]:
             return ()
-        self.need_communication = False
-        return [self.pack_message({'non_empty_warehouses': set(self.non_empty_warehouses)})]
+        self._need[0, 0] = False
+        return [self.pack_message({'non_empty_warehouses': self.non_empty_warehouses})]
 
     def receive_responses(self, messages) -> None:
         self.last_responses = messages = tuple(messages)
         for message in messages:
             warehouses = message.content.get('non_empty_warehouses')
             if warehouses is not None:
-                self.non_empty_warehouses &= warehouses
+                self.non_empty_warehouses = self.non_empty_warehouses & set(warehouses)
 
     def _greedy_action(self, observation: np.ndarray) -> list:
-        own = observation[_OWN:_OWN + TARGET_STATE_DIM_PRIVATE].tolist()
-        x, y, loaded, step = own[0], own[1], own[3], own[4]
-        bits = own[6:6 + NUM_WAREHOUSES]
-        if bits[0] or bits[1] or bits[2] or bits[3]:
-            self._goal_bits = bits
-        else:
-            bits = self._goal_bits
-        goal = 0 if bits[0] else 1 if bits[1] else 2 if bits[2] else 3 if bits[3] else None
-        if goal is None or (not loaded and goal not in self.non_empty_warehouses):
-            self._goal_bits = [0.0] * NUM_WAREHOUSES
-            goal = None
-            if self.non_empty_warehouses:
-                choices = sorted(self.non_empty_warehouses)
-                goal = choices[min(int(self._draw() * len(choices)), len(choices) - 1)]
-                self._goal_bits[goal] = 1.0
-        gx, gy = (x, y) if goal is None else _WAREHOUSES[goal]
-        return self._walk(observation, x, y, step, gx, gy)
+        """This step's move [dx, dy] (`mate.teams.rules.target_act` on the agent's own row)."""
+        draws, space = self._draw, self._space_draw
+        if space.left[0, 0] < 2:
+            space.refill()
+        act = rules.target_act
+        arguments = (as_row(observation), self._todo, self.noise_scale, self._goal, self._non_empty, self._walk_high,
+                     self._walk_location, self._walk_noise, draws.values, draws.left, space.values, space.left,
+                     self._walk_action, self._short)
+        act(*arguments)
+        if self._short[0, 0]:   # the stream ran out: refill it where the agent's _draw() would
+            draws.refill()
+            act(*arguments)
+        self._prev_source = observation
+        return self._walk_action[0, 0].tolist()
 
     def act(self, observation, info: dict | None = None, deterministic: bool | None = None) -> np.ndarray:
         return np.array(self._greedy_action(self._accept(observation)))

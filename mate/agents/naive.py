@@ -7,6 +7,8 @@ import math
 import numpy as np
 
 from ..constants import NUM_WAREHOUSES, PRESERVED_DIM, WAREHOUSE_RADIUS, WAREHOUSES
+from ..teams import rules
+from ..teams.rules import INITIAL_NOISE_SCALE, NOISE_REFRESH_MOVING, NOISE_REFRESH_STUCK  # noqa: F401
 from .base import CameraAgentBase, TargetAgentBase
 
 __all__ = ['NaiveCameraAgent', 'NaiveTargetAgent']
@@ -16,12 +18,6 @@ _OWN = PRESERVED_DIM
 """Offset of the own state in an observation."""
 ARRIVAL_DISTANCE = 0.9 * WAREHOUSE_RADIUS
 """A target this close to a warehouse centre (67.5) counts as arrived."""
-NOISE_REFRESH_MOVING = 0.05
-"""Chance per step of drawing new noise when the last move was longer than 0.2 step sizes."""
-NOISE_REFRESH_STUCK = 0.75
-"""Chance per step of drawing new noise after a (nearly) blocked move."""
-INITIAL_NOISE_SCALE = 0.5
-"""Scale of the noise drawn at reset (fixed, whatever the agent's noise_scale; kept from the original)."""
 
 
 class NaiveCameraAgent(CameraAgentBase):
@@ -39,42 +35,51 @@ class NaiveCameraAgent(CameraAgentBase):
         return np.array([u * high[0], u * high[1]])
 
 
+ONE_ROW = np.ones(1, dtype=bool)
+"""The `rows` mask of an agent calling the shared rules on its own row."""
+
+
+def as_row(observation: np.ndarray) -> np.ndarray:
+    """One agent's observation (D,) as the (1, 1, D) C-contiguous float64 array the shared rules take."""
+    return np.ascontiguousarray(observation, dtype=np.float64).reshape(1, 1, -1)
+
+
 class NoisyWalker:
     """Shared machinery of the built-in targets: head for a point at full speed plus sticky noise.
 
     The noise is redrawn (`noise_scale` x a uniform action-box sample) with probability 0.05 per
     step while the target moves freely and 0.75 after a blocked step (moved <= 0.2 step sizes);
-    otherwise last step's noise is reused. The sum is clipped to the action box.
+    otherwise last step's noise is reused. The sum is clipped to the action box. The walk is
+    `mate.teams.rules.walk_towards` on the agent's own row (the batched teams run the same code).
     """
 
     noise_scale = INITIAL_NOISE_SCALE
 
     def _start_walk(self, observation: np.ndarray) -> None:
-        x, y = observation[_OWN:_OWN + 2].tolist()
-        self._prev_location = (x, y)
+        """At reset: the walk's (1, 1, ...) arrays, the location and the first noise (scale 0.5)."""
+        self._walk_location, self._walk_noise = np.zeros((1, 1, 2)), np.zeros((1, 1, 2))
+        self._walk_high = np.array([[self._action_high]], dtype=np.float64)
+        self._walk_action = np.zeros((1, 1, 2))
+        space = self._space_draw
+        if space.left[0, 0] < 2:
+            space.refill()
+        rules.walk_start(as_row(observation), ONE_ROW, self._walk_high, self._walk_location,
+                                  self._walk_noise, space.values, space.left)
         self._prev_source = observation
-        self._prev_noise = self._sample_pair(INITIAL_NOISE_SCALE)
-
-    def _sample_pair(self, scale: float) -> tuple[float, float]:
-        draw, low, high = self._space_draw, self._action_low, self._action_high
-        return (scale * (low[0] + (high[0] - low[0]) * draw()), scale * (low[1] + (high[1] - low[1]) * draw()))
 
     def _walk(self, observation: np.ndarray, x: float, y: float, step: float, gx: float, gy: float) -> list:
         """Action towards (gx, gy) given the own location (x, y) and step size; updates the noise."""
-        ax, ay = gx - x, gy - y
-        norm = math.hypot(ax, ay)
-        if norm > step:
-            ax, ay = ax * step / norm, ay * step / norm
-        px, py = self._prev_location
-        moving = math.hypot(x - px, y - py) > 0.2 * step
-        if self._draw() < (NOISE_REFRESH_MOVING if moving else NOISE_REFRESH_STUCK):
-            self._prev_noise = self._sample_pair(self.noise_scale)
-        nx, ny = self._prev_noise
-        low, high = self._action_low, self._action_high
-        ax, ay = min(max(ax + nx, low[0]), high[0]), min(max(ay + ny, low[1]), high[1])
-        self._prev_location = (x, y)
+        space, draws = self._space_draw, self._draw
+        if space.left[0, 0] < 2:
+            space.refill()
+        walk_towards = rules.walk_towards
+        arguments = (0, 0, x, y, step, gx, gy, self.noise_scale, self._walk_high, self._walk_location,
+                     self._walk_noise, draws.values, draws.left, space.values, space.left, self._walk_action)
+        if walk_towards(*arguments):   # the stream ran out: refill it where the agent's _draw() would
+            draws.refill()
+            walk_towards(*arguments)
         self._prev_source = observation
-        return [ax, ay]
+        return self._walk_action[0, 0].tolist()
 
     @property
     def prev_state(self):
@@ -85,7 +90,7 @@ class NoisyWalker:
     @property
     def prev_noise(self) -> np.ndarray:
         """The noise added to the last action, float64 (2,)."""
-        return np.array(self._prev_noise)
+        return self._walk_noise[0, 0].copy()
 
 
 class NaiveTargetAgent(NoisyWalker, TargetAgentBase):

@@ -13,7 +13,6 @@ threads over two halves of the batch ran 1.9x faster (benchmarks/throughput.py).
 from __future__ import annotations
 
 import functools
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -21,7 +20,7 @@ import numpy as np
 
 from ..constants import NUM_WAREHOUSES
 from .cargo import transport_cargoes
-from .jit import entry_kernel, inline_kernel
+from .jit import NUM_THREADS, entry_kernel, inline_kernel
 from .kinematics import move_targets, rotate_and_zoom_cameras
 from .observe import global_state, joint_observation, update_coverage
 from .params import Params
@@ -31,8 +30,6 @@ from .spawn import reset_row
 from .warmup import compiling_step_aside, wait_for_step_compile
 from .world import World
 
-NUM_THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1)
-"""Threads that share a large batch (the cores this process may use)."""
 PARALLEL_MIN_ROWS = 256
 """Each thread gets at least this many rows; smaller batches run on the calling thread. Handing
 work to the pool costs ~100-250 us per call on our VMs, about what 100-150 rows take: with 32
@@ -192,3 +189,20 @@ def refresh(params: Params, world: World, mask: np.ndarray) -> None:
     """Recompute everything derived from positions (camera->obstacle flags, view masks,
     coverage) for the rows where mask is true; used after loading a snapshot."""
     _run(_refresh_rows, params, world, mask)
+
+
+def compile_step(camera_dtype: str, target_dtype: str) -> None:
+    """(In the helper process) compile `_step_rows` for the argument types a step of an env with
+    observations of these dtypes passes, and write it to the cache. The types of `Params` and `World`
+    do not depend on the configuration."""
+    import numba
+
+    from ..config.loader import read_config
+    from .params import params_from_config
+    from .world import empty_world
+
+    params = params_from_config(read_config('MATE-4v8-9'))
+    world = empty_world(params, 1)
+    actions = np.zeros((1, 1, 2))
+    observations = (np.zeros((1, 1, 1), dtype=camera_dtype), np.zeros((1, 1, 1), dtype=target_dtype))
+    _step_rows.compile(tuple(numba.typeof(a) for a in (params, world, actions, actions, *observations)))

@@ -23,6 +23,9 @@ from numba import njit
 from numba.core import event
 from numba.core.registry import CPUDispatcher
 
+NUM_THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1)
+"""The cores this process may use: threads that share a large batch, and whether the step compiles in a helper
+process meanwhile (`warmup`)."""
 COMPILE_NOTICE = 'mate: compiling the simulation kernels (first run only, ~{seconds} s)...'
 COMPILE_SECONDS = '10-30'
 """Cold compile time of a first `mate evaluate`, quiet to busy 2-core machine (docs/performance.md)."""

@@ -25,6 +25,8 @@ import numpy as np
 from numba.core import event
 from numba.core.config import DISABLE_JIT
 
+from .jit import NUM_THREADS
+
 HELPER_SECONDS = 120.0
 """The longest a first step waits for the helper (then it compiles the step itself)."""
 
@@ -33,8 +35,6 @@ _tried = False
 
 
 def _wanted() -> bool:
-    from .engine import NUM_THREADS   # the cores this process may use (engine imports this module)
-
     return os.environ.get('MATE_PARALLEL_COMPILE', '1').strip() != '0' and NUM_THREADS > 1 and not DISABLE_JIT
 
 
@@ -74,7 +74,7 @@ def _start_helper(camera_dtype: str, target_dtype: str) -> None:
     global _helper
     environment = {**os.environ, 'MATE_PARALLEL_COMPILE': '0', 'MATE_COMPILE_NOTICE': '0',
                    'PYTHONPATH': os.pathsep.join(path or os.getcwd() for path in sys.path)}   # this process's mate
-    code = f'from mate.core.warmup import compile_step; compile_step({camera_dtype!r}, {target_dtype!r})'
+    code = f'from mate.core.engine import compile_step; compile_step({camera_dtype!r}, {target_dtype!r})'
     try:
         _helper = subprocess.Popen([sys.executable, '-c', code], env=environment, stdin=subprocess.DEVNULL,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -91,21 +91,3 @@ def wait_for_step_compile() -> None:
             helper.wait(timeout=HELPER_SECONDS)
         except subprocess.TimeoutExpired:   # leave it to finish on its own; compile here
             pass
-
-
-def compile_step(camera_dtype: str, target_dtype: str) -> None:
-    """(In the helper process) compile `_step_rows` for the argument types a step of an env with
-    observations of these dtypes passes, and write it to the cache. The types of `Params` and `World`
-    do not depend on the configuration."""
-    import numba
-
-    from ..config.loader import read_config
-    from .engine import _step_rows
-    from .params import params_from_config
-    from .world import empty_world
-
-    params = params_from_config(read_config('MATE-4v8-9'))
-    world = empty_world(params, 1)
-    actions = np.zeros((1, 1, 2))
-    observations = (np.zeros((1, 1, 1), dtype=camera_dtype), np.zeros((1, 1, 1), dtype=target_dtype))
-    _step_rows.compile(tuple(numba.typeof(a) for a in (params, world, actions, actions, *observations)))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..cli import CommandError, non_negative_int, number, positive_int, resolving_arguments
+from ..arguments import CommandError, non_negative_int, number, positive_int, resolving_arguments
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,36 +1,28 @@
-"""`mate.learn`: MAPPO / IPPO on the batched vector env against batched greedy opponents (PyTorch, CPU).
+"""`mate.learn`: trainers for MATE's teams (PyTorch), one file per algorithm, and trained policies as agents.
 
-    from mate.learn import PPOConfig, train
-    train(PPOConfig(algo='mappo', team='camera', total_steps=2_000_000), 'runs/mappo-camera')
+    from mate.learn.mappo import MAPPOConfig, train
+    train(MAPPOConfig(team='camera', steps=2_000_000, run_dir='runs/mappo-camera'))
     agent = mate.learn.PolicyCameraAgent.from_checkpoint('runs/mappo-camera/final.pt')
 
-Torch is imported on first use of a torch-backed name, so `import mate` stays light.
-See docs/training.md.
+The pieces: `spec` (`PolicySpec`, a policy's contract and its observation/action pipeline), `envs` (the team's
+training envs), `run` (`Run`: run directory, resume, checkpoints, logs, budget, signals), `networks`, `ppo` (what
+the PPO trainers share), one file per algorithm (`mappo`, `mappo_lstm`, `tarmac`, `i2c`, `iql`, `qmix`, `matd3`),
+`policy` (trained policies as batched teams and as agents) and `population` (PSRO). Torch is imported on first use
+of a torch-backed name, so `import mate` stays light. See docs/training.md.
 """
 
 from __future__ import annotations
 
 import importlib
 
-from .envs import (
-    PAPER_SETTINGS,
-    TeamVecEnv,
-    discrete_to_continuous,
-    preprocess_observation,
-)
-from .opponents import VecGreedyCamera, VecGreedyTarget
-
 _LAZY = {
-    'PPOConfig': 'ppo', 'train': 'ppo', 'compute_gae': 'ppo', 'ppo_policy_loss': 'ppo', 'Actor': 'networks',
-    'Critic': 'networks', 'ValueNormalizer': 'ppo', 'piecewise': 'schedules', 'PAPER_HYPERPARAMETERS': 'ppo',
+    'PolicySpec': 'spec', 'TeamEnvConfig': 'envs', 'TeamVecEnv': 'envs', 'Run': 'run',
     'CheckpointError': 'checkpoint', 'save_checkpoint': 'checkpoint', 'load_checkpoint': 'checkpoint',
-    'PolicyCameraAgent': 'agents', 'PolicyTargetAgent': 'agents', 'load_agent': 'agents',
-    'load_policy': 'agents', 'pretrained_path': 'agents', 'export_policy': 'agents', 'TarMACActor': 'comm',
-    'I2CActor': 'comm',
+    'PolicyCameraAgent': 'policy', 'PolicyTargetAgent': 'policy', 'PolicyTeam': 'policy', 'load_agent': 'policy',
+    'load_policy': 'policy', 'pretrained_path': 'policy', 'export_policy': 'policy',
 }
 
-__all__ = ['PAPER_SETTINGS', 'TeamVecEnv', 'VecGreedyCamera', 'VecGreedyTarget', 'discrete_to_continuous',  # noqa: PLE0604
-           'preprocess_observation', *_LAZY]
+__all__ = list(_LAZY)  # noqa: PLE0604
 
 
 def __getattr__(name: str):

@@ -1,11 +1,13 @@
-"""Checkpoint files of `mate.learn`: one `torch.save` dict, written atomically, checked on load.
+"""Checkpoint and policy files of `mate.learn`: one `torch.save` dict, written atomically, read without unpickling.
 
-Layout: {'format': 'mate.learn/1', 'actor', 'critic', 'value_norm', 'optimizer' (state dicts),
-'env_steps', 'iteration', 'config' (PPOConfig as a dict), 'meta' (team, env id, frame skip, levels,
-observation/state dims, agent and action counts, algo, observability, actor, LSTM size, communication and,
-for TarMAC, `critic_messages` (the critic reads the messages; slice-1 TarMAC checkpoints lack it)), and for
-I2C 'comm_training' (its joint action-value networks and the FIFO of KL values of its labels)}.
-Loaded with `weights_only=True`.
+Format `mate.learn/2` (`Run`): {'format', 'spec' (`PolicySpec.to_dict()`), 'algo', 'config' (the trainer's config
+as a dict), and either 'run' + 'state' (a run's checkpoint: its counters and the algorithm's whole state) or
+'actor' (+ 'env_steps', 'note': a policy file: best.pt, final.pt, snapshots, the shipped policies)}.
+Numpy arrays travel as tensors tagged `{'__ndarray__': tensor}` (so that the file holds tensors and plain data
+only) and come back as arrays. Files are read with `torch.load(weights_only=True)`: nothing else is unpickled.
+
+Format `mate.learn/1` (checkpoints written before the policy spec): {'actor', 'meta' (a dict of the policy's
+settings), 'config', ...}; they still load: `read_spec` builds their spec from `meta`.
 """
 
 from __future__ import annotations
@@ -13,35 +15,59 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import torch
 
-__all__ = ['CHECKPOINT_FORMAT', 'FLAGS', 'CheckpointError', 'describe_difference', 'load_checkpoint', 'save_checkpoint']
+from .spec import PolicySpec, SpecError
 
-CHECKPOINT_FORMAT = 'mate.learn/1'
-REQUIRED = ('actor', 'meta', 'config')
-META_DEFAULTS = {'full_observability': False, 'memory': 0, 'velocity': False, 'credit': 'team', 'comm': 'none',
-                 'critic_messages': False, 'message_dropout': 0.0, 'communication_range': None,
-                 'message_delay': 0}
-"""Values of meta keys added after the first checkpoints were written (files without them have these)."""
+__all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'pack', 'read_spec', 'save_checkpoint', 'unpack']
+
+CHECKPOINT_FORMAT = 'mate.learn/2'
+FORMATS = ('mate.learn/1', CHECKPOINT_FORMAT)
+"""Formats this version reads."""
 
 
 class CheckpointError(ValueError):
     """A checkpoint that cannot be read, is not a mate.learn checkpoint, or does not fit the experiment."""
 
 
+def pack(value):
+    """`value` with every numpy array (at any depth of dicts, lists and tuples) replaced by a tagged tensor."""
+    if isinstance(value, np.ndarray):
+        return {'__ndarray__': torch.from_numpy(np.ascontiguousarray(value).copy())}
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {k: pack(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [pack(v) for v in value]
+    return value
+
+
+def unpack(value):
+    """The inverse of `pack`: tagged tensors back to numpy arrays."""
+    if isinstance(value, dict):
+        if set(value) == {'__ndarray__'}:
+            return value['__ndarray__'].numpy()
+        return {k: unpack(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [unpack(v) for v in value]
+    return value
+
+
 def save_checkpoint(path, payload: dict) -> Path:
-    """Write `payload` (+ the format tag) to `path` via a temporary file and an atomic rename."""
+    """Write `payload` (+ the format tag; numpy arrays packed) to `path` via a temporary file and an atomic rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + '.tmp')
-    torch.save({'format': CHECKPOINT_FORMAT, **payload}, tmp)
+    torch.save({'format': CHECKPOINT_FORMAT, **pack(payload)}, tmp)
     os.replace(tmp, path)
     return path
 
 
-def load_checkpoint(path, expect: dict | None = None) -> dict:
-    """Read a checkpoint; CheckpointError if it is unreadable, of another format, or if any `expect`
-    entry differs from the stored `meta` (e.g. team, env id, observation size)."""
+def load_checkpoint(path) -> dict:
+    """Read a checkpoint or policy file (numpy arrays unpacked); CheckpointError if it is unreadable or of another
+    format."""
     path = Path(path)
     if not path.exists():
         raise CheckpointError(f'checkpoint {str(path)!r} does not exist')
@@ -53,47 +79,24 @@ def load_checkpoint(path, expect: dict | None = None) -> dict:
         # torch's own message is not passed on: it advises unsafe loading (`weights_only=False`)
         raise CheckpointError(f'checkpoint {str(path)!r} is corrupt or not a mate.learn checkpoint: it is not a '
                               'torch file of tensors and plain data (mate never unpickles other objects)') from None
-    if not isinstance(data, dict) or data.get('format') != CHECKPOINT_FORMAT:
+    if not isinstance(data, dict) or data.get('format') not in FORMATS:
         found = data.get('format') if isinstance(data, dict) else type(data).__name__
-        raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected {CHECKPOINT_FORMAT!r}')
-    missing = [key for key in REQUIRED if key not in data]
+        raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected one of {FORMATS}')
+    required = ('actor', 'meta', 'config') if data['format'] == 'mate.learn/1' else ('spec', 'config')
+    missing = [key for key in required if key not in data]
     if missing:
         raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
-    meta = data['meta']
-    if not isinstance(meta, dict):
-        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt: its 'meta' entry is a {type(meta).__name__}, not a dict")
-    expect = expect or {}
-    for key in sorted(expect, key=lambda k: (k not in FLAGS, list(FLAGS).index(k) if k in FLAGS else 0)):
-        found, value = meta.get(key, META_DEFAULTS.get(key)), expect[key]
-        if found != value:
-            raise CheckpointError(f'checkpoint {str(path)!r} does not match this experiment: '
-                                  f'{describe_difference(key, found, value)}')
-    return data
+    if data['format'] == 'mate.learn/1' and not isinstance(data['meta'], dict):
+        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt: its 'meta' entry is a "
+                              f"{type(data['meta']).__name__}, not a dict")
+    return unpack(data)
 
 
-FLAGS = {'team': '--team', 'env_id': '--config', 'algo': 'the algorithm', 'hrl': '--hrl',
-         'joint_selection': '--selection', 'comm': '--comm', 'actor': '--actor', 'lstm': '--lstm',
-         'full_observability': '--full-observability', 'memory': '--memory', 'velocity': '--velocity',
-         'credit': '--credit', 'frame_skip': '--frame-skip', 'levels': 'levels', 'message_dropout': '--message-dropout',
-         'communication_range': '--communication-range', 'message_delay': '--message-delay'}
-"""Metadata a run's flags decide, in the order a mismatch is reported (the cause before derived sizes such as
-`num_actions`), with the flag that sets each."""
-
-
-def describe_difference(key: str, saved, wanted) -> str:
-    """One phrase saying how a checkpoint's `key` (`saved`) differs from this run's (`wanted`), by the flag
-    that sets it: 'trained with --hrl; this run is without it', 'trained with --memory 25; this run has
-    --memory 0', 'trained for MATE-4v8-9-v0; this run plays MATE-8v8-9-v0'."""
-    flag = FLAGS.get(key)
-    if key == 'env_id':
-        return f'trained for {saved}; this run plays {wanted} (--config)'
-    if key == 'team':
-        return f'trained for the {saved} team; this run trains the {wanted} team (--team)'
-    if key == 'algo':
-        return f'trained by {saved}; this run is {wanted}'
-    if flag is None or not flag.startswith('--'):
-        return f'{key} is {saved!r} in the checkpoint, {wanted!r} here'
-    if isinstance(saved, bool) or isinstance(wanted, bool):
-        return f'trained with {flag}; this run is without it' if saved else f'trained without {flag}; this run has it'
-    trained = f'trained without {flag}' if saved is None else f'trained with {flag} {saved}'
-    return trained + ('; this run is without it' if wanted is None else f'; this run has {flag} {wanted}')
+def read_spec(data: dict, path='') -> PolicySpec:
+    """The `PolicySpec` of a loaded checkpoint (version 1: built from its `meta`); CheckpointError if invalid."""
+    try:
+        if data['format'] == 'mate.learn/1':
+            return PolicySpec.from_meta(data['meta'], data['config'])
+        return PolicySpec.from_dict(data['spec'])
+    except (SpecError, KeyError, TypeError, ValueError) as exc:
+        raise CheckpointError(f'checkpoint {str(path)!r} has no valid policy spec: {exc}') from None

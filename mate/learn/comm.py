@@ -25,8 +25,8 @@ with orthogonal rows of norm 1, as the spec says for TarMAC.
 The PPO critic of a TarMAC run (`mate.learn.ppo`) reads the N messages the agents read at each decision,
 appended to the global state (MAPPO) or to each agent's observation (IPPO), as the spec's critic does.
 
-At deployment the batched `mate.learn.evaluate.PolicyTeam` steps the whole team at once, exactly as here;
-single agents (`mate.learn.agents`) step one receiver on the N messages they got through the env's channel
+At deployment the batched `mate.learn.policy.PolicyTeam` steps the whole team at once, exactly as here;
+single agents (`mate.learn.policy`) step one receiver on the N messages they got through the env's channel
 (`mate.Message`s, so the communication wrappers act on them; a message that did not arrive reads as zeros).
 
 I2C ("individually inferred communication"): independent networks per agent, no delay, peer to peer.
@@ -68,8 +68,8 @@ from torch import nn
 from .networks import AgentwiseLSTMCell, AgentwiseMLP, linear, mlp, restarted
 
 __all__ = ['COMMUNICATION', 'Channel', 'I2C_MESSAGE', 'I2C_REGULARISER', 'I2C_TEMPERATURE', 'I2CActor', 'I2CTraining',
-           'InfluenceThreshold', 'JointActionValue', 'TARMAC_LSTM', 'TarMACActor', 'causal_influence', 'check_channel',
-           'cyclic_teammates', 'make_communicating_actor', 'policy_correlation', 'teammate_slots']
+           'InfluenceThreshold', 'JointActionValue', 'TARMAC_LSTM', 'TarMACActor', 'causal_influence',
+           'channel_difference', 'check_channel', 'cyclic_teammates', 'policy_correlation', 'teammate_slots']
 
 COMMUNICATION = ('none', 'tarmac', 'i2c')
 """Values of `PPOConfig.comm` (`mate train --comm`)."""
@@ -83,7 +83,7 @@ class TarMACActor(nn.Module):
     `step(obs (B, N, D), state)` -> (logits (B, N, A), new state); the N agents of a row talk to each other.
     The receivers may be fewer than the senders: with obs (..., M, D), (h, c) (..., M, lstm) and messages
     (..., N, key + value), M receivers read the N messages and the new state's messages are the M receivers'
-    own (a single deployment agent: M = 1, `mate.learn.agents`).
+    own (a single deployment agent: M = 1, `mate.learn.policy`).
     `forward(obs (T, B, N, D), state, starts (T, B) bool)` -> logits (T, B, N, A): zeroes the state of the envs
     where `starts[t]` before decision t, then steps; differentiable through the messages.
     Both take `delivered` ((..., M, N) bool, (T, B, N, N) for `forward`; None: every message arrives): the
@@ -122,7 +122,7 @@ class TarMACActor(nn.Module):
         if not self.delay:
             return None
         n = state[2].shape[-2]
-        return ~torch.eye(n, dtype=torch.bool)
+        return ~torch.eye(n, dtype=torch.bool, device=state[2].device)
 
     def attention_weights(self, state, delivered: torch.Tensor | None = None) -> torch.Tensor:
         """(..., N receivers, N senders): each receiver's softmax over the senders, from its query (its h, c in
@@ -183,17 +183,22 @@ I2C_LABEL_BUFFER = 100_000
 """KL values kept (first in, first out) for the labels' threshold, their median."""
 
 
+def _cyclic_index(n: int, device) -> torch.Tensor:
+    """(N, N - 1) long: row i holds its teammates i+1, ..., i+N-1 (mod N)."""
+    return (torch.arange(n, device=device)[:, None] + torch.arange(1, n, device=device)[None, :]) % n
+
+
 def teammate_slots(delivered: torch.Tensor) -> torch.Tensor:
     """(..., N receivers, N senders) -> (..., N, N - 1): row i's entries for its cyclic slots (teammates i+1, ...)."""
     n = delivered.shape[-1]
-    index = (torch.arange(n)[:, None] + torch.arange(1, n)[None, :]) % n
+    index = _cyclic_index(n, delivered.device)
     return delivered.gather(-1, index.expand(*delivered.shape[:-1], n - 1))
 
 
 def cyclic_teammates(x: torch.Tensor) -> torch.Tensor:
     """(..., N, F) -> (..., N, N - 1, F): row i holds its teammates' rows in cyclic order i+1, ..., i+N-1 (mod N)."""
     n = x.shape[-2]
-    index = (torch.arange(n)[:, None] + torch.arange(1, n)[None, :]) % n
+    index = _cyclic_index(n, x.device)
     return x[..., index, :]
 
 
@@ -235,7 +240,7 @@ class I2CActor(nn.Module):
     def request_logits(self, obs: torch.Tensor, agents: torch.Tensor | None = None) -> torch.Tensor:
         """(..., n, D) -> (..., n, N - 1): each agent's logit of asking the teammate of each cyclic slot."""
         slots = self.num_agents - 1
-        one_hot = torch.eye(slots, dtype=obs.dtype).expand(*obs.shape[:-1], slots, slots)
+        one_hot = torch.eye(slots, dtype=obs.dtype, device=obs.device).expand(*obs.shape[:-1], slots, slots)
         x = torch.cat([obs.unsqueeze(-2).expand(*obs.shape[:-1], slots, obs.shape[-1]), one_hot], dim=-1)
         return self.prior(x.transpose(-2, -3), agents).squeeze(-1).transpose(-1, -2)
 
@@ -321,7 +326,8 @@ class JointActionValue(nn.Module):
         mates = weight[:, s:s + (n - 1) * a].reshape(n, n - 1, a, -1)
         own = weight[:, s + (n - 1) * a:]
         slots = cyclic_teammates(actions.unsqueeze(-1)).squeeze(-1)                        # (..., N, N - 1)
-        taken = mates[torch.arange(n)[:, None], torch.arange(n - 1)[None, :], slots]      # (..., N, N - 1, H)
+        agent, slot = torch.arange(n, device=slots.device), torch.arange(n - 1, device=slots.device)
+        taken = mates[agent[:, None], slot[None, :], slots]      # (..., N, N - 1, H)
         base = (state @ weight[:, :s].transpose(0, 1).flatten(1)).unflatten(-1, (n, -1)) + bias + taken.sum(-2)
         return base, mates, taken, own
 
@@ -376,7 +382,7 @@ class InfluenceThreshold(nn.Module):
 
     def push(self, kl: torch.Tensor) -> None:
         flat = kl.detach().reshape(-1).to(self.values.dtype)[-self.capacity:]
-        slots = (self.position + torch.arange(len(flat))) % self.capacity
+        slots = (self.position + torch.arange(len(flat), device=self.values.device)) % self.capacity
         self.values[slots] = flat
         self.position.copy_((self.position + len(flat)) % self.capacity)
         self.count.copy_(torch.clamp(self.count + len(flat), max=self.capacity))
@@ -456,6 +462,23 @@ def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac
                          f"(train that with message_dropout 1), comm {comm!r}")
 
 
+def channel_difference(saved: dict, wanted: dict) -> str | None:
+    """How the channel settings of a run (`wanted`: {'message_dropout', 'communication_range'[, 'message_delay']})
+    differ from those a checkpoint was trained under (`saved`), in the words of the command line ('trained with
+    --message-dropout 0.25; this run has --message-dropout 0.0'); None when they are the same."""
+    for name in [*saved, *(name for name in wanted if name not in saved)]:
+        before, now = saved.get(name), wanted.get(name)
+        if before == now:
+            continue
+        flag = '--' + name.replace('_', '-')
+        if now is None:
+            return f'trained with {flag} {before}; this run is without it'
+        if before is None:
+            return f'trained without {flag}; this run has {flag} {now}'
+        return f'trained with {flag} {before}; this run has {flag} {now}'
+    return None
+
+
 class Channel:
     """Which messages of a decision arrive in training: `delivered(positions, generator)` -> (B, N receivers,
     N senders) bool, the diagonal always true (an agent always reads its own message, kept locally at
@@ -496,18 +519,3 @@ class Channel:
             near = within_range(np.asarray(positions, dtype=np.float64), senders, receivers, float(self.range_limit))
             mask &= torch.from_numpy(near.reshape(b, n, n))
         return mask | torch.eye(n, dtype=torch.bool)
-
-
-def make_communicating_actor(comm: str, kind: str, obs_dim: int, num_actions: int, hidden, activation: str,
-                             lstm: int, agents: int = 0) -> nn.Module:
-    """The actor of `comm` ('tarmac' or 'i2c', the latter for `agents` agents): ValueError for another scheme, a
-    body other than 'mlp' or no LSTM."""
-    if comm not in COMMUNICATION[1:]:
-        raise ValueError(f'unknown comm {comm!r}; valid: {", ".join(map(repr, COMMUNICATION))}')
-    if kind != 'mlp':
-        raise ValueError(f"comm {comm!r} builds its actor on the MLP body; actor {kind!r} does not combine with it")
-    if lstm <= 0:
-        raise ValueError(f"comm {comm!r} needs a recurrent actor (lstm > 0), got lstm {lstm}")
-    if comm == 'i2c':
-        return I2CActor(agents, obs_dim, num_actions, hidden, activation, lstm)
-    return TarMACActor(obs_dim, num_actions, hidden, activation, lstm)

@@ -1,111 +1,140 @@
-"""`TeamVecEnv`: the training view of B batched games for one team against a batched opponent.
+"""The training view of B games for one team: `TeamEnvConfig` (the options every trainer takes) -> `TeamVecEnv`.
 
-What a learner sees per decision step (the paper's wrapper stack, done on arrays):
+What a learner sees per decision (the paper's wrapper stack, done on arrays):
 
-* discrete actions, `levels**2` per agent (the grids of `DiscreteCamera` / `DiscreteTarget`, scaled by
-  each agent's own step bounds read from its observation);
-* the opponent (by default the greedy rules, `VecGreedyTarget` / `VecGreedyCamera`) acts at every raw step;
-* frame skip k: a decision is held for k raw steps; rewards are summed (camera: coverage rate, the
+* observations through its `PolicySpec`'s `features` (relative coordinates rescaled to [-1, 1], the team's
+  sighting-memory and target-velocity columns when the spec has them), and the global state rescaled with the
+  state-space bounds, its unbounded counters log-compressed (`compress`);
+* its held decision turned into env actions by the spec's `decode`: a grid move scaled by the agent's own step
+  limits, the HRL executor re-aiming at the selected targets at every env step, or continuous shares;
+* the opponent (by default the greedy rules, `mate.teams.GreedyTeam`) acting at every env step;
+* frame skip k: a decision is held for k env steps; rewards are summed (camera: the coverage rate, the
   `AuxiliaryCameraRewards` setting of the paper; target: the raw dense team reward);
-* observations with coordinates relative to the agent (`convert_coordinates`) and rescaled to
-  [-1, 1] (`rescale_observation`); the global state rescaled with the state-space bounds, its
-  unbounded counters log-compressed (`compress`);
-* episodes cut at `horizon` raw steps (the paper: 500 decisions);
-* `hrl=True` (cameras): the action is one keep/ignore bit per target slot, (B, Nc, Nt), and the rule
-  executor of `mate.learn.hrl` turns it into rotation/zoom at every raw step of the held decision;
-* `full_observability=True`: the trained team's raw observations go through `enhance_observations`
-  (the `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are
-  empty), the paper's Fig. 6 ablation; the opponent keeps its partial view;
-* `memory=PERIOD` (cameras): the team's shared memory of target sightings (`mate.learn.memory`), updated
-  at every raw step, appended to each camera's processed observation (4 columns per target slot);
-* `velocity=True` (cameras): each seen target's displacement over one held decision at its current
-  velocity (`mate.learn.velocity`, from the camera's observations at the last two raw steps), appended
-  after the memory columns (2 per target slot);
-* `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the
-  coverage rate (`difference_rewards`) instead of the team's coverage rate; rewards are then (B, N);
-* `camera_reward='mixed'` (cameras): the population players' reward (spec training.md §5.1), per raw step
-  0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward, instead of the coverage rate;
-* `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of
-  `mate.learn.evaluate` (`reset(observation, rows)`, `act(observation)`), e.g. a mixture over a population
-  (`mate psro`), instead of the batched greedy rules.
+* episodes cut at `horizon` env steps (the paper: 500 decisions);
+* `full_observability`: the trained team's raw observations go through `enhance_observations` (the
+  `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are empty), the
+  paper's Fig. 6 ablation; the opponent keeps its partial view;
+* `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the coverage
+  rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
+* `camera_reward='mixed'` (cameras): the population players' reward (spec training.md §5.1), per env step
+  0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward;
+* `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of `mate.teams`
+  (e.g. a mixture over a population, `mate psro`).
 
-Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that
-ends at raw step j restarts at raw step j + 1 and plays the rest of the held decision in its new
-episode; those raw steps' rewards are not credited to anyone. The row's last observation and state
-are kept (`final_obs`, `final_state`) so that the learner can bootstrap through a truncation.
+Episode ends inside a decision: the vector env runs in `next_step` autoreset mode, so a row that ends at env
+step j restarts at step j + 1 and plays the rest of the held decision in its new episode; those steps' rewards
+are credited to no one. The row's last observation and state are kept (`final_obs`, `final_state`) so that the
+learner can bootstrap through a truncation.
+
+`state_dict()` / `load_state_dict()` hold everything the batch's future depends on (the games, the opponent's
+state and random streams, the sighting memory, the episode sums), for exact resumes.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Literal
+
 import numpy as np
 
 from .. import make_vec
-from ..agents.utils import (
-    convert_coordinates,
-    normalize_observation,
-    rescale_observation,
-)
+from ..agents.utils import normalize_observation
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
-from ..spaces import observation_indices_of
-from ..wrappers.discrete_camera import square_grid
-from ..wrappers.discrete_target import disk_grid
+from ..options import option
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
-from .hrl import executor_actions
-from .memory import MEMORY_FEATURES, SightingMemory, camera_sightings
-from .velocity import VELOCITY_FEATURES, target_displacements
+from .memory import SightingMemory, camera_sightings
 from .opponents import VecGreedyCamera, VecGreedyTarget
+from .spec import PolicySpec, as_team
 
-__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamVecEnv', 'action_high', 'difference_rewards',
-           'discrete_to_continuous', 'mixed_camera_reward', 'preprocess_observation']
+__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv', 'compress',
+           'difference_rewards', 'game_of', 'mixed_camera_reward']
 
 CREDITS = ('team', 'difference')
 """How a camera's reward is assigned: the team's coverage rate, or its own marginal contribution to it."""
-
 CAMERA_REWARDS = ('coverage', 'mixed')
-"""What a camera team is rewarded with per raw step: the coverage rate (the paper's cooperative runs), or
+"""What a camera team is rewarded with per env step: the coverage rate (the paper's cooperative runs), or
 0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, spec training.md §5.1)."""
+PAPER_SETTINGS = {
+    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5),
+    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10),
+}
+"""Paper defaults per trained team (spec training.md §0): preset and frame skip (horizon: 500 decisions)."""
+
+
+def game_of(config: str | None, team: str) -> tuple[str, str | None]:
+    """(env_id, config path) of a `--config` value: a registered preset name (with or without '-v0'), a YAML/JSON
+    path, or None for the paper preset of `team`. A bad name or file raises `ConfigError` listing the presets."""
+    if config is None:
+        return PAPER_SETTINGS[team]['env_id'], None
+    from ..config import read_config
+    from ..registration import registered_ids
+
+    name = str(config).removesuffix('-v0')
+    if f'{name}-v0' in registered_ids():
+        return f'{name}-v0', None
+    read_config(config)
+    return 'MultiAgentTracking-v0', str(config)
+
+
+@dataclasses.dataclass
+class TeamEnvConfig:
+    """The game a team trains in and what its policy sees: options every trainer takes."""
+
+    team: Literal['camera', 'target'] = option('camera', 'the team to train; the other team plays the greedy rules')
+    config: str | None = option(None, "preset name (e.g. MATE-4v8-9) or YAML/JSON path; None: the paper's preset of "
+                                      'the team (cameras MATE-4v8-9, targets MATE-2v4-0)', metavar='PRESET')
+    frame_skip: int | None = option(None, 'env steps a decision is held; None: 5 for cameras, 10 for targets',
+                                    minimum=1)
+    horizon: int | None = option(None, 'env steps per training episode; None: 500 decisions', minimum=1)
+    num_envs: int = option(64, 'games played at once', minimum=1)
+    hrl: bool = option(False, 'cameras: the policy selects targets (one keep/ignore bit per target slot) and a rule '
+                              'executor aims at them (paper §HRL)')
+    memory: int = option(0, "cameras: env steps the team's shared memory of target sightings keeps a target, "
+                            "appended to each camera's observation (the greedy cameras' 25); 0: none", minimum=0)
+    velocity: bool = option(False, "cameras: append each seen target's displacement over one held decision")
+    full_observability: bool = option(False, "the trained team sees every entity (EnhancedObservation, the paper's "
+                                              'Fig. 6); evaluate with mate evaluate --enhanced-observation TEAM')
+    credit: Literal['team', 'difference'] = option('team', "cameras: reward every camera with the team's coverage "
+                                                           "rate, or each with its own share of it ('difference')")
+    seed: int = option(0, 'seed of the run: networks, envs, opponents, sampling', minimum=0)
+
+    def __post_init__(self) -> None:
+        camera_only = [flag for flag, used in (('--hrl', self.hrl), ('--memory', self.memory), ('--velocity', self.velocity),
+                                               ("--credit difference", self.credit != 'team')) if used]
+        if camera_only and self.team != 'camera':
+            raise ValueError(f'{camera_only[0]} exists for cameras only (--team camera)')
+
+    @property
+    def env_id(self) -> str:
+        return game_of(self.config, self.team)[0]
+
+    @property
+    def resolved_frame_skip(self) -> int:
+        return int(self.frame_skip or PAPER_SETTINGS[self.team]['frame_skip'])
+
+    @property
+    def resolved_horizon(self) -> int:
+        return int(self.horizon or 500 * self.resolved_frame_skip)
+
+    def policy_spec(self, *, action: str = 'grid', network: str = 'mlp', hidden=(256, 256), activation: str = 'tanh',
+                    lstm: int = 0, algo: str = '', deterministic: bool = False, levels: int = 5) -> PolicySpec:
+        """The spec of the policy trained in this game (the action kind, network and algorithm from the trainer)."""
+        env_id, config = game_of(self.config, self.team)
+        return PolicySpec.for_game(self.team, env_id, config, frame_skip=self.resolved_frame_skip, action=action,
+                                   levels=levels, memory=self.memory, velocity=self.velocity,
+                                   full_observability=self.full_observability, network=network, hidden=hidden,
+                                   activation=activation, lstm=lstm, algo=algo, deterministic=deterministic)
+
+    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage') -> TeamVecEnv:
+        """The training envs of this config for a policy of `spec` (the one place a `TeamVecEnv` is made)."""
+        return TeamVecEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
+                          credit=self.credit, camera_reward=camera_reward, opponent=opponent)
 
 
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
-    """The population players' camera reward (spec training.md §5.1) from one raw step's (B,) arrays."""
+    """The population players' camera reward (spec training.md §5.1) from one env step's (B,) arrays."""
     return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
-
-
-PAPER_SETTINGS = {
-    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5, horizon=2500),
-    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10, horizon=5000),
-}
-"""Paper defaults per trained team (spec training.md §0): preset, frame skip, raw-step episode cut."""
-
-
-def as_team(team) -> Team:
-    """Team from a Team, its value, or a name ('camera' / 'target', any case)."""
-    return Team[team.upper()] if isinstance(team, str) else Team(team)
-
-
-def preprocess_observation(observation, team, num_cameras, num_targets, num_obstacles) -> np.ndarray:
-    """Raw observations (..., D) -> float32 relative coordinates rescaled to [-1, 1]."""
-    team = as_team(team)
-    relative = convert_coordinates(observation, team, num_cameras, num_targets, num_obstacles)
-    return rescale_observation(relative, team, num_cameras, num_targets, num_obstacles).astype(np.float32)
-
-
-def action_high(observation, team) -> np.ndarray:
-    """Each agent's action bound (..., 2), float64, from its raw observation (..., D): cameras
-    (rotation step, zooming step) in degrees, targets (step size, step size)."""
-    own = np.asarray(observation)[..., PRESERVED_DIM:]
-    if as_team(team) is Team.CAMERA:
-        return own[..., 7:9].astype(np.float64)
-    return np.repeat(own[..., 4:5].astype(np.float64), 2, axis=-1)
-
-
-def discrete_to_continuous(indices, observation, team, levels: int = 5) -> np.ndarray:
-    """Action indices (..., N) -> continuous actions (..., N, 2) scaled by each agent's own bounds,
-    read from its raw observation (..., N, D) (`action_high`)."""
-    indices = np.asarray(indices, dtype=np.int64)
-    grid = square_grid(levels) if as_team(team) is Team.CAMERA else disk_grid(levels)
-    return grid[indices] * action_high(observation, team)
 
 
 def difference_rewards(sees: np.ndarray) -> np.ndarray:
@@ -129,138 +158,110 @@ def compress(x: np.ndarray) -> np.ndarray:
     return np.where(magnitude > 1.0, np.sign(x) * (1.0 + np.log(np.maximum(magnitude, 1.0))), x).astype(np.float32)
 
 
+def _default_opponent(team: Team, num_envs: int, counts, seed):
+    nc, nt, no = counts
+    if team is Team.CAMERA:
+        return VecGreedyTarget(num_envs, nt, seed=seed)
+    return VecGreedyCamera(num_envs, nc, nt, no, seed=seed)
+
+
 class TeamVecEnv:
-    """B games, one trained team (`'camera'` or `'target'`), the other team a batched opponent (greedy by default).
+    """B games in which a policy of `spec` plays its team against a batched opponent (module docstring).
 
     `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
-    `step(actions)` -> (obs, state, reward, done (B,), truncated (B,), info). Actions: (B, N) int indices of
-    the `levels` x `levels` grid of moves; (B, N, Nt) keep/ignore bits with `hrl`; or, with `levels=0`
-    (continuous, MADDPG), (B, N, 2) floats in [-1, 1], each agent's share of its own action bounds (values
-    outside are clipped to the bounds, as the env's action box would). Reward (B,) the
-    team's, or (B, N) per camera with `credit='difference'`; done
-    covers both ends of an episode, `truncated` the horizon/time-limit ones, and info holds
-    `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean raw-step coverage of the
-    decision, and `episodes`: a list of finished-episode dicts (`coverage`: step-mean coverage rate,
-    `return`: the learner's reward summed, `raw_return`: the target team's raw reward summed and divided
-    by the preset's maximum target-team episode reward (the paper's normalised reward), `length`).
+    `step(actions)` -> (obs, state, reward, done (B,), truncated (B,), info). Actions: what the team holds for the
+    decision, (B, N, heads) int choices (or (B, N) for one head) or (B, N, 2) continuous shares in [-1, 1] (values
+    outside are clipped, as the env's action box would). Reward (B,) the team's, or (B, N) per camera with
+    `credit='difference'`; done covers both ends of an episode, `truncated` the horizon cuts, and info holds
+    `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean env-step coverage of the decision,
+    and `episodes`: a list of finished-episode dicts (`coverage`: step-mean coverage rate, `return`: the learner's
+    reward summed, `raw_return`: the target team's raw reward summed and divided by the preset's maximum
+    target-team episode reward (the paper's normalised reward), `length`).
+
+    Args:
+        spec: the trained policy's spec (team, game, frame skip, observation features, action kind).
+        num_envs: B.
+        horizon: env steps per episode (None: 500 decisions).
+        seed: seed of `reset()` without a seed, and of the opponent (seed + 7919).
+        credit: 'team' or 'difference' (cameras).
+        camera_reward: 'coverage' or 'mixed' (cameras, credit 'team').
+        opponent: a factory `f(num_envs, counts, seed)` of the other team (default: the greedy rules).
+        **overrides: config keys of the game (`mate.make_vec`'s).
     """
 
-    def __init__(self, team: str = 'camera', num_envs: int = 64, env_id: str | None = None,
-                 frame_skip: int | None = None, horizon: int | None = None, levels: int = 5,
-                 seed: int | None = 0, config=None, hrl: bool = False, full_observability: bool = False,
-                 memory: int = 0, velocity: bool = False, credit: str = 'team', camera_reward: str = 'coverage',
-                 opponent=None, **overrides) -> None:
-        team = as_team(team)
+    def __init__(self, spec: PolicySpec, num_envs: int = 64, horizon: int | None = None, seed: int | None = 0,
+                 credit: str = 'team', camera_reward: str = 'coverage', opponent=None, **overrides) -> None:
+        team = as_team(spec.team)
         if credit not in CREDITS:
             raise ValueError(f'credit must be one of {CREDITS}, got {credit!r}')
         if camera_reward not in CAMERA_REWARDS:
             raise ValueError(f'camera_reward must be one of {CAMERA_REWARDS}, got {camera_reward!r}')
         if camera_reward != 'coverage' and (team is not Team.CAMERA or credit != 'team'):
             raise ValueError(f"camera_reward {camera_reward!r} is a camera team reward (credit 'team' only)")
-        self.camera_reward = camera_reward
         if credit == 'difference' and team is not Team.CAMERA:
             raise ValueError("credit 'difference' (each camera's own share of the coverage) exists for cameras only")
-        self.credit = credit
-        if hrl and team is not Team.CAMERA:
-            raise ValueError('HRL (target selection + rule executor) exists for cameras only')
-        if not (isinstance(levels, (int, np.integer)) and (levels == 0 or levels >= 2)):
-            raise ValueError(f'levels must be an integer >= 2 (discrete moves), or 0 for continuous actions; got {levels!r}')
-        if hrl and levels == 0:
-            raise ValueError('HRL selects targets (discrete); it has no continuous form (levels=0)')
-        self.continuous = levels == 0
-        if memory and team is not Team.CAMERA:
-            raise ValueError('the sighting memory exists for cameras only')
-        if velocity and team is not Team.CAMERA:
-            raise ValueError('the target velocity features exist for cameras only')
-        if memory < 0:
-            raise ValueError(f'memory must be a period of at least 1 step, or 0 for none; got {memory}')
-        self.hrl = bool(hrl)
-        self.full_observability = bool(full_observability)
-        defaults = PAPER_SETTINGS[team.name.lower()]
-        self.team = team
-        self.env_id = env_id or defaults['env_id']
-        self.frame_skip = int(frame_skip or defaults['frame_skip'])
-        self.horizon = int(horizon or defaults['horizon'])
-        self.levels = levels
-        self.num_envs = num_envs
-        kwargs = dict(overrides)
-        kwargs['max_episode_steps'] = self.horizon
-        self.vec = make_vec(self.env_id, num_envs=num_envs, config=config, observation_dtype=np.float32,
-                            autoreset_mode='next_step', **kwargs)
-        nc, nt, no = self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles
-        self.counts = (nc, nt, no)
-        self.num_agents = nc if team is Team.CAMERA else nt
-        # the policy's action: `action_heads` independent choices among `action_choices` per agent
-        # (continuous: `num_actions` = 2 action dimensions per agent)
-        self.action_heads, self.action_choices = (nt, 2) if self.hrl else (1, 2 if self.continuous else levels ** 2)
-        self.num_actions = self.action_heads * self.action_choices     # logits (or action dimensions) per agent
-        self.obs_dim = self.vec.single_observation_space[0 if team is Team.CAMERA else 1].shape[-1]
-        self.memory = SightingMemory(num_envs, self.counts, memory) if memory else None
-        if self.memory is not None:
-            self.obs_dim += MEMORY_FEATURES * nt
-        self.velocity = bool(velocity)
-        if self.velocity:
-            self.obs_dim += VELOCITY_FEATURES * nt
-        self._before = None    # velocity: the trained team's raw observations one raw step earlier
-        self._target_records = int(observation_indices_of(team, nc, nt, no)[2])   # camera obs: target slots
-        self.state_dim = self.vec.single_state_space.shape[0]
-        opponent_seed = None if seed is None else seed + 7919
-        if opponent is not None:
-            self.opponent = opponent(num_envs, self.counts, opponent_seed)
-        elif team is Team.CAMERA:
-            self.opponent = VecGreedyTarget(num_envs, nt, seed=opponent_seed)
-        else:
-            self.opponent = VecGreedyCamera(num_envs, nc, nt, no, seed=opponent_seed)
+        self.spec, self.team, self.credit, self.camera_reward = spec, team, credit, camera_reward
+        self.frame_skip = spec.frame_skip
+        self.horizon = int(horizon or 500 * spec.frame_skip)
+        self.num_envs = int(num_envs)
+        self.vec = make_vec(spec.env_id, num_envs=self.num_envs, config=spec.config, observation_dtype=np.float32,
+                            autoreset_mode='next_step', max_episode_steps=self.horizon, **overrides)
+        self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
+        spec.check_game(team, self.counts, 'the policy spec')
+        self.num_agents = spec.num_agents
+        self.obs_dim, self.state_dim = spec.obs_dim, self.vec.single_state_space.shape[0]
+        self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
+        self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
-        self._raw = None
-        self._return = np.zeros(num_envs)
-        self._raw_return = np.zeros(num_envs)
+        opponent_seed = None if seed is None else seed + 7919
+        self.opponent = (opponent or (lambda n, counts, s: _default_opponent(team, n, counts, s)))(
+            self.num_envs, self.counts, opponent_seed)
+        self._sees = None          # difference credit: which camera tracks which target at the last env step
+        self._raw = self._own_raw = self._other_raw = self._before = None
+        self._return = np.zeros(self.num_envs)
+        self._raw_return = np.zeros(self.num_envs)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
-        self._coverage_sum = np.zeros(num_envs)
-        self._length = np.zeros(num_envs, dtype=np.int64)
+        self._coverage_sum = np.zeros(self.num_envs)
+        self._length = np.zeros(self.num_envs, dtype=np.int64)
 
     # ------------------------------------------------------------------ helpers
     def _own(self, observations):
         return observations[0] if self.team is Team.CAMERA else observations[1]
 
+    def _other(self, observations):
+        return observations[1] if self.team is Team.CAMERA else observations[0]
+
     def _enhanced(self, observations):
         """`observations` as the trained team sees them: unchanged, or (full observability) with every
         record of its team filled in place (the vector env's buffers; the opponent's are untouched)."""
-        if self.full_observability:
+        if self.spec.full_observability:
             camera = self.team is Team.CAMERA
             enhance_observations(*observations, self.vec.obstacle_states, empty_warehouses(self.vec.remaining_cargoes),
                                  *self.counts, camera=camera, target=not camera)
         return observations
 
-    def _other(self, observations):
-        return observations[1] if self.team is Team.CAMERA else observations[0]
-
-    def _process(self, raw, rows=None):
-        processed = preprocess_observation(raw, self.team, *self.counts)
-        columns = [processed]
-        if self.memory is not None:
-            columns.append(self.memory.features(raw, rows))
-        if self.velocity:
-            before = self._before if rows is None else self._before[rows]
-            columns.append(target_displacements(raw, before, self.counts, self.frame_skip))
-        return columns[0] if len(columns) == 1 else np.concatenate(columns, axis=-1)
+    def _features(self, raw, rows=None):
+        """The spec's features of raw own observations (R, N, D_raw) of the rows `rows` (all if None)."""
+        memory = None if self.memory is None else self.memory.features(raw, rows)
+        before = self._before if rows is None else self._before[rows]
+        return self.spec.features(raw, memory, before)
 
     def _step_vec(self, joint, restarting):
-        """One raw step of the vector env; keeps (velocity) the trained team's previous raw observations,
-        which for rows starting an episode at this step are their first ones (no motion yet)."""
-        before = self._own_raw.copy() if self.velocity else None
+        """One env step of the vector env; keeps the trained team's previous raw observations (velocity), which
+        for rows starting an episode at this step are their first ones (no motion yet)."""
+        before = self._own_raw.copy() if self.spec.velocity else None
         result = self.vec.step(joint)
         if self.credit == 'difference':   # before full observability fills in every flag
             self._sees = camera_sightings(result[0][0], *self.counts)[1]
         observations = self._enhanced(result[0])
-        if self.velocity:
+        if self.spec.velocity:
             own = self._own(observations)
             before[restarting] = own[restarting]
             self._before = before
         return (observations, *result[1:])
 
     def _remember(self, observations, restarting=None) -> None:
-        """One raw step of the sighting memory: rows that start an episode forget, then every camera's
+        """One env step of the sighting memory: rows that start an episode forget, then every camera's
         sightings enter the team's memory."""
         if self.memory is None:
             return
@@ -271,6 +272,9 @@ class TeamVecEnv:
 
     def _state(self):
         return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
+
+    def _joint(self, own_actions, other_actions):
+        return (own_actions, other_actions) if self.team is Team.CAMERA else (other_actions, own_actions)
 
     # ------------------------------------------------------------------ API
     @property
@@ -290,12 +294,9 @@ class TeamVecEnv:
         rows = state[:, begin:begin + count * width].reshape(self.num_envs, count, width)
         return rows[..., :2].astype(np.float64)
 
-    def allowed_actions(self, processed: np.ndarray) -> np.ndarray:
-        """HRL: (..., N, Nt, 2) bool from processed observations (..., N, D): 'ignore' is always allowed,
-        'keep' only for the targets the camera sees (the executor ignores the others anyway)."""
-        begin = self._target_records
-        visible = processed[..., begin + 4:begin + 5 * self.counts[1]:5] > 0.5
-        return np.stack([np.ones_like(visible), visible], axis=-1)
+    def allowed_actions(self, features: np.ndarray) -> np.ndarray | None:
+        """The spec's allowed choices (..., N, heads, choices) of features (..., N, D); None when all are."""
+        return self.spec.allowed(features)
 
     def reset(self, seed: int | None = None):
         observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
@@ -312,18 +313,21 @@ class TeamVecEnv:
         self._raw_return[:] = 0.0
         self._coverage_sum[:] = 0.0
         self._length[:] = 0
-        return self._process(self._raw), self._state()
+        return self._features(self._raw), self._state()
+
+    def _held(self, actions) -> np.ndarray:
+        """The decision's actions as (B, N, heads) choices or (B, N, 2) continuous shares."""
+        B, N = self.num_envs, self.num_agents
+        actions = np.asarray(actions)
+        if self.spec.continuous:
+            return np.clip(actions.reshape(B, N, 2), -1.0, 1.0)
+        return actions.reshape(B, N, self.action_heads)
 
     def step(self, actions):
         B = self.num_envs
-        actions = np.asarray(actions)
-        if self.hrl:
-            selection = actions.reshape(B, self.num_agents, self.action_heads)
-        elif self.continuous:
-            own_actions = np.clip(actions.reshape(B, self.num_agents, 2), -1.0, 1.0) * action_high(self._raw, self.team)
-        else:
-            own_actions = discrete_to_continuous(actions.reshape(B, self.num_agents), self._raw, self.team,
-                                                 self.levels)
+        held = self._held(actions)
+        if not self.spec.closed_loop:   # open loop: decoded once, at the decision (the limits are fixed in an episode)
+            own_actions = self.spec.decode(held, self._raw)
         reward = np.zeros((B, self.num_agents) if self.credit == 'difference' else B)
         coverage = np.zeros(B)
         counted = np.zeros(B)
@@ -332,13 +336,13 @@ class TeamVecEnv:
         final_obs = np.zeros((B, self.num_agents, self.obs_dim), dtype=np.float32)
         final_state = np.zeros((B, self.state_dim), dtype=np.float32)
         episodes = []
-        restarting = np.zeros(B, dtype=bool)     # rows whose episode ended at the previous raw step
+        restarting = np.zeros(B, dtype=bool)     # rows whose episode ended at the previous env step
         for _ in range(self.frame_skip):
-            if self.hrl:   # closed loop: the executor re-aims at every raw step from the fresh observation
-                own_actions = executor_actions(self._own_raw, selection, *self.counts)
+            if self.spec.closed_loop:   # the executor re-aims at every env step from the fresh observation
+                own_actions = self.spec.decode(held, self._own_raw)
             other = self.opponent.act(self._other_raw)
-            joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
-            observations, rewards, terminated, truncated_now, infos = self._step_vec(joint, restarting)
+            observations, rewards, terminated, truncated_now, infos = self._step_vec(self._joint(own_actions, other),
+                                                                                     restarting)
             if restarting.any():
                 self.opponent.reset(self._other(observations), restarting)
             self._remember(observations, restarting)
@@ -361,7 +365,7 @@ class TeamVecEnv:
             restarting = ended.copy()
             if ended.any():
                 rows = np.flatnonzero(ended)
-                final_obs[rows] = self._process(self._own(observations)[rows], rows)
+                final_obs[rows] = self._features(self._own(observations)[rows], rows)
                 final_state[rows] = self._state()[rows]
                 truncated[rows] = truncated_now[rows] & ~terminated[rows]
                 done |= ended
@@ -375,10 +379,9 @@ class TeamVecEnv:
                 self._length[rows] = 0
             self._other_raw = self._other(observations)
             self._own_raw = self._own(observations)
-        if restarting.any():   # ended at the last raw step: restart now so the next decision is clean
+        if restarting.any():   # ended at the last env step: restart now so the next decision is clean
             other = self.opponent.act(self._other(observations))
-            joint = (own_actions, other) if self.team is Team.CAMERA else (other, own_actions)
-            observations = self._step_vec(joint, restarting)[0]
+            observations = self._step_vec(self._joint(own_actions, other), restarting)[0]
             self.opponent.reset(self._other(observations), restarting)
             self._remember(observations, restarting)
         self._other_raw = self._other(observations)
@@ -386,4 +389,57 @@ class TeamVecEnv:
         self._raw = self._own(observations).copy()
         info = dict(final_obs=final_obs, final_state=final_state, coverage=coverage / np.maximum(counted, 1),
                     episodes=episodes)
-        return self._process(self._raw), self._state(), reward, done, truncated, info
+        return self._features(self._raw), self._state(), reward, done, truncated, info
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict:
+        """Everything the batch's future depends on, as plain data (see the module docstring)."""
+        memory = None if self.memory is None else dict(location=self.memory.location.copy(), age=self.memory.age.copy())
+        return dict(vec=self.vec.state_dict(), opponent=_team_state(self.opponent), memory=memory,
+                    before=None if self._before is None else self._before.copy(),
+                    sums=dict(returns=self._return.copy(), raw_returns=self._raw_return.copy(),
+                              coverage=self._coverage_sum.copy(), length=self._length.copy()))
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
+        self.vec.load_state_dict(state['vec'])
+        _load_team_state(self.opponent, state['opponent'])
+        if self.memory is not None:
+            self.memory.location[...] = state['memory']['location']
+            self.memory.age[...] = state['memory']['age']
+        observations = self._enhanced(self.vec.observations)
+        self._other_raw, self._own_raw = self._other(observations), self._own(observations)
+        self._raw = self._own(observations).copy()
+        self._before = None if state['before'] is None else np.array(state['before'])
+        sums = state['sums']
+        self._return[...], self._raw_return[...] = sums['returns'], sums['raw_returns']
+        self._coverage_sum[...], self._length[...] = sums['coverage'], sums['length']
+
+    def observations(self):
+        """(features (B, N, D), state (B, S)) of the current decision (as `reset` and `step` return them)."""
+        return self._features(self._raw), self._state()
+
+
+def _team_state(team) -> dict:
+    """A batched team's state for a checkpoint: its own `state_dict()`, or (teams without one) its attributes."""
+    if hasattr(team, 'state_dict'):
+        return team.state_dict()
+    state = {}
+    for name, value in vars(team).items():
+        if isinstance(value, np.ndarray):
+            state[name] = value.copy()
+        elif isinstance(value, np.random.Generator):
+            state[name] = {'generator': value.bit_generator.state}
+    return state
+
+
+def _load_team_state(team, state: dict) -> None:
+    if hasattr(team, 'load_state_dict'):
+        team.load_state_dict(state)
+        return
+    for name, value in state.items():
+        current = getattr(team, name)
+        if isinstance(current, np.random.Generator):
+            current.bit_generator.state = value['generator']
+        else:
+            setattr(team, name, np.array(value))

@@ -9,7 +9,6 @@
 * `RecurrentQNetwork`: QMIX's agent network (embedding -> GRU -> action values), one or several heads;
 * `AgentwiseMLP`, `AgentwiseLSTMCell`, `IndependentActors`: N MLPs (LSTM cells) with their own weights
   evaluated at once (MADDPG's actors and critics, I2C's networks, one per agent);
-* `make_actor(kind, ...)`: one of them (or `mate.learn.comm.TarMACActor`, meta `comm`) from a checkpoint's metadata;
 * `Critic`: a value MLP with one or more outputs.
 
 Shapes: inputs (..., D) float32, outputs (..., A); the recurrent actor's sequences are (T, B, N, D).
@@ -30,7 +29,7 @@ from .velocity import VELOCITY_FEATURES
 __all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseLSTMCell', 'AgentwiseMLP', 'agentwise_matmul',
            'Critic', 'DuelingQNetwork', 'IndependentActors', 'PerTargetActor',
            'RecurrentActor', 'RecurrentQNetwork',
-           'linear', 'make_actor', 'mlp', 'restarted']
+           'linear', 'mlp', 'restarted']
 
 
 ACTIVATIONS = {'tanh': (nn.Tanh, 5.0 / 3.0), 'relu': (nn.ReLU, math.sqrt(2.0))}
@@ -286,10 +285,10 @@ class RecurrentActor(nn.Module):
         piece = torch.cumsum(begins.long(), dim=0) - 1                                # piece number within its sequence
         counts = begins.sum(0)
         piece = piece + (torch.cumsum(counts, 0) - counts)[None]                      # global piece index (T, S)
-        time = torch.arange(T)[:, None].expand(T, rows)
+        time = torch.arange(T, device=obs.device)[:, None].expand(T, rows)
         opened = torch.cummax(torch.where(begins, time, torch.zeros_like(time)), dim=0).values
         position = time - opened                                                      # step within its piece
-        h0 = torch.zeros(1, int(counts.sum()), self.lstm_size)
+        h0 = torch.zeros(1, int(counts.sum()), self.lstm_size, device=obs.device)
         c0 = torch.zeros_like(h0)
         carried = ~flags[0]                                                           # first pieces that continue
         first = piece[0]
@@ -464,37 +463,6 @@ class IndependentActors(nn.Module):
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         return torch.tanh(self.body(obs))
-
-
-def make_actor(kind: str, obs_dim: int, num_actions: int, hidden, activation: str, meta: dict,
-               lstm: int = 0) -> nn.Module:
-    """The policy network named `kind`: 'mlp' or 'per-target' (cameras only), wrapped in a `RecurrentActor`
-    when `lstm` > 0 (PPO); 'dueling' (IQL's Q-network) or 'recurrent-q' (QMIX's agent network, width
-    `hidden[-1]`), whose Q-values are read as logits; 'independent' (MADDPG's per-agent actors, continuous
-    actions). A PPO actor that communicates (meta `comm` 'tarmac' or 'i2c') is a `mate.learn.comm.TarMACActor`
-    or `I2CActor` on the 'mlp' body with an LSTM of `lstm` cells."""
-    heads = int(meta.get('action_heads', 1))
-    if meta.get('comm', 'none') != 'none':
-        from .comm import make_communicating_actor     # (comm.py builds on this module's blocks)
-        return make_communicating_actor(meta['comm'], kind, obs_dim, num_actions, hidden, activation, lstm,
-                                        agents=int(meta.get('num_agents', 0)))
-    if kind == 'dueling':
-        return DuelingQNetwork(obs_dim, heads, num_actions // heads, hidden, activation)
-    if kind == 'recurrent-q':
-        return RecurrentQNetwork(obs_dim, heads, num_actions // heads, hidden[-1])
-    if kind == 'independent':
-        return IndependentActors(int(meta['num_agents']), obs_dim, num_actions, hidden, activation)
-    if kind == 'mlp':
-        actor = Actor(obs_dim, num_actions, hidden, activation, context_extra=lstm)
-    elif kind == 'per-target':
-        if meta.get('team') != 'camera':
-            raise ValueError("actor 'per-target' reads a camera's target slots: it needs team 'camera'")
-        actor = PerTargetActor(obs_dim, tuple(meta['counts']), hidden, activation, num_actions=num_actions,
-                               context_extra=lstm, memory=bool(meta.get('memory', 0)),
-                               velocity=bool(meta.get('velocity', False)))
-    else:
-        raise ValueError(f"unknown actor {kind!r}; valid: 'mlp', 'per-target', 'dueling', 'recurrent-q', 'independent'")
-    return RecurrentActor(actor, lstm) if lstm else actor
 
 
 class Critic(nn.Module):

@@ -58,17 +58,37 @@ def iter_env_chain(env: Any) -> Iterator[Any]:
         env = env.env
 
 
-def find_wrapper(env: Any, cls: type | tuple[type, ...]) -> Any | None:
-    """The outermost instance of `cls` in the chain of `env` (itself included), or None."""
+ROLES = {
+    'single-team': 'exposes one team only (MultiCamera, MultiTarget, SingleCamera, SingleTarget)',
+    'single-agent': 'exposes one agent only (SingleCamera, SingleTarget)',
+    'converted': 'observations are no longer absolute and unscaled (RelativeCoordinates, RescaledObservation)',
+    'repeated-reward': 'one reward and done flag per agent (RepeatedRewardIndividualDone)',
+}
+"""What a wrapper may do that other wrappers' ordering checks ask about. A wrapper class lists its roles in
+`MateWrapper.ROLES`; the checks name a role instead of a class, so that this module imports no concrete wrapper."""
+
+
+def _matches(item: Any, what) -> bool:
+    if isinstance(what, str):
+        return what in getattr(type(item), 'ROLES', ())
+    return isinstance(item, what)
+
+
+def find_wrapper(env: Any, what) -> Any | None:
+    """The outermost wrapper in the chain of `env` (itself included) that is an instance of `what` (a class or a
+    tuple of classes) or has the role `what` (a name of `ROLES`), or None."""
+    if isinstance(what, str) and what not in ROLES:
+        raise ValueError(f'unknown wrapper role {what!r}; roles: {", ".join(ROLES)}')
     for item in iter_env_chain(env):
-        if isinstance(item, cls):
+        if _matches(item, what):
             return item
     return None
 
 
-def has_wrapper(env: Any, cls: type | tuple[type, ...]) -> bool:
-    """Whether an instance of `cls` is `env` itself or anywhere inside it (the original's `isinstance(env, cls)`)."""
-    return find_wrapper(env, cls) is not None
+def has_wrapper(env: Any, what) -> bool:
+    """Whether `env` or anything inside it is an instance of `what` or has the role `what` (`find_wrapper`; the
+    original's `isinstance(env, cls)`)."""
+    return find_wrapper(env, what) is not None
 
 
 def _names(cls: type | tuple[type, ...]) -> str:
@@ -84,6 +104,9 @@ class MateWrapper(gym.Wrapper):
     with `_` are never forwarded. `str(wrapper)` shows the stack, e.g.
     `<DiscreteCamera(levels=5)<MultiAgentTracking>(4 cameras, 8 targets, 9 obstacles)>`.
     """
+
+    ROLES: frozenset = frozenset()
+    """What this wrapper does that others' ordering checks ask about (names of `mate.wrappers.base.ROLES`)."""
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith('_') or name == 'env':
@@ -137,9 +160,7 @@ class TeamObservationWrapper(ObservationMateWrapper):
         name = type(self).__name__
         assert_base_environment(env, name)
         check_choice('team', team, self.TEAMS)
-        from .relative_coordinates import RelativeCoordinates
-        from .rescaled_observation import RescaledObservation
-        forbid_inside(env, name, (RelativeCoordinates, RescaledObservation), 'it reads absolute, unscaled values')
+        forbid_inside(env, name, 'converted', 'it reads absolute, unscaled values')
         super().__init__(env)
         self.team = team
         self.for_camera = team in ('camera', 'both')
@@ -164,23 +185,19 @@ def assert_mate_environment(env: Any, wrapper: str) -> None:
 
 def assert_multi_agent_environment(env: Any, wrapper: str) -> None:
     """`assert_mate_environment`, and no SingleCamera/SingleTarget inside."""
-    from .single_team import SingleTeamSingleAgent
-
     assert_mate_environment(env, wrapper)
-    forbid_inside(env, wrapper, SingleTeamSingleAgent, 'it needs one observation/reward per agent')
+    forbid_inside(env, wrapper, 'single-agent', 'it needs one observation/reward per agent')
 
 
 def assert_base_environment(env: Any, wrapper: str) -> None:
     """`assert_mate_environment`, and no single-team wrapper (Multi*/Single*) inside: both teams are exposed."""
-    from .single_team import SingleTeamHelper
-
     assert_mate_environment(env, wrapper)
-    forbid_inside(env, wrapper, SingleTeamHelper, 'it needs both teams')
+    forbid_inside(env, wrapper, 'single-team', 'it needs both teams')
 
 
-def forbid_inside(env: Any, wrapper: str, cls: type | tuple[type, ...], why: str = '') -> None:
-    """WrapperOrderError if `cls` is already in the chain: `wrapper` must come before it."""
-    found = find_wrapper(env, cls)
+def forbid_inside(env: Any, wrapper: str, what, why: str = '') -> None:
+    """WrapperOrderError if a wrapper of class or role `what` is already in the chain: `wrapper` must come before it."""
+    found = find_wrapper(env, what)
     if found is not None:
         reason = f' ({why})' if why else ''
         raise WrapperOrderError(

@@ -24,14 +24,13 @@ class _PerTeamObservation(ObservationMateWrapper):
     """Shared plumbing: apply `self.transform(obs, team)` to each team's observation (or to the single team's)."""
 
     def __init__(self, env) -> None:
-        from .single_team import SingleTeamHelper
         name = type(self).__name__
         assert_mate_environment(env, name)
         forbid_twice(env, type(self))
         super().__init__(env)
         base = env.unwrapped
         self._counts = (base.num_cameras, base.num_targets, base.num_obstacles)
-        helper = find_wrapper(env, SingleTeamHelper)
+        helper = find_wrapper(env, 'single-team')
         self.single_team = helper is not None
         self._own_team = helper.team if helper is not None else None
 
@@ -55,6 +54,8 @@ class RelativeCoordinates(_PerTeamObservation):
     Order: anywhere (once), but outside any single-team wrapper, otherwise the built-in opponents see
     relative coordinates; EnhancedObservation and SharedFieldOfView must come before it.
     """
+
+    ROLES = frozenset({'converted'})
 
     def transform(self, observation, team: Team):
         return convert_coordinates(observation, team, *self._counts)

@@ -25,15 +25,16 @@ class RepeatedRewardIndividualDone(MateWrapper):
     Order: not behind SingleCamera/SingleTarget; once only; before AuxiliaryCameraRewards/AuxiliaryTargetRewards.
     """
 
+    ROLES = frozenset({'repeated-reward'})
+
     def __init__(self, env, target_done_at_destination: bool = False) -> None:
-        from .single_team import SingleTeamHelper
         assert_multi_agent_environment(env, type(self).__name__)
         forbid_twice(env, RepeatedRewardIndividualDone)
         super().__init__(env)
         self.target_done_at_destination = bool(target_done_at_destination)
         base = env.unwrapped
         self._sizes = (base.num_cameras, base.num_targets)
-        helper = find_wrapper(env, SingleTeamHelper)
+        helper = find_wrapper(env, 'single-team')
         self.single_team = helper is not None
         self._own_team = helper.team if helper is not None else None
 

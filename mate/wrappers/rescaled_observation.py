@@ -43,6 +43,8 @@ class RescaledObservation(_PerTeamObservation):
     EnhancedObservation and SharedFieldOfView must come before it.
     """
 
+    ROLES = frozenset({'converted'})
+
     def __init__(self, env) -> None:
         super().__init__(env)
         counts = self._counts
@@ -55,13 +57,12 @@ class RescaledObservation(_PerTeamObservation):
             self.camera_joint_observation_space, self.target_joint_observation_space = camera_joint, target_joint
             self.observation_space = spaces.Tuple((camera_joint, target_joint))
             return
-        from .single_team import SingleTeamSingleAgent
         own, own_joint = (camera_space, camera_joint) if self._own_team is Team.CAMERA else (target_space, target_joint)
         prefix = self._own_team.name.lower()
         setattr(self, f'{prefix}_observation_space', own)
         setattr(self, f'{prefix}_joint_observation_space', own_joint)
         self.teammate_observation_space, self.teammate_joint_observation_space = own, own_joint
-        self.observation_space = own if has_wrapper(self.env, SingleTeamSingleAgent) else own_joint
+        self.observation_space = own if has_wrapper(self.env, 'single-agent') else own_joint
 
     def transform(self, observation, team: Team):
         return rescale_observation(observation, team, *self._counts)

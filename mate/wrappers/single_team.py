@@ -83,6 +83,8 @@ class SingleTeamHelper(MateWrapper):
     have at least one agent.
     """
 
+    ROLES = frozenset({'single-team'})
+
     def __init__(self, env, team: Team) -> None:
         assert_base_environment(env, type(self).__name__)
         team = Team(team)
@@ -98,8 +100,7 @@ class SingleTeamHelper(MateWrapper):
             prefix = side.name.lower()
             for kind in ('action_space', 'joint_action_space', 'observation_space', 'joint_observation_space'):
                 setattr(self, f'{role}_{kind}', getattr(env, f'{prefix}_{kind}'))
-        from .repeated_reward_individual_done import RepeatedRewardIndividualDone
-        self.repeated_reward_individual_done = has_wrapper(env, RepeatedRewardIndividualDone)
+        self.repeated_reward_individual_done = has_wrapper(env, 'repeated-reward')
 
     # ------------------------------------------------------------------ team pairs
     def own(self, pair):
@@ -218,6 +219,8 @@ class SingleTeamSingleAgent(SingleTeamHelper):
     when RepeatedRewardIndividualDone is inside). Inside `step` the teammates act first, then the
     opponents; both talk through the inner env.
     """
+
+    ROLES = frozenset({'single-team', 'single-agent'})
 
     def __init__(self, env, team: Team, teammate_agent, opponent_agent) -> None:
         super().__init__(env, team)

@@ -64,11 +64,11 @@ VARIANTS: dict[str, list[str]] = {
     # --paper: the MLP actor, the adaptive KL penalty (kl_coeff column) and the paper's schedules
     'mappo-camera-paper': ['train', 'mappo', '--paper', *_PPO, '--horizon', '40', *_COMMON],
     'hrl-mappo-camera': ['train', 'mappo', '--hrl', *_PPO, '--horizon', '40', *_COMMON],
-    'mappo-camera-lstm': ['train', 'mappo', '--actor', 'mlp', '--lstm', '16', *_PPO, '--horizon', '40', *_COMMON],
-    'mappo-camera-tarmac': ['train', 'mappo', '--comm', 'tarmac', '--lstm', '16', *_PPO, '--horizon', '40',
-                            *_COMMON],
-    'mappo-camera-i2c': ['train', 'mappo', '--comm', 'i2c', '--lstm', '16', '--influence-samples', '4', *_PPO,
-                         '--horizon', '40', *_COMMON],
+    'mappo-camera-lstm': ['train', 'mappo-lstm', '--actor', 'mlp', '--lstm', '16', *_PPO, '--horizon', '40',
+                          *_COMMON],
+    'mappo-camera-tarmac': ['train', 'tarmac', '--lstm', '16', *_PPO, '--horizon', '40', *_COMMON],
+    'mappo-camera-i2c': ['train', 'i2c', '--lstm', '16', '--influence-samples', '4', *_PPO, '--horizon', '40',
+                         *_COMMON],
     'mappo-target': ['train', 'mappo', '--team', 'target', *_PPO, '--horizon', '80', *_COMMON],
     'mappo-camera-memory-velocity-difference': ['train', 'mappo', '--memory', '25', '--velocity', '--credit',
                                                 'difference', *_PPO, '--horizon', '40', *_COMMON],
@@ -120,8 +120,10 @@ def run_variant(name: str, folder) -> dict:
                           for p in sorted((folder / 'players').glob('*/progress.csv'))},
                     weights={str(p.relative_to(folder)): weight_summary(p) for p in players},
                     state=without_timing({key: state[key] for key in PSRO_STATE_KEYS}))
+    # the networks of the run's end: its final checkpoint (format 2: the algorithm state's `networks`, recorded as
+    # the entries of the format-1 final.pt, which was a copy of the checkpoint)
     return dict(logs={'progress.csv': read_log(folder / 'progress.csv')},
-                weights={'final.pt': weight_summary(folder / 'final.pt')})
+                weights={'final.pt': weight_summary(folder / 'checkpoint.pt')})
 
 
 def _value(text: str):
@@ -164,6 +166,8 @@ def weight_summary(path) -> dict:
     import torch
 
     data = torch.load(path, map_location='cpu', weights_only=True)
+    if isinstance(data.get('state'), dict) and 'networks' in data['state']:   # a format-2 run checkpoint
+        data = data['state']['networks']
     summary = {}
     for entry, value in data.items():
         if 'optimizer' in entry or not _is_state_dict(value):

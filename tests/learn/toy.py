@@ -1,15 +1,43 @@
 """Trivial batched tasks for the learners (the TeamVecEnv interface): cues to match, remember or exchange, a
-matrix game, continuous targets."""
+matrix game, continuous targets. Each has a `spec` (`toy_spec`): what its policy sees and does, for the trainers
+(which replace its network settings with their own)."""
 
 import numpy as np
 
+from mate.learn.spec import PolicySpec
 
-class CueMatching:
-    """B envs x N agents; obs = one-hot of a random cue among A actions; team reward = fraction of agents
-    whose action equals their cue; episodes of `length` decisions (the last one is a truncation)."""
+
+class ToyTask:
+    """What every toy task shares: its `spec` (abstract discrete choices, or continuous actions) and the
+    attributes of `TeamVecEnv` that the trainers read."""
 
     team = 'camera'
     frame_skip = 1
+    credit = 'team'
+    action_heads = 1
+
+    @property
+    def action_choices(self) -> int:
+        return self.num_actions
+
+    @property
+    def spec(self) -> PolicySpec:
+        return toy_spec(self)
+
+
+def toy_spec(task) -> PolicySpec:
+    """The spec of a toy task: its sizes, 'discrete' choices (or 'continuous' actions), an MLP network."""
+    continuous = getattr(task, 'continuous', False)
+    return PolicySpec(team=task.team, env_id='toy', config=None, counts=task.counts, frame_skip=1,
+                      action='continuous' if continuous else 'discrete', levels=0 if continuous else task.num_actions,
+                      memory=0, velocity=False, full_observability=False,
+                      network='independent' if continuous else 'mlp', hidden=(8,), activation='tanh', lstm=0,
+                      obs_dim=task.obs_dim, state_dim=task.state_dim, num_agents=task.num_agents)
+
+
+class CueMatching(ToyTask):
+    """B envs x N agents; obs = one-hot of a random cue among A actions; team reward = fraction of agents
+    whose action equals their cue; episodes of `length` decisions (the last one is a truncation)."""
 
     def __init__(self, num_envs=16, num_agents=2, num_actions=4, length=8, seed=0):
         self.num_envs, self.num_agents, self.num_actions, self.length = num_envs, num_agents, num_actions, length
@@ -88,7 +116,7 @@ class OwnCueMatching(CueMatching):
         return obs, state, own, done, truncated, info
 
 
-class TwoStepGame:
+class TwoStepGame(ToyTask):
     """The two-step cooperative game of the QMIX paper (Rashid et al. 2018, Fig. 3), for B envs at once.
 
     Both agents observe (and the state is) the one-hot of the stage: 1, 2A or 2B. At stage 1 the first
@@ -97,8 +125,6 @@ class TwoStepGame:
     optimal joint policy earns 8; learners whose per-agent values average over an exploring partner value
     2B at (1 + 8) / 2 = 4.5 < 7 and settle for 7."""
 
-    team = 'camera'
-    frame_skip = 1
     PAYOFF_2B = np.array([[0.0, 1.0], [1.0, 8.0]])
 
     def __init__(self, num_envs=16):
@@ -129,13 +155,13 @@ class TwoStepGame:
         return obs, state, reward, done, np.zeros_like(done), info
 
 
-class ContinuousCue:
+class ContinuousCue(ToyTask):
     """B envs x N agents with continuous actions in [-1, 1]^2: each agent sees a random point (its cue) and is
     paid, as a team, 1 - the mean distance of the agents' actions to their cues / 2; episodes of `length`
     decisions (the last a truncation). A learner's team reward rises from ~0.4 (uniform actions) towards 1."""
 
     team = 'target'
-    frame_skip = 1
+    continuous = True
 
     def __init__(self, num_envs=16, num_agents=2, length=8, seed=0):
         self.num_envs, self.num_agents, self.length = num_envs, num_agents, length

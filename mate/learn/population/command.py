@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 from pathlib import Path
 
-from ...cli import CommandError, non_negative_int, positive_int
+from ...arguments import CommandError, non_negative_int, positive_int, resolving_arguments
 
 __all__ = ['add_arguments', 'run']
 
@@ -37,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--workers', type=positive_int, default=None,
                         help='local processes running the two best responses (and payoff chunks) side by side; 1 runs '
                              'the jobs one after the other in this process (default: 2, or 1 on a one-core machine)')
+    parser.add_argument('--device', default='auto',
+                        help="where the best responses' networks train: auto (a GPU when there is one), cpu, cuda or "
+                             'cuda:N (the payoff entries play on the CPU); default auto')
     parser.add_argument('--address', default=None,
                         help="run the jobs as Ray tasks: 'local' (a local Ray instance), 'auto' or 'ray://HOST:PORT' "
                              '(an existing cluster)')
@@ -69,6 +73,11 @@ def run(args: argparse.Namespace, console) -> int:
     if args.address and args.workers is not None:
         raise CommandError('--workers is for local processes; with --address Ray places the jobs')
     workers = args.workers or min(2, os.cpu_count() or 1)
+    from ..device import resolve_device
+
+    with resolving_arguments():
+        resolve_device(args.device)       # CUDA asked for and absent: one line, before any job starts
+    previous = signal.signal(signal.SIGTERM, _interrupt)   # a scheduler's SIGTERM stops like Ctrl-C (resumable)
     try:
         env_of(settings.config)   # a bad preset or file fails before any worker or Ray starts
         runner = RayRunner(None if args.address == 'local' else args.address) if args.address else LocalRunner(workers)
@@ -76,17 +85,25 @@ def run(args: argparse.Namespace, console) -> int:
         console.print(f'population run: {settings.solver} on {settings.config}, {settings.iterations} iterations, '
                       f'{settings.br_steps:,} decision steps per best response, {settings.eval_episodes} episodes per '
                       f'payoff entry, on {where} -> {out}', soft_wrap=True)
-        state = run_psro(settings, out, runner, say=lambda line: console.print(line, soft_wrap=True, highlight=False))
+        state = run_psro(settings, out, runner, say=lambda line: console.print(line, soft_wrap=True, highlight=False),
+                         device=args.device)
     except (PSROError, ConfigError) as exc:
         raise CommandError(str(exc)) from None
     except KeyboardInterrupt:
-        console.print(f'interrupted; run the same command again to resume from {out / "state.json"}')
+        console.print(f'interrupted; run the same command again to resume from {out / "state.json"} (a best '
+                      'response in training continues from its own checkpoint)', soft_wrap=True)
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     last = state['iterations'][-1]
     console.print(f'done: {len(state["iterations"]) - 1} iterations; state, payoff matrices and policies in {out}'
                   + ('' if last.get('exploitability') is None else
                      f'; last exploitability {last["exploitability"]["mean"]:.4f}'))
     return 0
+
+
+def _interrupt(number, frame):
+    raise KeyboardInterrupt(signal.Signals(number).name)
 
 
 def _plot(args: argparse.Namespace, console) -> int:

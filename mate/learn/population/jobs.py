@@ -7,7 +7,7 @@
 
 Pool members travel as *payloads*: a batched agent name of `mate evaluate` ('random', 'greedy',
 'pretrained:NAME') or the bytes of a policy file, so that a worker on another machine of a Ray cluster
-needs no shared file system. A worker turns a payload into a batched team (`mate.learn.evaluate`);
+needs no shared file system. A worker turns a payload into a batched team (`mate.learn.policy.make_team`);
 population members always sample their actions (spec training.md §5.1: they are stochastic).
 """
 
@@ -26,7 +26,7 @@ __all__ = ['best_response', 'member_team', 'payoff_entries', 'policy_from_bytes'
 def policy_from_bytes(data: bytes, team):
     """A `LoadedPolicy` from a policy file's bytes (read through a private temporary file, checked by
     `load_checkpoint` like any file)."""
-    from ..agents import load_policy
+    from ..policy import load_policy
 
     with tempfile.TemporaryDirectory(prefix='mate-member-') as folder:
         path = Path(folder) / 'policy.pt'
@@ -36,7 +36,7 @@ def policy_from_bytes(data: bytes, team):
 
 def member_team(payload, team, num_envs: int, counts, seed: int | None):
     """The batched team of one pool member: a policy file's bytes, or an agent name of `make_team`."""
-    from ..evaluate import PolicyTeam, make_team
+    from ..policy import PolicyTeam, make_team
 
     if isinstance(payload, (bytes, bytearray)):
         return PolicyTeam(policy_from_bytes(bytes(payload), team), team, num_envs, counts, seed=seed,
@@ -56,20 +56,19 @@ def rescaled_schedules(total_steps: int) -> dict:
 
 def best_response(team: str, env: dict, opponents: list, weights: list[float], steps: int, seed: int,
                   run_dir: str, init: bytes | None = None, num_envs: int = 16, torch_threads: int = 1,
-                  checkpoint_every: int = 5) -> dict:
+                  checkpoint_every: int = 5, device: str = 'auto') -> dict:
     """Train `team`'s best response (cameras: HRL-MAPPO with the mixed reward; targets: MAPPO) for `steps`
     decision steps against the mixture of the other team's `opponents` (payloads) with `weights` (drawn per
     episode and env row), warm-started from the actor of `init` (policy bytes) if given.
 
     `torch_threads`: threads of the training's updates; one, because a best response's minibatches are small
     and two threads ran them several times slower whenever the other core was busy (another job, the env).
-    `env`: {'env_id': ..., 'config': ...} of the game. Resumes from `run_dir/checkpoint.pt` when a killed
+    `env`: {'env_id': ..., 'config': ...} of the game. Resumes from `run_dir/checkpoint.pt` when a stopped
     job left one. Returns {'policy': bytes of best.pt (else final.pt), 'chosen': 'best' | 'final', 'steps',
-    'seconds', 'episode_return', 'episode_coverage', 'episode_normalized_target_return'}.
+    'seconds', 'episode_return', 'episode_coverage', 'episode_normalized_target_return', 'interrupted'}.
     """
-    from ..envs import TeamVecEnv
-    from ..evaluate import MixtureTeam
-    from ..ppo import PPOConfig, train
+    from ...teams import MixtureTeam
+    from ..mappo import MAPPOConfig, policy_spec, train
 
     other = 'target' if team == 'camera' else 'camera'
     kept = [(member, w) for member, w in zip(opponents, weights) if w > 0]     # zero-weight members dropped
@@ -88,18 +87,17 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
         init_path = run_dir / 'init.pt'
         init_path.write_bytes(init)
     camera = team == 'camera'
-    config = PPOConfig(algo='mappo', team=team, env_id=env['env_id'], config=env.get('config'), hrl=camera,
-                       total_steps=int(steps), num_envs=int(num_envs), seed=int(seed), torch_threads=int(torch_threads),
-                       checkpoint_every=int(checkpoint_every), init_from=None if init_path is None else str(init_path),
-                       **rescaled_schedules(steps)).resolved()
-    envs = TeamVecEnv(team, num_envs=config.num_envs, env_id=config.env_id, frame_skip=config.frame_skip,
-                      horizon=config.horizon, levels=config.levels, seed=config.seed, config=config.config,
-                      hrl=config.hrl, camera_reward='mixed' if camera else 'coverage', opponent=opponent)
+    config = MAPPOConfig(team=team, config=env.get('config') or env['env_id'].removesuffix('-v0'), hrl=camera,
+                         steps=int(steps), num_envs=int(num_envs), seed=int(seed), threads=int(torch_threads),
+                         checkpoint_every=int(checkpoint_every), device=device, run_dir=str(run_dir), progress=False,
+                         init_from=None if init_path is None else str(init_path), **rescaled_schedules(steps))
+    envs = config.make_env(policy_spec(config), opponent=opponent, camera_reward='mixed' if camera else 'coverage')
     start = time.perf_counter()
-    row = train(config, run_dir, resume=True, progress=False, envs=envs)
+    run = train(config, envs=envs)
+    row = run.last_row
     chosen = 'best' if (run_dir / 'best.pt').exists() else 'final'
-    return dict(policy=(run_dir / f'{chosen}.pt').read_bytes(), chosen=chosen, steps=int(row.get('env_steps', steps)),
-                seconds=time.perf_counter() - start,
+    return dict(policy=(run_dir / f'{chosen}.pt').read_bytes() if not run.interrupted else b'', chosen=chosen,
+                steps=int(run.env_steps), seconds=time.perf_counter() - start, interrupted=run.interrupted,
                 **{key: float(row.get(key, math.nan)) for key in
                    ('episode_return', 'episode_coverage', 'episode_normalized_target_return')})
 
@@ -114,7 +112,7 @@ def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[in
     utility U_T), its standard error `payoff_sem`, `coverage`, `real_coverage`, `length` (means) and
     `env_steps_per_second`.
     """
-    from ..evaluate import MixtureTeam, play_batch
+    from ...teams import MixtureTeam, play_batch
 
     if not pairs:
         return []

@@ -197,11 +197,13 @@ class RayRunner:
 
 # ============================================================================ the loop
 
-def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None] = print) -> dict:
+def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None] = print,
+             device: str = 'auto') -> dict:
     """Run (or resume) the population run of `settings` in the directory `out`; returns the final state.
 
     `runner`: `LocalRunner` (default: in this process) or `RayRunner`. `say(line)` receives one line per
-    stage. PSROError if `out` holds a run with other settings.
+    stage. `device`: where the best responses train (`--device`). PSROError if `out` holds a run with other
+    settings. KeyboardInterrupt when a signal stopped it (every finished stage is saved: run it again).
     """
     from . import jobs
 
@@ -230,13 +232,13 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
     runner = runner or LocalRunner(1)
     try:
         while len(state['iterations']) <= settings.iterations:
-            _iteration(state, settings, env, out, runner, jobs, say)
+            _iteration(state, settings, env, out, runner, jobs, say, device)
     finally:
         runner.close()
     return state
 
 
-def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, say) -> None:
+def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, say, device: str) -> None:
     i = len(state['iterations'])
     started = time.perf_counter()
     pools = state['pools']
@@ -255,13 +257,19 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
                 team=side, env=env, opponents=[member_payload(m, out) for m in pools[other][:len(strategies[other])]],
                 weights=strategies[other], steps=settings.br_steps,
                 seed=settings.seed * 1_000 + 2 * i + (side == 'target'),
-                run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs)))
+                run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs,
+                device=device)))
         if todo:
             say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
                 f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
 
+        stopped = []
+
         def trained(index, result):
             side = todo[index]
+            if result.pop('interrupted', False):   # a signal stopped it: its run directory holds its checkpoint
+                stopped.append(side)
+                return
             path = Path('players') / f'{side}-{i}.pt'
             (out / path).write_bytes(result.pop('policy'))
             pools[side].append(str(path))
@@ -273,6 +281,8 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
                 f'checkpoint; {scores})')
 
         runner.run(job_list, trained)
+        if stopped:
+            raise KeyboardInterrupt(f'the {" and ".join(stopped)} best response of iteration {i} stopped by a signal')
 
     # ---- 2. the missing payoff entries
     m, n = len(pools['camera']), len(pools['target'])

@@ -1,0 +1,40 @@
+"""`--device auto|cpu|cuda[:N]`: where a trainer's networks, rollout buffers and updates run.
+
+The simulation always runs on the CPU (numba); a trainer moves each decision's observations to the device
+once and the chosen actions back once. `auto` takes the first GPU when PyTorch sees one, else the CPU.
+"""
+
+from __future__ import annotations
+
+import re
+
+__all__ = ['parse_device', 'resolve_device']
+
+_PATTERN = re.compile(r'^(auto|cpu|cuda(:\d+)?)$')
+
+
+def parse_device(name: str) -> str:
+    """`name` if it is one of auto, cpu, cuda, cuda:N; ValueError (one line, the valid forms) otherwise."""
+    if not isinstance(name, str) or not _PATTERN.match(name.strip()):
+        raise ValueError(f"device must be auto, cpu, cuda or cuda:N (N a GPU index), got {name!r}")
+    return name.strip()
+
+
+def resolve_device(name: str = 'auto'):
+    """The `torch.device` of `name`: auto picks cuda:0 when available, else cpu. ValueError (one line) when CUDA
+    is asked for and PyTorch sees no GPU, or the index is out of range."""
+    import torch
+
+    name = parse_device(name)
+    if name == 'auto':
+        return torch.device('cuda:0' if torch.cuda.is_available() else 'cpu')
+    if name == 'cpu':
+        return torch.device('cpu')
+    if not torch.cuda.is_available():
+        raise ValueError(f'--device {name}: PyTorch sees no CUDA GPU here (torch {torch.__version__}, built '
+                         f'{"with" if torch.version.cuda else "without"} CUDA); use --device cpu or auto')
+    device = torch.device(name if ':' in name else 'cuda:0')
+    if device.index >= torch.cuda.device_count():
+        raise ValueError(f'--device {name}: PyTorch sees {torch.cuda.device_count()} GPU(s), indices 0..'
+                         f'{torch.cuda.device_count() - 1}')
+    return device

@@ -1,0 +1,311 @@
+"""MADDPG as MA-TD3 for MATE: one deterministic actor and two centralised Q-critics per agent, continuous actions,
+in one file that reads top to bottom (`mate train matd3`, alias `mate train maddpg`).
+
+    config  ->  PolicySpec (continuous actions: each agent's share of its own action bounds, in [-1, 1]^2)
+            ->  batched training envs (`TeamVecEnv`: B games, the other team the greedy rules)
+            ->  networks, per agent (no sharing): an actor (local observation -> action) and twin critics (global
+                state and the team's joint action -> Q), all agents' networks evaluated at once (`AgentwiseMLP`),
+                and their target copies
+            ->  loop: uniform random actions for the first `random_steps` decision steps, then each actor's action
+                plus Gaussian noise; the team's decision enters the replay ring; once `learning_starts` decision
+                steps are stored, one update of `batch_size` decision steps every `update_every`: both critics
+                towards the clipped double-Q target with target-policy smoothing, the actors every `policy_delay`
+                updates, soft target updates (tau) after each; a log row (an iteration) every `report_every`
+            ->  `Run`: logs, checkpoints, best.pt, final.pt
+
+Spec training.md §2.5: independent policies (no sharing); actor MLP [512, 256] tanh, output init 0.01, squashed to
+the action box; critic: concat(state, joint action) -> MLP [512, 256] tanh -> Q, no layer norm; Huber critic loss
+(threshold 10); Adam, lr 1e-4 for both; tau 0.01 after every update; policy delay 2; smoothing noise 0.2 clipped at
+0.5; exploration: uniform actions for 10,000 decision steps, then Gaussian noise 0.1; replay 500,000 decision
+steps, learning from 5,000. Deviations (docs/differences.md): the twin critics are two networks (the original
+routed the second through the first, so its clipped double-Q was off); the noises are in units of each agent's
+action bounds (actions live in [-1, 1]); the next actions of the target are every agent's target actor's (the
+textbook MADDPG), not the behaviour data's; one update per 128 decision steps instead of per 3,200.
+
+Actions in [-1, 1] are each agent's share of its own bounds (`TeamVecEnv` scales them: cameras' rotation and zoom
+steps, targets' step size). Rewards: the team's (repeated for every agent) or each camera's own with `--credit
+difference`; the critic of agent i learns agent i's return. Horizon cuts are truncations.
+
+Resuming: the checkpoint written at the end of a session (the run complete, its time spent, or stopped by SIGINT /
+SIGTERM) holds the replay's filled rows, so the same command continues exactly as if never stopped. The periodic
+checkpoints (every `checkpoint_every` iterations) leave it out (1-2 GB at the spec's sizes): a run resumed from one
+(after a crash) refills the replay with `learning_starts` decision steps before it updates again (the uniform
+phase is not repeated).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from typing import Literal
+
+import numpy as np
+import torch
+from torch import nn
+
+from ..options import option
+from .device import resolve_device
+from .envs import TeamEnvConfig, TeamVecEnv
+from .networks import AgentwiseMLP
+from .policy import make_actor
+from .replay import TransitionRing
+from .run import Run, RunConfig, mean_or_nan
+from .spec import PolicySpec
+
+__all__ = ['MATD3Config', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'critic_targets', 'policy_spec',
+           'smoothed_actions', 'train']
+
+
+@dataclasses.dataclass
+class MATD3Config(TeamEnvConfig, RunConfig):
+    """Settings of an MA-TD3 run (`train(config)`, `mate train matd3`)."""
+
+    num_envs: int = option(16, 'games played at once', minimum=1)
+    threads: int = option(1, 'torch threads of the updates; 0: every core (acting always uses 1; the updates are small '
+                             'and come between decisions, so more threads rarely pay for switching)', minimum=0)
+    hrl: bool = option(False, 'MA-TD3 acts with continuous actions: no HRL target selections', cli=False)
+    buffer_size: int = option(500_000, 'replay size in decision steps (all agents of the team)', minimum=1)
+    batch_size: int = option(1024, 'decision steps per update', minimum=1)
+    learning_starts: int = option(5_000, 'decision steps stored before the first update (a run resumed without its '
+                                         'replay stores as many again)', minimum=0)
+    update_every: int = option(128, 'decision steps between updates', minimum=1)
+    random_steps: int = option(10_000, 'decision steps of uniform random actions first', minimum=0)
+    exploration_noise: float = option(0.1, 'std of the Gaussian action noise (a share of the action bounds)', minimum=0)
+    target_noise: float = option(0.2, 'std of the target-policy smoothing noise', minimum=0)
+    target_noise_clip: float = option(0.5, 'the smoothing noise is clipped at +- this', minimum=0)
+    policy_delay: int = option(2, 'critic updates per actor update', minimum=1)
+    tau: float = option(0.01, 'soft target update rate, after every update, in (0, 1]', above=0)
+    gamma: float = option(0.99, 'discount per decision', minimum=0)
+    actor_lr: float = option(1e-4, "the actors' learning rate (Adam)", above=0)
+    critic_lr: float = option(1e-4, "the critics' learning rate (Adam)", above=0)
+    huber: float = option(10.0, 'Huber threshold of the critic loss', above=0)
+    hidden: tuple[int, ...] = option((512, 256), 'hidden layer widths of the actors and the critics', minimum=1)
+    activation: Literal['tanh', 'relu'] = option('tanh', 'hidden activation')
+    report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
+
+    def __post_init__(self) -> None:
+        TeamEnvConfig.__post_init__(self)
+        RunConfig.__post_init__(self)
+        if self.hrl:
+            raise ValueError('--hrl is not an option of MA-TD3: it acts with continuous actions (HRL selections are '
+                             'discrete: mappo, iql, qmix)')
+        if not 0.0 < self.tau <= 1.0:
+            raise ValueError(f'tau must be in (0, 1], got {self.tau}')
+        for name in ('num_envs', 'buffer_size', 'batch_size', 'update_every', 'policy_delay'):
+            if getattr(self, name) < 1:
+                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
+        if self.activation not in ('tanh', 'relu'):
+            raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
+        self.hidden = tuple(self.hidden)
+
+
+def policy_spec(config: MATD3Config, envs=None) -> PolicySpec:
+    """The spec of the policy `config` trains (the agents' actors, continuous actions); with `envs` given, what they
+    say the policy sees and does (their `spec`: the tests' toy tasks) with this network."""
+    network = dict(network='independent', hidden=config.hidden, activation=config.activation, lstm=0, algo='matd3',
+                   deterministic=True)
+    if envs is not None:
+        return envs.spec.replace(**network)
+    return config.policy_spec(action='continuous', **network)
+
+
+# ============================================================================ critics and the formulas
+
+class TwinCritics(nn.Module):
+    """Two independent Q-critics per agent: input (..., N, S + N A) (the global state and a joint action, as
+    agent i's critic sees it) -> (q1, q2), each (..., N)."""
+
+    def __init__(self, agents: int, inputs: int, hidden=(512, 256), activation: str = 'tanh') -> None:
+        super().__init__()
+        self.q1 = AgentwiseMLP(agents, inputs, hidden, 1, activation)
+        self.q2 = AgentwiseMLP(agents, inputs, hidden, 1, activation)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.q1(x).squeeze(-1), self.q2(x).squeeze(-1)
+
+
+def critic_inputs(state: torch.Tensor, joint: torch.Tensor) -> torch.Tensor:
+    """Every agent's critic input (..., N, S + N A) from the state (..., S) and one joint action (..., N, A)
+    that all agents' critics see."""
+    N = joint.shape[-2]
+    flat = joint.flatten(-2)
+    return torch.cat([state, flat], -1).unsqueeze(-2).expand(*flat.shape[:-1], N, state.shape[-1] + flat.shape[-1])
+
+
+def actor_inputs(state: torch.Tensor, joint: torch.Tensor, own: torch.Tensor) -> torch.Tensor:
+    """Agent i's critic input for its actor update: the stored joint action (..., N, A) with agent i's own
+    entry replaced by `own[..., i, :]` (the actor's current action); (..., N, S + N A). Only agent i's actor
+    receives the gradient of agent i's critic."""
+    N = joint.shape[-2]
+    eye = torch.eye(N, dtype=joint.dtype, device=joint.device)[..., None]     # (N_critic, N_slot, 1)
+    joints = eye * own.unsqueeze(-3) + (1 - eye) * joint.unsqueeze(-3)     # (..., N_critic, N_slot, A)
+    state = state.unsqueeze(-2).expand(*joints.shape[:-2], state.shape[-1])
+    return torch.cat([state, joints.flatten(-2)], -1)
+
+
+def smoothed_actions(actions: torch.Tensor, noise: torch.Tensor, noise_clip: float) -> torch.Tensor:
+    """Target-policy smoothing: clip(actions + clip(noise, -c, c), -1, 1)."""
+    return (actions + noise.clamp(-noise_clip, noise_clip)).clamp(-1.0, 1.0)
+
+
+def critic_targets(reward, terminal, next_q1, next_q2, gamma: float) -> torch.Tensor:
+    """Clipped double-Q targets (..., N): r + gamma (1 - terminal) min(Q1', Q2'), rewards (..., N), terminal
+    (...,) and the target critics' values (..., N) at the smoothed next joint action."""
+    return reward + gamma * (1.0 - terminal[..., None]) * torch.minimum(next_q1, next_q2)
+
+
+# ============================================================================ training
+
+def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+    """Train as `config` says (in `config.run_dir`, default runs/matd3-TEAM-seedN); resume from its checkpoint
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    and reset/step: tests' toy tasks with continuous actions); `callback(row)` sees every log row. Returns the
+    `Run`."""
+    device = resolve_device(config.device)
+    spec = policy_spec(config, envs)
+    run = Run(config.run_dir or f'runs/matd3-{config.team}-seed{config.seed}', 'matd3', config, spec,
+              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
+              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+
+    # ---- environments
+    envs = envs or config.make_env(spec)
+    B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, spec.num_actions
+
+    # ---- networks, optimisers, replay, noise
+    # one torch thread for acting (the vector env runs its own threads) and for the initialisation, whose
+    # orthogonal matrices (QR decompositions) differ with the thread count
+    torch.set_num_threads(1)
+    torch.manual_seed(config.seed)
+    actor = make_actor(spec).to(device)
+    critics = TwinCritics(N, S + N * A, config.hidden, config.activation).to(device)
+    target_actor = copy.deepcopy(actor).requires_grad_(False)
+    target_critics = copy.deepcopy(critics).requires_grad_(False)
+    actor_optimizer = torch.optim.Adam(actor.parameters(), lr=config.actor_lr)
+    critic_optimizer = torch.optim.Adam(critics.parameters(), lr=config.critic_lr)
+    replay = TransitionRing(config.buffer_size, obs=((N, D), np.float32), state=((S,), np.float32),
+                            action=((N, A), np.float32), reward=((N,), np.float32), next_obs=((N, D), np.float32),
+                            next_state=((S,), np.float32), terminal=((), np.float32))
+    rng = np.random.default_rng([config.seed, 0])                   # exploration and replay sampling
+    noise = torch.Generator(device).manual_seed(int(rng.integers(2 ** 62)))    # target-policy smoothing
+    updates = 0
+    saved = run.resume()
+    if saved is not None:
+        for module, name in ((actor, 'actor'), (critics, 'critics'), (target_actor, 'target_actor'),
+                             (target_critics, 'target_critics')):
+            module.load_state_dict(saved['networks'][name])
+        actor_optimizer.load_state_dict(saved['optimizers']['actor'])
+        critic_optimizer.load_state_dict(saved['optimizers']['critic'])
+        rng.bit_generator.state = saved['rng']
+        noise.set_state(saved['noise'])
+        updates = int(saved['updates'])
+    if saved is not None and 'envs' in saved:
+        envs.load_state_dict(saved['envs'])
+        obs, state = envs.observations()
+    else:
+        obs, state = envs.reset(seed=config.seed + 10_007 * run.iteration)
+
+    # ---- the schedule, in decision steps: updates and log rows
+    steps = run.env_steps
+    if saved is not None and replay.fits(saved.get('replay')):       # the end of a session: continue exactly
+        replay.load_state_dict(saved['replay'])
+        learning_from, next_update, next_report = (saved['schedule'][key] for key in (
+            'learning_from', 'next_update', 'next_report'))
+    else:                                                            # fresh, or a periodic checkpoint: fill first
+        learning_from = steps + config.learning_starts
+        next_update = max(learning_from, steps + config.update_every)
+        next_report = (steps // config.report_every + 1) * config.report_every
+        if saved is not None:
+            next_report = saved['schedule']['next_report']
+
+    def run_state(with_replay: bool = False) -> dict:   # everything the run's future depends on
+        networks = dict(actor=actor.state_dict(), critics=critics.state_dict(), target_actor=target_actor.state_dict(),
+                        target_critics=target_critics.state_dict())
+        algorithm = dict(networks=networks,
+                         optimizers=dict(actor=actor_optimizer.state_dict(), critic=critic_optimizer.state_dict()),
+                         updates=updates, rng=rng.bit_generator.state, noise=noise.get_state(),
+                         schedule=dict(learning_from=learning_from, next_update=next_update, next_report=next_report))
+        if hasattr(envs, 'state_dict'):
+            algorithm['envs'] = envs.state_dict()
+        if with_replay:
+            algorithm['replay'] = replay.state_dict()
+        return algorithm
+
+    learn_threads = config.threads or _cores()
+    coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
+    with run:
+        while run.running():
+            while True:   # one iteration: decisions until the next log row
+                # ---- act: uniform at first, then the actors' actions plus Gaussian noise
+                if steps < config.random_steps:
+                    action = rng.uniform(-1.0, 1.0, size=(B, N, A)).astype(np.float32)
+                else:
+                    with torch.no_grad():
+                        action = actor(torch.from_numpy(obs).to(device)).cpu().numpy()
+                    action = np.clip(action + config.exploration_noise * rng.standard_normal(action.shape), -1.0, 1.0)
+                    action = action.astype(np.float32)
+                next_obs, next_state, reward, done, truncated, info = envs.step(action)
+
+                # ---- store the team's decision; an ended episode's own last observation is its next one
+                replay.add(obs=obs, state=state, action=action,
+                           reward=np.broadcast_to(np.asarray(reward, dtype=np.float32).reshape(B, -1), (B, N)),
+                           next_obs=np.where(done[:, None, None], info['final_obs'], next_obs),
+                           next_state=np.where(done[:, None], info['final_state'], next_state),
+                           terminal=(done & ~truncated).astype(np.float32))
+                obs, state = next_obs, next_state
+                steps += B
+                coverage.append(float(np.mean(info['coverage'])))
+                episodes += info['episodes']
+
+                # ---- learn: critics every `update_every` decision steps, actors every `policy_delay` critic updates
+                if steps >= next_update:
+                    torch.set_num_threads(learn_threads)
+                    while steps >= next_update:
+                        next_update += config.update_every
+                        batch = {key: value.to(device) for key, value in replay.sample(config.batch_size, rng).items()}
+                        with torch.no_grad():
+                            smoothing = torch.randn(batch['action'].shape, generator=noise, device=device)
+                            next_action = smoothed_actions(target_actor(batch['next_obs']),
+                                                           config.target_noise * smoothing, config.target_noise_clip)
+                            next_q1, next_q2 = target_critics(critic_inputs(batch['next_state'], next_action))
+                            targets = critic_targets(batch['reward'], batch['terminal'], next_q1, next_q2, config.gamma)
+                        q1, q2 = critics(critic_inputs(batch['state'], batch['action']))
+                        critic_loss = (nn.functional.huber_loss(q1, targets, delta=config.huber)
+                                       + nn.functional.huber_loss(q2, targets, delta=config.huber))
+                        critic_optimizer.zero_grad()
+                        critic_loss.backward()
+                        critic_optimizer.step()
+                        critic_losses.append(critic_loss.item())
+                        q_means.append(q1.detach().mean().item())
+                        updates += 1
+                        if updates % config.policy_delay == 0:
+                            own = actor(batch['obs'])
+                            actor_loss = -critics.q1(actor_inputs(batch['state'], batch['action'], own)).mean()
+                            actor_optimizer.zero_grad()
+                            actor_loss.backward()
+                            actor_optimizer.step()
+                            actor_losses.append(actor_loss.item())
+                        with torch.no_grad():   # soft target updates after every update
+                            for net, target in ((actor, target_actor), (critics, target_critics)):
+                                for p, p_target in zip(net.parameters(), target.parameters()):
+                                    p_target.lerp_(p, config.tau)
+                    torch.set_num_threads(1)
+                if steps >= next_report or steps >= config.steps or run.out_of_time():
+                    break
+
+            # ---- log, keep the best policy, checkpoint
+            next_report += config.report_every
+            run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
+                critic_loss=mean_or_nan(critic_losses), actor_loss=mean_or_nan(actor_losses),
+                q_mean=mean_or_nan(q_means), buffer=replay.size),
+                save_best=lambda: run.save_policy('best.pt', actor.state_dict(),
+                                                  note=f'best, iteration {run.iteration}'),
+                save=run_state)
+            coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
+    run.finish(run_state(with_replay=True), actor.state_dict())
+    return run
+
+
+def _cores() -> int:
+    from ..core.engine import NUM_THREADS
+
+    return NUM_THREADS

@@ -1,0 +1,276 @@
+"""QMIX for MATE: a recurrent agent network shared by the team and a monotonic mixer of the agents' values on the
+global state, in one file that reads top to bottom (`mate train qmix`).
+
+    config  ->  PolicySpec (grid moves, or HRL target selections: `--hrl`, `--selection joint|per-target`)
+            ->  batched training envs (`TeamVecEnv`: B games, the other team the greedy rules)
+            ->  networks: the GRU agent network, the mixer (`QMixer`), and their target copies
+            ->  loop: at every decision each agent acts epsilon-greedily from its GRU state (one forward pass for
+                B x N agents) and the team's decision enters the replay (`SequenceReplay`: chunks of
+                `sequence_length` consecutive decisions); once `learning_starts` decision steps are stored, one
+                double-Q update of the mixed value on `batch_size` decision steps (whole chunks) every
+                `update_every` decision steps; a hard copy to the target networks every `target_update`; a log
+                row (an iteration) every `report_every` decision steps
+            ->  `Run`: logs, checkpoints, best.pt, final.pt
+
+Spec training.md §2.4: agent network Linear(256) + ReLU -> GRU(256) -> Q-values; mixer with embedding 128
+(hyper-network weights made non-negative by an absolute value, ELU hidden layer, a state-value MLP); double-Q 1-step
+targets of the mixed value, masked MSE, RMSprop (lr 1e-4, alpha 0.99, eps 1e-5), gradient norm clipped at 1000;
+epsilon 1.0 -> 0.02 over 50,000 decision steps. QMIX learns from the team reward (`--credit team` only). Horizon
+cuts are truncations: their targets bootstrap from the last observation.
+
+The replay holds chunks of `sequence_length` decision steps that never cross an episode start (an episode that
+ends early leaves the rest of its chunk masked), each with the GRU state the acting network had at its first step;
+the original stored whole episodes of up to 500 decisions. At the spec's 2,000 episodes (1,000,000 decision steps)
+the HRL MATE-4v8-9 camera replay takes 3.25 GB, filled as it is used.
+
+HRL cameras (`--hrl`): as in `iql.py`, one choice among the 2^Nt target subsets (`--selection joint`, the default)
+or a keep/ignore head per slot (`--selection per-target`); selections that keep an invisible target are never
+taken.
+
+Resuming: the checkpoint written at the end of a session (the run complete, its time spent, or stopped by SIGINT /
+SIGTERM) holds the replay's filled chunks and the rows' open ones, and the acting GRU state, so the same command
+continues exactly as if never stopped. The periodic checkpoints (every `checkpoint_every` iterations) leave the
+replay out (1-3 GB at the spec's sizes): a run resumed from one (after a crash) refills it with `learning_starts`
+decision steps before it updates again, exploring at the rate of its step count.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+import torch
+from torch import nn
+
+from ..options import option
+from .device import resolve_device
+from .envs import TeamVecEnv
+from .policy import make_actor
+from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_values, epsilon_greedy
+from .replay import SequenceReplay
+from .run import Run, mean_or_nan
+from .schedules import piecewise
+from .spec import PolicySpec
+
+__all__ = ['QMIXConfig', 'QMixer', 'policy_spec', 'qmix_loss', 'train']
+
+
+@dataclasses.dataclass
+class QMIXConfig(QLearningConfig):
+    """Settings of a QMIX run (`train(config)`, `mate train qmix`)."""
+
+    buffer_size: int = option(1_000_000, 'replay size in decision steps (the spec: 2,000 episodes of 500)', minimum=1)
+    batch_size: int = option(1024, 'decision steps per update (whole chunks: batch-size / sequence-length of them)',
+                             minimum=1)
+    sequence_length: int = option(25, 'decision steps per replay chunk of the recurrent agents', minimum=1)
+    hidden: tuple[int, ...] = option((256,), "width of the agent network's embedding and GRU (one number)", minimum=1)
+    mixer_embed: int = option(128, "the mixer's width", minimum=1)
+    lr_schedule: tuple[tuple[float, float], ...] = option(
+        ((0, 1e-4),), 'learning rate (RMSprop), a step function of decision steps [[step, lr], ...]')
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ('buffer_size', 'batch_size', 'sequence_length', 'mixer_embed'):
+            if getattr(self, name) < 1:
+                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
+        if self.credit != 'team':
+            raise ValueError(f"QMIX learns from the team reward: credit must be 'team', not {self.credit!r}")
+        if len(self.hidden) != 1:
+            raise ValueError(f"QMIX's agent network has one width (--hidden N), got {tuple(self.hidden)}")
+        if not self.lr_schedule:
+            raise ValueError('lr_schedule needs at least one [step, value] point')
+        self.hidden = tuple(self.hidden)
+
+
+def policy_spec(config: QMIXConfig, envs=None) -> PolicySpec:
+    """The spec of the policy `config` trains (the GRU agent network; its Q-values are read as logits, argmax);
+    with `envs` given, what they say the policy sees and does (their `spec`) with this network."""
+    network = dict(network='recurrent-q', hidden=config.hidden, activation='relu', lstm=0, algo='qmix',
+                   deterministic=True)
+    if envs is not None:
+        return envs.spec.replace(**network)
+    return config.policy_spec(action=action_kind(config), **network)
+
+
+class QMixer(nn.Module):
+    """QMIX's mixing network (spec training.md §2.4): the agents' chosen values q (..., N) and the global
+    state (..., S) -> Q_tot (...,) = ELU(q W1(s) + b1(s)) . W2(s) + V(s), with W1 = |Linear(s)| (N x E) and
+    W2 = |Linear(s)| (E): non-negative weights, so dQ_tot/dq_i >= 0 (monotonic in every agent's value)."""
+
+    def __init__(self, state_dim: int, agents: int, embed: int = 128) -> None:
+        super().__init__()
+        self.agents, self.embed = int(agents), int(embed)
+        self.w1 = nn.Linear(state_dim, self.agents * self.embed)
+        self.b1 = nn.Linear(state_dim, self.embed)
+        self.w2 = nn.Linear(state_dim, self.embed)
+        self.value = nn.Sequential(nn.Linear(state_dim, self.embed), nn.ReLU(), nn.Linear(self.embed, 1))
+
+    def forward(self, q: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        w1 = self.w1(state).abs().unflatten(-1, (self.agents, self.embed))          # (..., N, E)
+        hidden = nn.functional.elu((q.unsqueeze(-2) @ w1).squeeze(-2) + self.b1(state))
+        return (hidden * self.w2(state).abs()).sum(-1) + self.value(state).squeeze(-1)
+
+
+def qmix_loss(q_net, target_net, mixer, target_mixer, batch: dict, gamma: float, heads: int,
+              next_allowed: torch.Tensor | None = None) -> tuple[torch.Tensor, float]:
+    """Masked MSE between the mixed value of the taken joint actions and its double-Q target, on a batch of K
+    chunks (`SequenceReplay.sample`), and the mean mixed value. Both agent networks unroll every chunk from its
+    stored GRU state; the online network picks each agent's next action (among `next_allowed` (L, K, N, H, C)
+    bool, the choices allowed at the next observations), the target networks evaluate."""
+    obs = batch['obs'].transpose(0, 1)                                     # (L + 1, K, N, D)
+    state = batch['state'].transpose(0, 1)                                 # (L + 1, K, S)
+    action = batch['action'].transpose(0, 1).long()                        # (L, K, N, H)
+    reward, terminal, mask = (batch[k].transpose(0, 1) for k in ('reward', 'terminal', 'mask'))    # (L, K)
+    q = q_net(obs, batch['h0']).unflatten(-1, (heads, -1))                 # (L + 1, K, N, H, C)
+    taken = q[:-1].gather(-1, action[..., None]).squeeze(-1).sum(-1)       # (L, K, N)
+    q_tot = mixer(taken, state[:-1])                                       # (L, K)
+    with torch.no_grad():
+        evaluated = target_net(obs, batch['h0']).unflatten(-1, (heads, -1))[1:]
+        next_values = double_q_values(q[1:].detach(), evaluated, next_allowed)                 # (L, K, N)
+        targets = reward + gamma * (1.0 - terminal) * target_mixer(next_values, state[1:])
+    loss = ((q_tot - targets) ** 2 * mask).sum() / mask.sum().clamp_min(1.0)
+    return loss, ((q_tot.detach() * mask).sum() / mask.sum().clamp_min(1.0)).item()
+
+
+# ============================================================================ training
+
+def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+    """Train as `config` says (in `config.run_dir`, default runs/qmix-TEAM-seedN); resume from its checkpoint
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
+    device = resolve_device(config.device)
+    spec = policy_spec(config, envs)
+    run = Run(config.run_dir or f'runs/qmix-{config.team}-seed{config.seed}', 'qmix', config, spec,
+              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
+              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+
+    # ---- environments
+    envs = envs or config.make_env(spec)
+    B, N, D, S = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim
+    H, C = spec.heads, spec.choices                                  # values per agent: H heads of C choices
+
+    # ---- networks, optimiser, replay, exploration
+    torch.set_num_threads(1)                                         # acting: the vector env runs its own threads
+    torch.manual_seed(config.seed)
+    q_net = make_actor(spec).to(device)
+    target_net = copy.deepcopy(q_net).requires_grad_(False).to(device)   # (.to: the copied GRU's weights in one block)
+    mixer = QMixer(S, N, config.mixer_embed).to(device)
+    target_mixer = copy.deepcopy(mixer).requires_grad_(False)
+    learned = [*q_net.parameters(), *mixer.parameters()]
+    optimizer = torch.optim.RMSprop(learned, lr=config.lr_schedule[0][1], alpha=0.99, eps=1e-5)
+    replay = SequenceReplay(config.buffer_size, config.sequence_length, B, N, D, S, H, q_net.width)
+    rng = np.random.default_rng([config.seed, 0])                   # exploration and replay sampling
+    hidden = q_net.initial_state(B, N)[0].to(device)                 # (B, N, G) the acting GRU state
+    saved = run.resume()
+    if saved is not None:
+        for module, name in ((q_net, 'actor'), (target_net, 'target'), (mixer, 'mixer'),
+                             (target_mixer, 'target_mixer')):
+            module.load_state_dict(saved['networks'][name])
+        optimizer.load_state_dict(saved['optimizer'])
+        rng.bit_generator.state = saved['rng']
+        hidden = torch.as_tensor(saved['hidden']).to(device)
+    if saved is not None and 'envs' in saved:
+        envs.load_state_dict(saved['envs'])
+        obs, state = envs.observations()
+    else:
+        obs, state = envs.reset(seed=config.seed + 10_007 * run.iteration)
+        hidden.zero_()
+
+    # ---- the schedule, in decision steps: updates, target copies, log rows
+    steps = run.env_steps
+    if saved is not None and replay.fits(saved.get('replay')):       # the end of a session: continue exactly
+        replay.load_state_dict(saved['replay'])
+        learning_from, next_update, next_copy, next_report = (saved['schedule'][key] for key in (
+            'learning_from', 'next_update', 'next_copy', 'next_report'))
+    else:                                                            # fresh, or a periodic checkpoint: fill first
+        replay.begin(hidden.cpu().numpy())
+        learning_from = steps + config.learning_starts
+        next_update = max(learning_from, steps + config.update_every)
+        next_copy = (steps // config.target_update + 1) * config.target_update
+        next_report = (steps // config.report_every + 1) * config.report_every
+        if saved is not None:
+            next_copy, next_report = saved['schedule']['next_copy'], saved['schedule']['next_report']
+
+    def run_state(with_replay: bool = False) -> dict:   # everything the run's future depends on
+        networks = dict(actor=q_net.state_dict(), target=target_net.state_dict(), mixer=mixer.state_dict(),
+                        target_mixer=target_mixer.state_dict())
+        algorithm = dict(networks=networks,
+                         optimizer=optimizer.state_dict(), rng=rng.bit_generator.state, hidden=hidden.cpu(),
+                         schedule=dict(learning_from=learning_from, next_update=next_update, next_copy=next_copy,
+                                       next_report=next_report))
+        if hasattr(envs, 'state_dict'):
+            algorithm['envs'] = envs.state_dict()
+        if with_replay:
+            algorithm['replay'] = replay.state_dict()
+        return algorithm
+
+    learn_threads = config.threads or _cores()
+    chunks = math.ceil(config.batch_size / config.sequence_length)    # per update
+    coverage, episodes, losses, q_means = [], [], [], []
+    with run:
+        while run.running():
+            while True:   # one iteration: decisions until the next log row
+                # ---- act: epsilon-greedy for every agent of every env from its GRU state, one forward pass
+                epsilon = piecewise(config.epsilon_schedule, steps, interpolate=True)
+                with torch.no_grad():
+                    q, (next_hidden,) = q_net.step(torch.from_numpy(obs).to(device), (hidden,))
+                action = epsilon_greedy(q.cpu().unflatten(-1, (H, C)), epsilon, rng, allowed_choices(spec, obs))
+                next_obs, next_state, reward, done, truncated, info = envs.step(action[..., 0] if H == 1 else action)
+
+                # ---- store the team's decision; an ended episode's own last observation is its next one
+                next_hidden[torch.from_numpy(done).to(device)] = 0.0          # a new episode starts from zero
+                replay.record(obs, state, action, np.asarray(reward, dtype=np.float32),
+                              (done & ~truncated).astype(np.float32), done,
+                              np.where(done[:, None, None], info['final_obs'], next_obs),
+                              np.where(done[:, None], info['final_state'], next_state), next_hidden.cpu().numpy())
+                obs, state, hidden = next_obs, next_state, next_hidden
+                steps += B
+                coverage.append(float(np.mean(info['coverage'])))
+                episodes += info['episodes']
+
+                # ---- learn: one double-Q update of the mixed value every `update_every` decision steps
+                if steps >= next_update and replay.size:
+                    torch.set_num_threads(learn_threads)
+                    while steps >= next_update and replay.size:
+                        next_update += config.update_every
+                        lr = piecewise(config.lr_schedule, steps, interpolate=False)
+                        for group in optimizer.param_groups:
+                            group['lr'] = lr
+                        batch = replay.sample(chunks, rng)
+                        next_allowed = allowed_choices(spec, batch['obs'].transpose(0, 1)[1:].numpy(), device)
+                        batch = {key: value.to(device) for key, value in batch.items()}
+                        loss, q_mean = qmix_loss(q_net, target_net, mixer, target_mixer, batch, config.gamma, H,
+                                                 next_allowed)
+                        optimizer.zero_grad()
+                        loss.backward()
+                        nn.utils.clip_grad_norm_(learned, 1000.0)
+                        optimizer.step()
+                        losses.append(loss.item())
+                        q_means.append(q_mean)
+                    torch.set_num_threads(1)
+                if steps >= next_copy:
+                    target_net.load_state_dict(q_net.state_dict())
+                    target_mixer.load_state_dict(mixer.state_dict())
+                    next_copy += config.target_update
+                if steps >= next_report or steps >= config.steps or run.out_of_time():
+                    break
+
+            # ---- log, keep the best policy, checkpoint
+            next_report += config.report_every
+            run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
+                epsilon=epsilon, lr=piecewise(config.lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
+                q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
+                save_best=lambda: run.save_policy('best.pt', q_net.state_dict(),
+                                                  note=f'best, iteration {run.iteration}'),
+                save=run_state)
+            coverage, episodes, losses, q_means = [], [], [], []
+    run.finish(run_state(with_replay=True), q_net.state_dict())
+    return run
+
+
+def _cores() -> int:
+    from ..core.engine import NUM_THREADS
+
+    return NUM_THREADS

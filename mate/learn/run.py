@@ -1,0 +1,343 @@
+"""`Run`: one training run's directory and life, shared by every trainer.
+
+    run = Run(run_dir, 'mappo', config, spec, total_steps=..., time_limit=..., checkpoint_every=20)
+    state = run.resume()                  # the checkpoint's algorithm state, or None for a fresh run
+    with run:                             # SIGINT / SIGTERM: finish the iteration, checkpoint, stop
+        while run.running():
+            ... one iteration ...
+            run.end_iteration(row, episodes, save=lambda: algorithm_state)
+    run.finish(algorithm_state, policy)   # checkpoint.pt, and final.pt once the run is complete
+
+What lives in the run directory:
+
+* `checkpoint.pt`: everything the run's future depends on (format `mate.learn/2`): the `PolicySpec`, the
+  algorithm's config, the counters (decision steps, iterations, training seconds), the window of recent
+  episodes and the best return so far, and the algorithm's state (networks, optimisers, random generators,
+  the training envs with their opponents). Written every `checkpoint_every` iterations, when a signal stops
+  the run, and at the end. Resuming from it continues the run exactly: the same command gives the same
+  weights, optimiser state and log rows as an uninterrupted run (CPU; `docs/training.md`).
+* `progress.csv`: one row per iteration. A resumed run first drops the rows logged after its checkpoint
+  (left by a killed process), so the file never holds an iteration twice; TensorBoard scalars (`tensorboard/`,
+  when TensorBoard is installed) are purged from the same step.
+* `best.pt`: the policy at the best mean return over the last 25 training episodes, once 25 have finished.
+* `final.pt`: the policy when the run is complete (its decision steps or its time budget spent).
+
+Signals: the first SIGINT (Ctrl-C) or SIGTERM (a cluster's scheduler) lets the iteration finish, writes the
+checkpoint and stops (`interrupted`; the command exits with status 130); a second SIGINT stops at once
+(KeyboardInterrupt), resuming then from the last periodic checkpoint.
+
+Progress: the one-line bar on a terminal; plain lines every 30 s when the output is a file (`nohup`, a job).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import signal
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..options import option
+from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
+from .spec import PolicySpec
+
+__all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'mean_or_nan']
+
+EPISODE_WINDOW = 25
+"""Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
+TENSORBOARD_MISSING = ("TensorBoard is not installed: the run logs to progress.csv only (for TensorBoard scalars: "
+                       "pip install tensorboard, or the train extra: pip install -e '.[train]')")
+"""What a run with a progress display says once at its start when `torch.utils.tensorboard` cannot be imported."""
+TIMING_COLUMNS = ('wall_seconds', 'steps_per_second', 'collect_share')
+"""Log columns that measure the machine, not the run (they differ between two runs of the same seed)."""
+
+
+@dataclasses.dataclass
+class RunConfig:
+    """A training run's budget, machine and files: options every trainer takes."""
+
+    steps: int = option(2_000_000, 'decision steps in total (summed over the envs), as RLlib counts', minimum=1)
+    minutes: float = option(0.0, 'also stop after this many minutes of training (resumed sessions included); '
+                                 '0: no time limit', minimum=0)
+    threads: int = option(0, 'torch threads of the updates; 0: every core (collection always uses 1)', minimum=0)
+    device: str = option('auto', "where networks, rollouts and updates run: auto (a GPU when there is one), cpu, "
+                                 'cuda or cuda:N; the simulation always runs on the CPU')
+    run_dir: str | None = option(None, 'output directory; None: runs/NAME-TEAM-seedN')
+    fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
+    progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
+    checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
+
+    def __post_init__(self) -> None:
+        from .device import parse_device
+
+        parse_device(self.device)          # a bad name is refused now, with the valid forms
+
+    @property
+    def time_limit(self) -> float:
+        """The time budget in seconds (0: none)."""
+        return 60.0 * self.minutes
+
+    def to_dict(self) -> dict:
+        return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
+                for k, v in dataclasses.asdict(self).items()}
+
+
+def mean_or_nan(values) -> float:
+    """The mean of `values`, NaN when there are none (a log column of an iteration without updates)."""
+    return float(np.mean(values)) if len(values) else math.nan
+
+
+class Run:
+    """A training run's directory, counters, logs, checkpoints, budget and signals (module docstring).
+
+    Args:
+        run_dir: the run directory (created).
+        algo: the trainer's name ('mappo', 'iql', ...), stored and checked on resume.
+        config: the trainer's config dataclass (stored as `config.to_dict()` or its fields).
+        spec: the trained policy's spec (a resumed checkpoint must have the same, up to `algo`).
+        total_steps: decision steps of the whole run.
+        time_limit: seconds of training wall time (earlier sessions included); 0: none.
+        checkpoint_every: iterations between periodic checkpoints.
+        progress: show the progress bar (or plain lines).
+        callback: `callback(row)` after every logged row.
+        resume: continue from `run_dir/checkpoint.pt` when it exists (else start over, overwriting).
+        console: where progress and notices go (default: a rich Console on stdout).
+    """
+
+    def __init__(self, run_dir, algo: str, config, spec: PolicySpec, *, total_steps: int, time_limit: float = 0.0,
+                 checkpoint_every: int = 20, progress: bool = True, callback: Callable[[dict], None] | None = None,
+                 resume: bool = True, console=None) -> None:
+        self.dir = Path(run_dir)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.algo, self.config, self.spec = algo, config, spec
+        self.total_steps, self.time_limit = int(total_steps), float(time_limit)
+        self.checkpoint_every = int(checkpoint_every)
+        self.show_progress, self.callback, self.console = progress, callback, console
+        self.env_steps, self.iteration, self.best_return = 0, 0, -math.inf
+        self.episodes: deque = deque(maxlen=EPISODE_WINDOW)
+        self._earlier_seconds = 0.0          # training seconds of the sessions before this one
+        self._started = None
+        self._start_steps = 0
+        self._stop_requested = False
+        self.interrupted = False             # stopped by a signal before the run was complete
+        self._resume = resume
+        self._writer = self._csv_fields = self._line = None
+        self._handlers = {}
+        self.last_row: dict = {}
+
+    # ------------------------------------------------------------------ resume
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.dir / 'checkpoint.pt'
+
+    def resume(self) -> dict | None:
+        """Load `checkpoint.pt` if resuming and it exists: restore the counters and the episode window, and
+        return the algorithm's saved state (None for a fresh run). CheckpointError if the checkpoint belongs
+        to another experiment (another algorithm, or a spec that differs: the message names the setting)."""
+        if not (self._resume and self.checkpoint_path.exists()):
+            return None
+        data = load_checkpoint(self.checkpoint_path)
+        if data.get('algo') not in (None, self.algo):
+            raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} does not match this experiment: '
+                                  f'trained by {data.get("algo")}; this run is {self.algo}')
+        saved_spec = read_spec(data, self.checkpoint_path)
+        differences = saved_spec.differences(self.spec)
+        if differences:
+            raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} does not match this experiment: '
+                                  f'{differences[0]}')
+        if 'run' not in data or 'state' not in data:
+            raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} was written by an older mate (format '
+                                  f'{data.get("format")!r}): it cannot be resumed exactly; use --fresh or another '
+                                  '--run-dir (its policy still loads with --init-from)')
+        run = data['run']
+        self.env_steps, self.iteration = int(run['env_steps']), int(run['iteration'])
+        self._earlier_seconds, self.best_return = float(run['wall_seconds']), float(run['best_return'])
+        self.episodes.extend(run['episodes'])
+        return data['state']
+
+    # ------------------------------------------------------------------ the session
+    def __enter__(self) -> Run:
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def start(self) -> None:
+        """Open the logs (dropping rows logged after the checkpoint), the progress display and the signal handlers."""
+        self._started, self._start_steps = time.perf_counter(), self.env_steps
+        self._open_logs()
+        if self.show_progress:
+            from ..progress import ProgressLine
+
+            self._line = ProgressLine('training', total=self.total_steps, completed=self.env_steps,
+                                      console=self.console)
+            self._line.start()
+            if self._tensorboard is None:
+                self._say(TENSORBOARD_MISSING)
+        if threading.current_thread() is threading.main_thread():
+            for number in (signal.SIGINT, signal.SIGTERM):
+                self._handlers[number] = signal.signal(number, self._on_signal)
+
+    def close(self) -> None:
+        for number, handler in self._handlers.items():
+            signal.signal(number, handler)
+        self._handlers = {}
+        if self._line is not None:
+            self._line.stop(finished=not self.interrupted)
+            self._line = None
+        if self._tensorboard is not None:
+            self._tensorboard.close()
+            self._tensorboard = None
+
+    def _on_signal(self, number, frame) -> None:
+        if self._stop_requested and number == signal.SIGINT:
+            raise KeyboardInterrupt
+        self._stop_requested = True
+        name = signal.Signals(number).name
+        self._say(f'{name}: stopping after this iteration and writing the checkpoint (Ctrl-C again: stop at once, '
+                  'losing the iterations since the last checkpoint)')
+
+    def _say(self, text: str) -> None:
+        if self.console is not None:
+            self.console.print(text, soft_wrap=True, highlight=False)
+        else:
+            print(text, flush=True)
+
+    @property
+    def wall_seconds(self) -> float:
+        """Training seconds so far, earlier sessions included."""
+        return self._earlier_seconds + (time.perf_counter() - self._started if self._started else 0.0)
+
+    def out_of_time(self) -> bool:
+        return self.time_limit > 0 and self.wall_seconds >= self.time_limit
+
+    def running(self) -> bool:
+        """Whether to do another iteration: decision steps left, budget left, no stop requested."""
+        if self._stop_requested:
+            self.interrupted = self.env_steps < self.total_steps
+            return False
+        return self.env_steps < self.total_steps and not self.out_of_time()
+
+    @property
+    def complete(self) -> bool:
+        """The run has done its decision steps or spent its time budget (its final policy is written)."""
+        return self.env_steps >= self.total_steps or self.out_of_time()
+
+    # ------------------------------------------------------------------ logs
+    def _open_logs(self) -> None:
+        path = self.dir / 'progress.csv'
+        if self.iteration == 0 or not path.exists():
+            path.unlink(missing_ok=True)
+            self._csv_fields = None
+        else:      # keep the rows up to the checkpoint's iteration (a killed run may have logged more)
+            with open(path, newline='') as f:
+                reader = csv.DictReader(f)
+                self._csv_fields = reader.fieldnames
+                rows = [row for row in reader if int(float(row['iteration'])) <= self.iteration]
+            with open(path, 'w', newline='') as f:
+                writer = csv.DictWriter(f, self._csv_fields)
+                writer.writeheader()
+                writer.writerows(rows)
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+            purge = dict(purge_step=self.env_steps + 1) if self.iteration else {}
+            self._tensorboard = SummaryWriter(str(self.dir / 'tensorboard'), **purge)
+        except Exception:  # noqa: BLE001  (tensorboard missing or broken: CSV only)
+            self._tensorboard = None
+
+    def episode_means(self) -> dict:
+        """Means over the window of recent episodes (NaN before the first): coverage, return, normalised target
+        return, and the window's size."""
+        recent = list(self.episodes)
+
+        def mean(key: str) -> float:
+            return float(np.mean([e.get(key, np.nan) for e in recent])) if recent else math.nan
+
+        return dict(episode_coverage=mean('coverage'), episode_return=mean('return'),
+                    episode_normalized_target_return=mean('raw_return'), episodes=len(recent))
+
+    def row(self, coverage, **columns) -> dict:
+        """The log row of the iteration just done: iteration, decision and raw steps, wall seconds, decisions per
+        second of this session, the iteration's mean rollout coverage, the episode window's means, `columns`."""
+        elapsed = time.perf_counter() - self._started
+        return dict(iteration=self.iteration, env_steps=self.env_steps, raw_steps=self.env_steps * self.spec.frame_skip,
+                    wall_seconds=round(self.wall_seconds, 2),
+                    steps_per_second=(self.env_steps - self._start_steps) / max(elapsed, 1e-9),
+                    rollout_coverage=float(np.mean(coverage)), **self.episode_means(), **columns)
+
+    def end_iteration(self, steps: int, coverage, episodes, columns: dict, status: str = '',
+                      save_best: Callable[[], None] | None = None, save: Callable[[], dict] | None = None) -> dict:
+        """Count the iteration's `steps` and finished `episodes`, log its row (CSV, TensorBoard, progress, callback),
+        keep the policy as `best.pt` (`save_best()`) when the episode window's mean return is the best so far, and
+        write the periodic checkpoint (`save()` gives the algorithm's state). Returns the row."""
+        self.env_steps += int(steps)
+        self.iteration += 1
+        self.episodes.extend(episodes)
+        row = self.row(coverage, **columns)
+        self._write(row)
+        if len(self.episodes) == EPISODE_WINDOW and row['episode_return'] > self.best_return:
+            self.best_return = row['episode_return']
+            if save_best is not None:
+                save_best()
+        if self.callback is not None:
+            self.callback(row)
+        if self._line is not None:
+            self._line.update(completed=self.env_steps, status=(
+                f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
+                f"return {row['episode_return']:.1f}" + (f'  {status}' if status else '')))
+        if save is not None and self.iteration % self.checkpoint_every == 0:
+            self.checkpoint(save())
+        self.last_row = row
+        return row
+
+    def _write(self, row: dict) -> None:
+        path = self.dir / 'progress.csv'
+        if self._csv_fields is None:
+            self._csv_fields = list(row)
+            with open(path, 'w', newline='') as f:
+                csv.DictWriter(f, self._csv_fields).writeheader()
+        with open(path, 'a', newline='') as f:
+            csv.DictWriter(f, self._csv_fields, extrasaction='ignore').writerow(row)
+        if self._tensorboard is not None:
+            for key, value in row.items():
+                if key != 'env_steps' and isinstance(value, (int, float)) and not math.isnan(value):
+                    self._tensorboard.add_scalar(key, value, row['env_steps'])
+            self._tensorboard.flush()
+
+    # ------------------------------------------------------------------ files
+    def checkpoint(self, state: dict, path: Path | None = None) -> Path:
+        """Write the run's checkpoint (`checkpoint.pt` by default) with the algorithm's `state`."""
+        return save_checkpoint(path or self.checkpoint_path, dict(
+            spec=self.spec.to_dict(), algo=self.algo, config=_config_dict(self.config),
+            run=dict(env_steps=self.env_steps, iteration=self.iteration, wall_seconds=self.wall_seconds,
+                     best_return=self.best_return, episodes=[dict(e) for e in self.episodes]),
+            state=state))
+
+    def save_policy(self, path, actor_state: dict, note: str = '') -> Path:
+        """Write a policy file (the acting part: spec and actor weights; `mate.learn.policy.load_policy` reads it)."""
+        return save_checkpoint(self.dir / path if not Path(path).is_absolute() else path, dict(
+            spec=self.spec.to_dict(), algo=self.algo, actor=actor_state, config=_config_dict(self.config),
+            env_steps=self.env_steps, note=note or f'iteration {self.iteration}'))
+
+    def finish(self, state: dict, actor_state: dict) -> dict:
+        """The end of a session: the checkpoint, and `final.pt` when the run is complete. Returns the last row."""
+        self.checkpoint(state)
+        if self.complete and not self.interrupted:
+            self.save_policy('final.pt', actor_state, note='final')
+        return self.last_row
+
+
+def _config_dict(config) -> dict:
+    """The config as plain data: a dataclass's fields (tuples as lists), or a dict as it is."""
+    if hasattr(config, 'to_dict'):
+        return config.to_dict()
+    if dataclasses.is_dataclass(config):
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()}
+    return dict(config)

@@ -1,0 +1,144 @@
+"""Command-line options generated from config dataclasses: the dataclass is the one source of defaults and help.
+
+Every field of a config dataclass becomes an option `--field-name` of an argparse parser; its help text is the
+field's `metadata['help']` (written with `option(default, 'help')`), its type and choices come from the
+annotation:
+
+* `int`, `float`, `str`: a value (numbers parsed and range-checked: `metadata['minimum']`, `['above']`);
+* `bool`: a switch; `--name` sets True (a field whose default is True gets `--no-name` instead);
+* `Literal['a', 'b']`: one of the choices;
+* `tuple[int, ...]` / `tuple[float, ...]`: one or more numbers (`--hidden 64 64`);
+* `X | None`: as X, default None (the help says what None means);
+* schedules, `tuple[tuple[float, float], ...]`: JSON `[[step, value], ...]`.
+
+`add_options(parser, Config)` adds them; `config_from(parser, Config, args)` builds the dataclass from the parsed
+namespace (its `__post_init__` checks the values; a ValueError becomes the parser's two-line error). An option
+of another config cannot be given: it is not on the parser. Fields with `metadata['cli'] = False` are not options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import types
+import typing
+from typing import Any, Literal
+
+from .arguments import number
+
+__all__ = ['add_options', 'config_from', 'option']
+
+
+def option(default: Any, help: str, **metadata: Any):   # noqa: A002  (the argparse word)
+    """A dataclass field with its command-line help (and optional `minimum`, `above`, `metavar`, `cli`)."""
+    if isinstance(default, (list, dict, set)):
+        raise TypeError('use a tuple default (dataclass fields are shared between instances)')
+    return dataclasses.field(default=default, metadata=dict(help=help, **metadata))
+
+
+def flag_of(name: str) -> str:
+    """'num_envs' -> '--num-envs'."""
+    return '--' + name.replace('_', '-')
+
+
+def _unwrap_optional(annotation):
+    """(inner annotation, whether None is allowed) of `X | None` / `Optional[X]`."""
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(args) == 1 and len(typing.get_args(annotation)) == 2:
+            return args[0], True
+    return annotation, False
+
+
+def _schedule(text: str):
+    try:
+        value = json.loads(text)
+        points = tuple((float(step), float(v)) for step, v in value)
+    except (ValueError, TypeError) as exc:
+        raise argparse.ArgumentTypeError(f'expected JSON [[step, value], ...], got {text!r} ({exc})') from None
+    if not points:
+        raise argparse.ArgumentTypeError('a schedule needs at least one [step, value] point')
+    return tuple((int(s) if s == int(s) else s, v) for s, v in points)
+
+
+def _help(field: dataclasses.Field, default_text: str) -> str:
+    text = field.metadata.get('help', '')
+    return f'{text} (default: {default_text})' if default_text else text
+
+
+def _show(value) -> str:
+    if value is None:
+        return 'None'
+    if isinstance(value, tuple):
+        return json.dumps(value) if value and isinstance(value[0], tuple) else ' '.join(map(str, value))
+    if isinstance(value, float) and value.is_integer() and abs(value) >= 1e4:
+        return f'{value:,.0f}'
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 1e4:
+        return f'{value:,}'
+    return str(value)
+
+
+def add_options(parser: argparse.ArgumentParser, config_class, group: str | None = None, exclude=()) -> None:
+    """One option per field of `config_class` (module docstring), in the order of the fields, and one switch per
+    preset of `config_class.PRESETS` ({name: (help, {field: value})}: `--name` sets those fields, except the ones
+    given explicitly). Fields named in `exclude` get no option (a command that fixes them)."""
+    hints = typing.get_type_hints(config_class)
+    target = parser.add_argument_group(group) if group else parser
+    for name, (text, _) in getattr(config_class, 'PRESETS', {}).items():
+        target.add_argument(flag_of(name), action='store_true', dest=f'preset_{name}', default=False, help=text)
+    for field in dataclasses.fields(config_class):
+        if not field.metadata.get('cli', True) or not field.init or field.name in exclude:
+            continue
+        annotation, optional = _unwrap_optional(hints[field.name])
+        default = field.default
+        flag, meta = flag_of(field.name), field.metadata
+        kwargs: dict[str, Any] = dict(dest=field.name, default=argparse.SUPPRESS)
+        if 'metavar' in meta:
+            kwargs['metavar'] = meta['metavar']
+        if annotation is bool:
+            if default is True:
+                target.add_argument(f'--no-{field.name.replace("_", "-")}', action='store_false',
+                                    help=_help(field, ''), **kwargs)
+            else:
+                target.add_argument(flag, action='store_true', help=_help(field, ''), **kwargs)
+            continue
+        origin = typing.get_origin(annotation)
+        if origin is Literal:
+            choices = typing.get_args(annotation)
+            target.add_argument(flag, choices=choices, help=_help(field, _show(default)), **kwargs)
+        elif annotation in (int, float):
+            target.add_argument(flag, type=number(annotation, meta.get('minimum'), meta.get('above')),
+                                help=_help(field, _show(default)), **kwargs)
+        elif annotation is str:
+            target.add_argument(flag, help=_help(field, _show(default)), **kwargs)
+        elif origin is tuple:
+            inner = typing.get_args(annotation)
+            if inner and typing.get_origin(inner[0]) is tuple:
+                target.add_argument(flag, type=_schedule, metavar=meta.get('metavar', 'JSON'),
+                                    help=_help(field, _show(default)), **{k: v for k, v in kwargs.items()
+                                                                          if k != 'metavar'})
+            else:
+                kind = inner[0] if inner else float
+                target.add_argument(flag, type=number(kind, meta.get('minimum'), meta.get('above')),
+                                    nargs='+', help=_help(field, _show(default)), **kwargs)
+        else:
+            raise TypeError(f'{config_class.__name__}.{field.name}: no command-line form for {hints[field.name]!r}')
+
+
+def config_from(parser: argparse.ArgumentParser, config_class, args: argparse.Namespace, **fixed):
+    """The `config_class` instance of parsed `args` (fields not given keep their defaults; `fixed` overrides);
+    a ValueError of its validation exits through `parser.error` (two lines, status 2)."""
+    names = {f.name for f in dataclasses.fields(config_class) if f.init}
+    given = {name: getattr(args, name) for name in names if hasattr(args, name)}
+    for preset, (_, values) in getattr(config_class, 'PRESETS', {}).items():
+        if getattr(args, f'preset_{preset}', False):
+            given = {**values, **given}
+    for name, value in given.items():
+        if isinstance(value, list):
+            given[name] = tuple(value)
+    try:
+        return config_class(**{**given, **fixed})
+    except (ValueError, TypeError) as exc:
+        parser.error(str(exc))

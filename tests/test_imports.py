@@ -1,0 +1,115 @@
+"""The package's import graph has no cycle: data flows one way (config -> core -> env -> agents/teams -> learn ->
+cli). Every `import` statement of every module counts, those inside functions too (a lazy import hides a cycle; it
+does not remove it), except under `if TYPE_CHECKING:`. An edge goes to the module named (`from X import Y` to the
+submodule X.Y when there is one); a package's own `__init__` running first is not counted (every module would
+otherwise depend on `mate/__init__.py`)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import mate
+
+ROOT = Path(mate.__file__).resolve().parent
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT.parent).with_suffix('').parts)
+    if parts[-1] == '__init__':
+        parts.pop()
+    return '.'.join(parts)
+
+
+MODULES = {module_name(path): path for path in ROOT.rglob('*.py')}
+
+
+def _type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == 'TYPE_CHECKING') or \
+        (isinstance(test, ast.Attribute) and test.attr == 'TYPE_CHECKING')
+
+
+def imports_of(name: str) -> set[str]:
+    """The modules of the package that module `name` imports."""
+    path = MODULES[name]
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    found = set()
+
+    def visit(node):
+        if isinstance(node, ast.If) and _type_checking(node):
+            for child in node.orelse:
+                visit(child)
+            return
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                found.add(alias.name)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split('.')
+                base = base[:len(base) - node.level + 1]
+                origin = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                origin = node.module or ''
+            submodules = [f'{origin}.{alias.name}' for alias in node.names if f'{origin}.{alias.name}' in MODULES]
+            found.update(submodules)
+            if len(submodules) < len(node.names):
+                found.add(origin)
+        for child in ast.iter_child_nodes(node):
+            visit(child)
+
+    visit(ast.parse(path.read_text()))
+    return {module for module in found if module in MODULES and module != name}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on_stack, result, counter = {}, {}, [], set(), [], [0]
+
+    def connect(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                result.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return result
+
+
+def test_the_import_graph_has_no_cycle():
+    graph = {name: imports_of(name) for name in MODULES}
+    found = cycles(graph)
+    assert not found, 'import cycles:\n' + '\n'.join(
+        ' <-> '.join(component) + '\n    ' + '; '.join(f'{a} -> {b}' for a in component for b in sorted(graph[a])
+                                                     if b in component) for component in found)
+
+
+def test_the_check_finds_a_cycle():
+    assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
+    assert cycles({'a': {'b'}, 'b': set()}) == []
+
+
+def test_the_core_imports_nothing_from_the_rest():
+    for name in MODULES:
+        if name.startswith('mate.core'):
+            outside = {m for m in imports_of(name) if m != 'mate' and not m.startswith('mate.core')
+                       and m not in ('mate.constants', 'mate.config', 'mate.config.schema', 'mate.config.loader')}
+            assert not outside, (name, outside)
