@@ -1,4 +1,5 @@
-"""Evaluation benchmark: env-steps per second of batched policy-vs-policy play (`mate.learn.evaluate`),
+"""Evaluation benchmark: env-steps per second of batched policy-vs-policy play (`mate.teams.play_batch` with
+`mate.learn.policy.PolicyTeam` and the batched teams of `mate.teams`),
 beside the single-env deployment agents that `mate evaluate` drives one episode at a time.
 
     python benchmarks/evaluation.py [--episodes 100] [--single-seconds 20] [--json benchmarks/results/evaluation.json]
@@ -15,8 +16,8 @@ the first torch calls excluded). Pairings:
 * `learned-vs-learned`: HRL cameras (the shipped policy's architecture for MATE-2v4-0, random weights:
   no camera policy for that preset ships) against the shipped MAPPO targets, MATE-2v4-0.
 
-Batched greedy agents are `mate.learn.opponents`' (see their documented differences); the single-env
-column uses the Python greedy agents.
+Batched greedy agents are `mate.teams.GreedyTeam` (the Python greedy agents' rules and random streams on
+arrays); the single-env column uses the Python greedy agents.
 """
 
 from __future__ import annotations
@@ -33,26 +34,36 @@ import torch
 import mate
 from mate.bench import machine_facts
 from mate.evaluate import play_episode
-from mate.learn.agents import AGENT_CLASSES, LoadedPolicy, load_policy, pretrained_path
-from mate.learn.evaluate import PolicyTeam, make_team, play_batch
-from mate.learn.networks import make_actor
+from mate.learn.policy import (
+    AGENT_CLASSES,
+    LoadedPolicy,
+    PolicyTeam,
+    load_policy,
+    make_actor,
+    make_team,
+    pretrained_path,
+)
+from mate.learn.spec import PolicySpec
+from mate.teams import play_batch
 
 MAX_STEPS = {'MATE-4v8-9': 2000, 'MATE-2v4-0': 5000}
 
 
 def _untrained_hrl_cameras_2v4_0() -> LoadedPolicy:
-    """The shipped HRL camera policy's architecture and meta, for MATE-2v4-0, with random weights."""
-    shipped = load_policy(pretrained_path('hrl-mappo-camera-4v8-9'), 'camera')
-    counts = (2, 4, 0)
-    meta = dict(shipped.meta, counts=list(counts), action_heads=counts[1], num_actions=2 * counts[1],
-                obs_dim=mate.constants.camera_observation_dim(*counts), deterministic=False)
+    """The shipped HRL camera policy's architecture and settings, for MATE-2v4-0, with random weights."""
+    shipped = load_policy(pretrained_path('hrl-mappo-camera-4v8-9'), 'camera').spec
+    spec = PolicySpec.for_game('camera', 'MATE-2v4-0-v0', frame_skip=shipped.frame_skip, action=shipped.action,
+                               memory=shipped.memory, velocity=shipped.velocity, network=shipped.network,
+                               hidden=shipped.hidden, activation=shipped.activation, lstm=shipped.lstm,
+                               algo=shipped.algo, deterministic=False)
     torch.manual_seed(0)
-    actor = make_actor(meta['actor'], meta['obs_dim'], meta['num_actions'], (256, 256), 'tanh', meta)
-    return LoadedPolicy(actor, meta, 'untrained HRL cameras (2v4-0)')
+    return LoadedPolicy(make_actor(spec), spec, 'untrained HRL cameras (2v4-0)')
 
 
 def pairings() -> dict:
-    """name -> (preset, batched camera factory, batched target factory, Python camera factory, Python target factory)."""
+    """name -> (preset, batched camera factory, batched target factory, Python camera factory, Python target factory).
+    Both batched teams are seeded with 0, like the env rows: the greedy teams then play as the Python agents of
+    `play_episode` for the row's seed (the shipped policies act by argmax)."""
     hrl = load_policy(pretrained_path('hrl-mappo-camera-4v8-9'), 'camera')
     targets = load_policy(pretrained_path('mappo-target-2v4-0'), 'target')
     untrained = _untrained_hrl_cameras_2v4_0()
@@ -60,15 +71,15 @@ def pairings() -> dict:
     return {
         'hrl-cameras-vs-greedy': (
             'MATE-4v8-9', lambda b, c: PolicyTeam(hrl, 'camera', b, c, seed=0),
-            lambda b, c: make_team('greedy', 'target', b, c, seed=1),
+            lambda b, c: make_team('greedy', 'target', b, c, seed=0),
             lambda seed: camera_agent(hrl, seed=seed), mate.GreedyTargetAgent),
         'greedy-vs-mappo-targets': (
             'MATE-2v4-0', lambda b, c: make_team('greedy', 'camera', b, c, seed=0),
-            lambda b, c: PolicyTeam(targets, 'target', b, c, seed=1),
+            lambda b, c: PolicyTeam(targets, 'target', b, c, seed=0),
             mate.GreedyCameraAgent, lambda seed: target_agent(targets, seed=seed)),
         'learned-vs-learned': (
             'MATE-2v4-0', lambda b, c: PolicyTeam(untrained, 'camera', b, c, seed=0),
-            lambda b, c: PolicyTeam(targets, 'target', b, c, seed=1),
+            lambda b, c: PolicyTeam(targets, 'target', b, c, seed=0),
             lambda seed: camera_agent(untrained, seed=seed), lambda seed: target_agent(targets, seed=seed)),
     }
 

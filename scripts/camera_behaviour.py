@@ -3,11 +3,12 @@
     python scripts/camera_behaviour.py [--policies RUN/final.pt ...] [--frame-skip 2] [--envs 64] [--seed 1]
 
 Plays one training episode (2500 raw steps) of B batched MATE-4v8-9 games against the batched greedy
-targets, for the greedy camera rule (snapped to the 25 grid actions and held for 1 and for --frame-skip
-raw steps; also without its sighting memory) and for each policy file (sampled and argmax, decisions
-held for --frame-skip steps, the policy's own memory/velocity columns), and prints per team: the mean
-coverage rate, the share of camera-steps that see no target, the share of targets seen by two or more
-cameras, the mean viewing angle (degrees) and the mean number of targets a camera sees.
+targets, for the greedy camera rule (`mate.teams.GreedyTeam`, snapped to the 25 grid actions and held for
+1 and for --frame-skip raw steps; also without its sighting memory) and for each policy file (sampled and
+argmax, in the training envs of its own spec: its game, frame skip, action kind and memory/velocity columns),
+and prints per team: the mean coverage rate, the share of camera-steps that see no target, the share of
+targets seen by two or more cameras, the mean viewing angle (degrees) and the mean number of targets a
+camera sees.
 """
 
 from __future__ import annotations
@@ -15,13 +16,12 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-import torch
 
 from mate.constants import PRESERVED_DIM
-from mate.learn.agents import load_policy
-from mate.learn.envs import TeamVecEnv
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv
 from mate.learn.memory import camera_sightings
-from mate.learn.opponents import VecGreedyCamera
+from mate.learn.policy import LoadedPolicy, load_policy
+from mate.teams import GreedyTeam
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 
 
@@ -46,34 +46,37 @@ def record(env: TeamVecEnv) -> dict:
 
 
 def greedy_actions(env: TeamVecEnv, seed: int, period: int):
-    greedy = VecGreedyCamera(env.num_envs, *env.counts, seed=seed, memory_period=period)
-    greedy.reset(env.raw_observations)
-    grid = square_grid(env.levels)
+    """The greedy camera rule, asked once per decision, its action snapped to the nearest of the grid's moves."""
+    greedy = GreedyTeam('camera', env.num_envs, env.counts, seed=seed, memory_period=period)
+    greedy.reset(env.raw_observations, np.ones(env.num_envs, dtype=bool))
+    grid = square_grid(env.spec.levels)
     return lambda obs: nearest_grid_indices(greedy.act(env.raw_observations), grid,
                                             env.raw_observations[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9])
 
 
-def policy_actions(path: str, argmax: bool, seed: int):
-    policy = load_policy(path, 'camera')
-    generator = torch.Generator().manual_seed(seed)
+def policy_actions(policy: LoadedPolicy, argmax: bool, seed: int):
+    """The policy's decisions from the env's features (its spec's), as `PolicyTeam` takes them; a recurrent policy
+    keeps its memory (the envs play one episode: no row restarts)."""
+    rng = np.random.default_rng(seed)
+    memory = policy.initial_memory(1)
 
     def act(obs):
-        logits = torch.as_tensor(policy.logits(obs))
-        if argmax:
-            return logits.argmax(-1).numpy()
-        probs = torch.softmax(logits.reshape(-1, logits.shape[-1]), -1)
-        return torch.multinomial(probs, 1, generator=generator).reshape(logits.shape[:-1]).numpy()
+        nonlocal memory
+        if policy.recurrent:
+            if memory[0].shape[:-1] != obs.shape[:-1]:
+                memory = policy.initial_memory(*obs.shape[:-1])
+            outputs, memory = policy.outputs(obs, memory)
+        else:
+            outputs = policy.outputs(obs)
+        return policy.spec.choose(outputs, obs, argmax, rng)
     return act
 
 
-def measure(name: str, make_actions, frame_skip: int, envs: int, seed: int, meta: dict | None = None) -> None:
-    meta = meta or {}
-    env = TeamVecEnv('camera', num_envs=envs, frame_skip=frame_skip, horizon=2500, seed=seed,
-                     memory=int(meta.get('memory', 0)), velocity=bool(meta.get('velocity', False)))
+def measure(name: str, env: TeamVecEnv, make_actions, seed: int) -> None:
     stats = record(env)
     obs, _ = env.reset(seed=seed)
     act = make_actions(env)
-    for _ in range(2500 // frame_skip):
+    for _ in range(env.horizon // env.frame_skip):
         obs = env.step(act(obs))[0]
     values = {key: float(np.mean(v)) for key, v in stats.items()}
     print(f"{name:<60} coverage {values['coverage']:.3f}  seeing nothing {values['seeing nothing']:5.1%}  "
@@ -90,12 +93,19 @@ def main() -> None:
     args = parser.parse_args()
     for hold, period, label in ((1, 25, 'greedy, deciding every step'), (args.frame_skip, 25, f'greedy, held {args.frame_skip}'),
                                 (args.frame_skip, 1, f'greedy, held {args.frame_skip}, no memory')):
-        measure(label, lambda env: greedy_actions(env, args.seed, period), hold, args.envs, args.seed)
+        config = TeamEnvConfig(team='camera', config='MATE-4v8-9', frame_skip=hold, horizon=2500, num_envs=args.envs,
+                               seed=args.seed)
+        measure(label, config.make_env(config.policy_spec()), lambda env: greedy_actions(env, args.seed, period),
+                args.seed)
     for path in args.policies:
-        meta = load_policy(path, 'camera').meta
+        policy = load_policy(path, 'camera')
+        if policy.spec.comm != 'none':
+            raise SystemExit(f'{path}: a {policy.spec.network} policy talks through messages; this script plays '
+                             'policies without communication')
         for argmax in (False, True):
-            measure(f"{path} ({'argmax' if argmax else 'sampled'}, held {meta['frame_skip']})",
-                    lambda env: policy_actions(path, argmax, args.seed), meta['frame_skip'], args.envs, args.seed, meta)
+            env = TeamVecEnv(policy.spec, num_envs=args.envs, horizon=2500, seed=args.seed)
+            measure(f"{path} ({'argmax' if argmax else 'sampled'}, held {policy.spec.frame_skip})", env,
+                    lambda env: policy_actions(policy, argmax, args.seed), args.seed)
 
 
 if __name__ == '__main__':

@@ -5,8 +5,9 @@
 Plays B batched MATE-4v8-9 games against the batched greedy targets (the training opponent) for one
 training episode (2500 raw steps) and prints the mean coverage rate of:
 
-* flat:  the greedy camera rule, its action snapped to the 5-level grid (25 actions) and held for the
-         frame skip (1 and 5), i.e. the flat learner's action space;
+* flat:  the greedy camera rule (`mate.teams.GreedyTeam`, asked once per decision), its action snapped to
+         the 5-level grid (25 actions) and held for the frame skip (1 and 5), i.e. the flat learner's
+         action space;
 * HRL:   scripted target selections through the rule executor (`mate.learn.hrl`), held for 5 steps:
          select every visible target / the nearest visible one / nothing (sweep) / the visible targets
          no other camera's sector contains (sweep when there are none) / every visible target when one
@@ -23,11 +24,18 @@ import argparse
 import numpy as np
 
 from mate.constants import PRESERVED_DIM
-from mate.learn.envs import TeamVecEnv
-from mate.learn.opponents import VecGreedyCamera
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv
 from mate.messages import Team
 from mate.spaces import observation_indices_of
+from mate.teams import GreedyTeam
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
+
+
+def camera_env(num_envs: int, horizon: int, frame_skip: int = 5, hrl: bool = False) -> TeamVecEnv:
+    """The camera learners' training envs on MATE-4v8-9: grid moves, or (hrl) one keep/ignore bit per target slot."""
+    config = TeamEnvConfig(team='camera', config='MATE-4v8-9', num_envs=num_envs, frame_skip=frame_skip,
+                           horizon=horizon, hrl=hrl, seed=0)
+    return config.make_env(config.policy_spec(action='hrl' if hrl else 'grid'))
 
 
 def play(env: TeamVecEnv, policy, decisions: int, seed: int) -> float:
@@ -37,14 +45,14 @@ def play(env: TeamVecEnv, policy, decisions: int, seed: int) -> float:
 
 
 def snapped_greedy(env: TeamVecEnv, seed: int):
-    greedy = VecGreedyCamera(env.num_envs, *env.counts, seed=seed)
-    grid = square_grid(env.levels)
+    greedy = GreedyTeam('camera', env.num_envs, env.counts, seed=seed)
+    grid = square_grid(env.spec.levels)
     first = True
 
     def policy(raw):
         nonlocal first
         if first:
-            greedy.reset(raw)
+            greedy.reset(raw, np.ones(env.num_envs, dtype=bool))
             first = False
         return nearest_grid_indices(greedy.act(raw), grid, raw[..., PRESERVED_DIM + 7:PRESERVED_DIM + 9])
     return policy
@@ -103,10 +111,10 @@ def main() -> None:
     args = parser.parse_args()
     print(f'MATE-4v8-9, {args.envs} games x {args.steps} raw steps vs batched greedy targets: mean coverage rate')
     for skip in (1, 5):
-        env = TeamVecEnv('camera', num_envs=args.envs, seed=0, frame_skip=skip, horizon=args.steps)
+        env = camera_env(args.envs, args.steps, frame_skip=skip)
         print(f'  flat, greedy rule snapped to 25 actions, frame skip {skip}: '
               f'{play(env, snapped_greedy(env, args.seed + 2), args.steps // skip, args.seed):.4f}')
-    env = TeamVecEnv('camera', num_envs=args.envs, seed=0, hrl=True, horizon=args.steps)
+    env = camera_env(args.envs, args.steps, hrl=True)
     for name, policy in selections(env).items():
         print(f'  HRL, select {name}: {play(env, policy, args.steps // 5, args.seed):.4f}')
 

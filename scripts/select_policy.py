@@ -31,7 +31,7 @@ from rich.progress import track
 
 import mate
 from mate.evaluate import play_episode, resolve_agent
-from mate.learn.agents import PRETRAINED_DIR, export_policy, load_agent, load_policy
+from mate.learn.policy import PRETRAINED_DIR, export_policy, load_agent, load_policy
 from mate.messages import Team
 
 METRIC = {'camera': ('coverage_rate', 'episode_coverage'),
@@ -74,10 +74,10 @@ def main() -> None:
     first = sorted((args.run_dir / 'snapshots').glob('policy-*.pt'))
     if not first:
         raise SystemExit(f'no snapshots in {args.run_dir / "snapshots"} (train with --snapshot-every N)')
-    meta = load_policy(first[0]).meta
-    team = meta['team']
+    spec = load_policy(first[0]).spec
+    team = spec.team
     max_steps = args.max_steps or (2000 if team == 'camera' else 5000)
-    env = mate.make(meta['env_id'])
+    env = mate.make(spec.env_id, config=spec.config)
     candidates = shortlist(args.run_dir, team, args.top)
 
     def factory(path: Path):
@@ -92,7 +92,7 @@ def main() -> None:
     test_seeds = range(args.test_episodes)
     learned = scores(env, team, factory(best), test_seeds, max_steps, f'test {best.name}')
     greedy = scores(env, team, resolve_agent('greedy', Team[team.upper()]), test_seeds, max_steps, 'test greedy')
-    report = dict(run_dir=str(args.run_dir), team=team, env_id=meta['env_id'], metric=METRIC[team][0],
+    report = dict(run_dir=str(args.run_dir), team=team, env_id=spec.env_id, config=spec.config, metric=METRIC[team][0],
                   snapshot=best.name, deterministic=args.deterministic, max_steps=max_steps,
                   validation={p.name: float(v) for p, v in validation.items()},
                   test_seeds=[0, args.test_episodes - 1],

@@ -4,10 +4,14 @@
 
 Protocol: for each pairing, seeds 0..E-1 are played both ways: one episode at a time by
 `mate.evaluate.play_episode` with the Python agents (policy agents, Python greedy agents), and all at once
-by `mate.learn.evaluate.play_batch` with the batched teams (the same policy, the batched greedy rules of
-`mate.learn.opponents`). The two runs share the env seeds but not the agents' random draws, so they are
-compared as samples: mean, standard error, and the difference of the means in units of its standard error
-(|z| < 2: no difference this test can see). Pairings (as in the issue):
+by `mate.teams.play_batch` with the batched teams (the same policy as a `mate.learn.policy.PolicyTeam`, the
+batched greedy agents of `mate.teams`). Both teams are seeded like the env (row i of a team seeded with 0
+plays as the agents `play_episode` builds for seed i: the greedy teams follow the Python agents' random
+streams draw for draw) and the shipped policies act deterministically (argmax), so the two runs should play
+the same episodes: the script reports how many episodes agree to 1e-9 and the largest difference, and (as a
+sample comparison for policies that sample, whose batched and single-env draws differ) mean, standard
+error and the difference of the means in units of its standard error (|z| < 2: no difference this test
+can see). Pairings (as in the issue):
 
 * shipped HRL-MAPPO cameras vs greedy targets, MATE-4v8-9, at most 2000 steps: coverage rate;
 * greedy cameras vs shipped MAPPO targets, MATE-2v4-0, at most 5000 steps: normalised target return.
@@ -25,8 +29,8 @@ import numpy as np
 
 import mate
 from mate.evaluate import play_episode
-from mate.learn.agents import load_agent
-from mate.learn.evaluate import make_team, play_batch
+from mate.learn.policy import load_agent, make_team
+from mate.teams import play_batch
 
 PAIRINGS = {
     'hrl-cameras-vs-greedy-targets': ('MATE-4v8-9', 'pretrained:hrl-mappo-camera-4v8-9', 'greedy', 2000,
@@ -58,11 +62,14 @@ def compare(name: str, episodes: int) -> dict:
     single_seconds = time.perf_counter() - start
     counts = (env.num_cameras, env.num_targets, env.num_obstacles)
     batch, timing = play_batch(preset, make_team(camera, 'camera', episodes, counts, seed=0),
-                               make_team(target, 'target', episodes, counts, seed=1), episodes, 0, max_steps)
+                               make_team(target, 'target', episodes, counts, seed=0), episodes, 0, max_steps)
     batched = [getattr(e, metric) for e in batch]
     a, b = _summary(single), _summary(batched)
-    z = (b['mean'] - a['mean']) / np.hypot(a['sem'], b['sem'])
+    spread = np.hypot(a['sem'], b['sem'])
+    z = (b['mean'] - a['mean']) / spread if spread > 0 else 0.0
+    difference = np.abs(np.asarray(batched) - np.asarray(single))
     return {'pairing': name, 'preset': preset, 'metric': metric, 'single_env': a, 'batched': b, 'z': float(z),
+            'identical_episodes': int((difference <= 1e-9).sum()), 'max_difference': float(difference.max()),
             'single_env_seconds': single_seconds, 'batched_seconds': timing['seconds']}
 
 
@@ -79,7 +86,8 @@ def main(argv=None) -> int:
         rows.append(row)
         a, b = row['single_env'], row['batched']
         print(f"{name}: {row['metric']} single-env {a['mean']:.4f} +- {a['sem']:.4f} (sem), batched "
-              f"{b['mean']:.4f} +- {b['sem']:.4f}; z = {row['z']:+.2f}; {row['single_env_seconds']:.0f} s vs "
+              f"{b['mean']:.4f} +- {b['sem']:.4f}; z = {row['z']:+.2f}; {row['identical_episodes']}/{a['n']} episodes "
+              f"identical (largest difference {row['max_difference']:.2g}); {row['single_env_seconds']:.0f} s vs "
               f"{row['batched_seconds']:.1f} s", flush=True)
     if args.json:
         path = Path(args.json)

@@ -42,9 +42,9 @@ from ..agents.utils import normalize_observation
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..options import option
+from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory, camera_sightings
-from .opponents import VecGreedyCamera, VecGreedyTarget
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv', 'compress',
@@ -158,11 +158,10 @@ def compress(x: np.ndarray) -> np.ndarray:
     return np.where(magnitude > 1.0, np.sign(x) * (1.0 + np.log(np.maximum(magnitude, 1.0))), x).astype(np.float32)
 
 
-def _default_opponent(team: Team, num_envs: int, counts, seed):
-    nc, nt, no = counts
-    if team is Team.CAMERA:
-        return VecGreedyTarget(num_envs, nt, seed=seed)
-    return VecGreedyCamera(num_envs, nc, nt, no, seed=seed)
+def greedy_opponent(team: Team, num_envs: int, counts, seed):
+    """The default opponent of a team in training: the other team's greedy agents (`mate.teams.GreedyTeam`, draw
+    for draw the Python agents; row b seeded seed + b)."""
+    return GreedyTeam(Team.TARGET if team is Team.CAMERA else Team.CAMERA, num_envs, counts, seed=seed)
 
 
 class TeamVecEnv:
@@ -214,7 +213,7 @@ class TeamVecEnv:
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
         opponent_seed = None if seed is None else seed + 7919
-        self.opponent = (opponent or (lambda n, counts, s: _default_opponent(team, n, counts, s)))(
+        self.opponent = (opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s)))(
             self.num_envs, self.counts, opponent_seed)
         self._sees = None          # difference credit: which camera tracks which target at the last env step
         self._raw = self._own_raw = self._other_raw = self._before = None
@@ -421,25 +420,11 @@ class TeamVecEnv:
 
 
 def _team_state(team) -> dict:
-    """A batched team's state for a checkpoint: its own `state_dict()`, or (teams without one) its attributes."""
-    if hasattr(team, 'state_dict'):
-        return team.state_dict()
-    state = {}
-    for name, value in vars(team).items():
-        if isinstance(value, np.ndarray):
-            state[name] = value.copy()
-        elif isinstance(value, np.random.Generator):
-            state[name] = {'generator': value.bit_generator.state}
-    return state
+    """A batched team's state for a checkpoint (every team of `mate.teams` and `PolicyTeam` has `state_dict`)."""
+    if not hasattr(team, 'state_dict'):
+        raise TypeError(f'the opponent {type(team).__name__} has no state_dict(): its state cannot be checkpointed')
+    return team.state_dict()
 
 
 def _load_team_state(team, state: dict) -> None:
-    if hasattr(team, 'load_state_dict'):
-        team.load_state_dict(state)
-        return
-    for name, value in state.items():
-        current = getattr(team, name)
-        if isinstance(current, np.random.Generator):
-            current.bit_generator.state = value['generator']
-        else:
-            setattr(team, name, np.array(value))
+    team.load_state_dict(state)

@@ -22,11 +22,26 @@ import numpy as np
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of
-from .opponents import desired_viewing_angles
 
-__all__ = ['executor_actions', 'joint_allowed', 'masked_selection_logits', 'selection_bits', 'target_records']
+__all__ = ['desired_viewing_angles', 'executor_actions', 'joint_allowed', 'masked_selection_logits', 'selection_bits', 'target_records']
 
 _OWN = PRESERVED_DIM
+
+
+def desired_viewing_angles(distance, viewing_angle, sight_range, max_sight_range, iterations: int = 20):
+    """The greedy camera's desired viewing angle (`mate.teams.rules.desired_viewing_angle`) on arrays, in degrees,
+    element-wise: the executor's zoom (the same fixed-point iteration, numpy's rounding)."""
+    half = 0.5 * np.pi / 180.0
+    theta_min = viewing_angle * (sight_range / max_sight_range) ** 2
+    area = viewing_angle * sight_range ** 2
+    theta = np.full(np.shape(distance), 180.0)
+    for _ in range(iterations):
+        reach = distance * (1.0 + np.sin(np.minimum(theta * half, 0.5 * np.pi)))
+        theta = area / np.maximum(reach * reach, 1e-12)
+    theta = np.clip(theta, theta_min, 180.0)
+    theta = np.where(distance <= 0.5 * np.sqrt(area / 180.0), 180.0, theta)
+    far = distance * (1.0 + np.sin(theta_min * half)) >= max_sight_range
+    return np.where(far, theta_min, theta)
 
 
 def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int) -> np.ndarray:

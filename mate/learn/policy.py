@@ -127,6 +127,11 @@ class LoadedPolicy:
         """The communication scheme of its actor: 'none', 'tarmac' or 'i2c'."""
         return self.spec.comm
 
+    @property
+    def communicates(self) -> bool:
+        """Its agents exchange learned messages (TarMAC or I2C)."""
+        return self.spec.comm != 'none'
+
     def initial_memory(self, *shape: int):
         """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
         return self.actor.initial_state(*shape) if self.recurrent else None
@@ -226,6 +231,10 @@ class PolicyTeam:
         self.policy = policy if isinstance(policy, LoadedPolicy) else load_policy(policy, self.team)
         spec = self.spec = self.policy.spec
         spec.check_game(self.team, counts, f'policy {self.policy.source!r}')
+        if spec.full_observability:
+            raise SpecError(f'policy {self.policy.source!r} was trained with --full-observability: a batched team sees '
+                            'the raw, partial observations; evaluate it in the single env with --enhanced-observation '
+                            f'{spec.team}')
         self.counts = spec.counts
         self.num_envs, self.num_agents = int(num_envs), spec.num_agents
         self.deterministic = bool(spec.deterministic if deterministic is None else deterministic)

@@ -88,6 +88,11 @@ class RunConfig:
                 for k, v in dataclasses.asdict(self).items()}
 
 
+RESUME_SETTINGS = ('credit',)
+"""Config settings that a resumed run must share with its checkpoint beside the spec and the algorithm (the reward
+each agent learns from, hence the critic's outputs)."""
+
+
 def mean_or_nan(values) -> float:
     """The mean of `values`, NaN when there are none (a log column of an iteration without updates)."""
     return float(np.mean(values)) if len(values) else math.nan
@@ -151,6 +156,12 @@ class Run:
         if differences:
             raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} does not match this experiment: '
                                   f'{differences[0]}')
+        saved_config, config = data.get('config') or {}, _config_dict(self.config)
+        for key in RESUME_SETTINGS:     # settings outside the spec that change what the networks learn
+            if key in saved_config and key in config and saved_config[key] != config[key]:
+                raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} does not match this experiment: '
+                                      f'trained with --{key.replace("_", "-")} {saved_config[key]}; this run has '
+                                      f'--{key.replace("_", "-")} {config[key]}')
         if 'run' not in data or 'state' not in data:
             raise CheckpointError(f'checkpoint {str(self.checkpoint_path)!r} was written by an older mate (format '
                                   f'{data.get("format")!r}): it cannot be resumed exactly; use --fresh or another '

@@ -1,4 +1,5 @@
-"""Batched play of two teams (mate.learn.evaluate): batched policies act as the deployment agents do."""
+"""Batched play of two teams (`mate.teams.play_batch`): batched policies (`mate.learn.policy.PolicyTeam`) act as
+the deployment agents do."""
 
 from __future__ import annotations
 
@@ -9,39 +10,30 @@ import torch
 import mate
 from mate.constants import camera_observation_dim, target_observation_dim
 from mate.evaluate import play_episode
-from mate.learn.agents import AGENT_CLASSES, LoadedPolicy
-from mate.learn.evaluate import (
-    GreedyTeam,
-    MixtureTeam,
-    PolicyTeam,
-    RandomTeam,
-    make_team,
-    play_batch,
-)
 from mate.learn.memory import MEMORY_FEATURES
-from mate.learn.networks import make_actor
+from mate.learn.policy import AGENT_CLASSES, LoadedPolicy, PolicyTeam, make_actor, make_team
+from mate.learn.spec import PolicySpec
 from mate.learn.velocity import VELOCITY_FEATURES
+from mate.teams import GreedyCameraTeam, GreedyTeam, MixtureTeam, RandomTeam, play_batch
 
 COUNTS = (2, 4, 0)          # MATE-2v4-0
 
 
-def _policy(team: str, hrl=False, memory=0, velocity=False, lstm=0, frame_skip=3, seed=0) -> LoadedPolicy:
+def _policy(team: str, hrl=False, memory=0, velocity=False, lstm=0, frame_skip=3, seed=0, action=None,
+            network='mlp') -> LoadedPolicy:
     """An untrained (randomly initialised) policy of the given kind: varied, deterministic decisions."""
-    torch.manual_seed(seed)
     nc, nt, no = COUNTS
-    if team == 'camera':
-        obs_dim = camera_observation_dim(nc, nt, no) + MEMORY_FEATURES * nt * bool(memory) + VELOCITY_FEATURES * nt * velocity
-    else:
-        obs_dim = target_observation_dim(nc, nt, no)
-    heads, choices = (nt, 2) if hrl else (1, 25)
-    meta = dict(team=team, counts=list(COUNTS), frame_skip=frame_skip, levels=5, hrl=hrl, action_heads=heads,
-                action_choices=choices, num_actions=heads * choices, memory=memory, velocity=velocity,
-                actor='mlp', lstm=lstm)
-    actor = make_actor('mlp', obs_dim, heads * choices, (32,), 'tanh', meta, lstm)
+    spec = PolicySpec.for_game(team, 'MATE-2v4-0-v0', frame_skip=frame_skip, action=action or ('hrl' if hrl else 'grid'),
+                               memory=memory, velocity=velocity, network=network, hidden=(32,), lstm=lstm)
+    raw_dim = camera_observation_dim(nc, nt, no) if team == 'camera' else target_observation_dim(nc, nt, no)
+    assert spec.counts == COUNTS and spec.obs_dim == (raw_dim + MEMORY_FEATURES * nt * bool(memory)
+                                                      + VELOCITY_FEATURES * nt * velocity)
+    torch.manual_seed(seed)
+    actor = make_actor(spec)
     with torch.no_grad():                         # sharper logits than the init's: decisions change with the input
         for parameter in actor.parameters():
             parameter.mul_(4.0)
-    return LoadedPolicy(actor, meta, f'untrained-{team}')
+    return LoadedPolicy(actor, spec, f'untrained-{team}')
 
 
 class StillTargets:
@@ -67,6 +59,13 @@ VARIANTS = {
     'recurrent-cameras': dict(team='camera', lstm=8),
     'flat-targets': dict(team='target', frame_skip=4),
     'recurrent-targets': dict(team='target', lstm=8),
+    'per-target-hrl-cameras': dict(team='camera', hrl=True, network='per-target', memory=10, frame_skip=4),
+    'joint-hrl-cameras': dict(team='camera', action='hrl-joint', frame_skip=5),
+    'q-value-cameras': dict(team='camera', network='dueling'),
+    'recurrent-q-targets': dict(team='target', network='recurrent-q', lstm=0),
+    'continuous-targets': dict(team='target', action='continuous', network='independent'),
+    'tarmac-targets': dict(team='target', network='tarmac', lstm=8),
+    'i2c-targets': dict(team='target', network='i2c', lstm=8),
 }
 
 
@@ -117,17 +116,21 @@ def test_batched_policy_acts_as_the_deployment_agents(variant):
             np.testing.assert_array_equal(single_obs[i], observations[team][i])
 
 
-def test_play_batch_rows_equal_single_env_episodes():
-    """Deterministic batched HRL cameras against still targets: every row's summary equals
-    `mate.evaluate.play_episode` of the deployment agents with the row's seed."""
+@pytest.mark.parametrize('opponent', ['still', 'greedy'])
+def test_play_batch_rows_equal_single_env_episodes(opponent):
+    """Deterministic batched HRL cameras against still targets, or against the batched greedy targets seeded like
+    the env (row i plays as `GreedyTargetAgent(seed=4 + i)`, the agents `play_episode` builds for seed 4 + i):
+    every row's summary equals `mate.evaluate.play_episode` of the deployment agents with the row's seed."""
     policy = _policy('camera', hrl=True, frame_skip=5)
+    targets = StillTargets() if opponent == 'still' else GreedyTeam('target', 3, COUNTS, seed=4)
     results, timing = play_batch('MATE-2v4-0', PolicyTeam(policy, 'camera', 3, COUNTS, deterministic=True),
-                                 StillTargets(), episodes=3, seed=4, max_episode_steps=60)
+                                 targets, episodes=3, seed=4, max_episode_steps=60)
     assert timing['env_steps'] == 180 and timing['env_steps_per_second'] > 0
     env = mate.make('MATE-2v4-0-v0')
+    target_factory = (lambda seed: StillTargetAgent(seed=seed)) if opponent == 'still' else mate.GreedyTargetAgent
     for i, result in enumerate(results):
         single = play_episode(env, lambda seed: AGENT_CLASSES[mate.Team.CAMERA](policy, seed=seed, deterministic=True),
-                              lambda seed: StillTargetAgent(seed=seed), seed=4 + i, max_steps=60)
+                              target_factory, seed=4 + i, max_steps=60)
         assert result.seed == single.seed == 4 + i
         for field in ('coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                       'normalized_target_return', 'delivered_cargoes', 'episode_length'):
@@ -191,15 +194,28 @@ def test_mixture_team_plays_one_member_per_row_and_episode():
 
 
 def test_make_team_names_the_batched_agents():
-    assert isinstance(make_team('greedy', 'camera', 2, (4, 8, 9)), GreedyTeam)
-    with pytest.raises(ValueError, match='batched greedy agents take no keyword arguments'):
+    assert isinstance(make_team('greedy', 'camera', 2, (4, 8, 9)), GreedyCameraTeam)
+    assert make_team('greedy', 'camera', 2, (4, 8, 9), memory_period=10).team is mate.Team.CAMERA   # the agents' options
+    with pytest.raises(ValueError, match='unknown option.*deterministic for the greedy cameras'):
         make_team('greedy', 'camera', 2, (4, 8, 9), deterministic=False)
-    with pytest.raises(TypeError, match='deterministic'):
+    with pytest.raises(ValueError, match='unknown option.*deterministic for the random agents'):
         make_team('random', 'camera', 2, (4, 8, 9), deterministic=False)
     with pytest.raises(ValueError, match='heuristic.*no batched version.*random, greedy'):
         make_team('heuristic', 'camera', 2, (4, 8, 9))
     with pytest.raises(ValueError, match=r'trained with \(cameras, targets, obstacles\) = \(4, 8, 9\)'):
         make_team('pretrained:hrl-mappo-camera-4v8-9', 'camera', 2, COUNTS)
+    assert isinstance(make_team('pretrained:hrl-mappo-camera-4v8-9', 'camera', 2, (4, 8, 9)), PolicyTeam)
+
+
+def test_make_team_reads_a_checkpoint_path_as_load_agent_does(tmp_path, monkeypatch):
+    import shutil
+
+    from mate.learn.policy import load_agent, pretrained_path
+    shutil.copy(pretrained_path('mappo-target-2v4-0'), tmp_path / 'targets.pt')
+    monkeypatch.setenv('HOME', str(tmp_path))
+    team = make_team('checkpoint:~/targets.pt', 'target', 2, COUNTS, frame_skip=4, deterministic=False)
+    assert isinstance(team, PolicyTeam) and team.frame_skip == 4 and not team.deterministic
+    assert load_agent('checkpoint:~/targets.pt', 'target')(seed=0).policy.spec == team.spec
 
 
 def test_mate_evaluate_batched(tmp_path, capsys):
@@ -213,6 +229,6 @@ def test_mate_evaluate_batched(tmp_path, capsys):
     assert all(e['episode_length'] == 40 for e in data['episodes'])
     assert 'games at once' in capsys.readouterr().out.replace('\n', ' ')
     assert cli.main(['evaluate', '--batched', '--target-agent', 'naive', '--episodes', '2']) == 2
-    assert "agent 'naive' has no batched version" in capsys.readouterr().err
+    assert 'no batched form of naive' in capsys.readouterr().err
     assert cli.main(['evaluate', '--batched', '--shared-field-of-view', '--episodes', '2']) == 2
-    assert 'drop --shared-field-of-view or --batched' in capsys.readouterr().err
+    assert 'drop --shared-field-of-view' in capsys.readouterr().err

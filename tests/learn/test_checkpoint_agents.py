@@ -1,3 +1,7 @@
+"""Training runs' files (format 2: run checkpoints and policy files) and the agents that play them: round trips,
+resumes, refusals of corrupt, foreign or mismatched files, exports, warm starts, the train command's options, and
+the per-target camera actor."""
+
 import csv
 
 import numpy as np
@@ -12,28 +16,36 @@ from mate.learn import (
     load_agent,
     load_checkpoint,
     load_policy,
+    save_checkpoint,
 )
-from mate.learn.ppo import PPOConfig, train
+from mate.learn import mappo, mappo_lstm
+from mate.learn.spec import PolicySpec
 
 
-def _tiny_camera_checkpoint(tmp_path, algo='mappo', total=2 * 8 * 8):
-    config = PPOConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
-                       total_steps=total, epochs=1, hidden=(16,), checkpoint_every=1, seed=0, actor='mlp')
+def _camera_config(run_dir, **changes) -> mappo.MAPPOConfig:
+    """A tiny MAPPO run of MLP cameras on MATE-2v4-0 in `run_dir`: 8 envs x 8 decisions per iteration."""
+    return mappo.MAPPOConfig(**{**dict(team='camera', config='MATE-2v4-0', num_envs=8, rollout_length=8,
+                                       steps=2 * 8 * 8, epochs=1, hidden=(16,), checkpoint_every=1, seed=0,
+                                       actor='mlp', run_dir=str(run_dir), progress=False), **changes})
+
+
+def _tiny_camera_checkpoint(tmp_path, critic='state', total=2 * 8 * 8, **changes):
     rows = []
-    train(config, tmp_path, progress=False, callback=rows.append)
+    mappo.train(_camera_config(tmp_path, critic=critic, steps=total, **changes), callback=rows.append)
     return tmp_path / 'final.pt', rows
 
 
 def test_round_trip_and_agent_plays(tmp_path):
     path, _ = _tiny_camera_checkpoint(tmp_path)
     data = load_checkpoint(path)
-    assert data['meta']['team'] == 'camera' and data['meta']['obs_dim'] == 56
+    assert data['spec']['team'] == 'camera' and data['spec']['obs_dim'] == 56
     policy = load_policy(path, 'camera')
+    assert policy.spec == PolicySpec.from_dict(data['spec']) and policy.spec.algo == 'mappo'
     x = torch.randn(3, 56)
     from mate.learn.networks import Actor
     actor = Actor(56, 25, (16,))
     actor.load_state_dict(data['actor'])
-    assert np.allclose(policy.logits(x.numpy()), actor(x).detach().numpy())
+    assert np.allclose(policy.outputs(x.numpy()), actor(x).detach().numpy())
 
     env = mate.make('MATE-2v4-0-v0')
     factory = load_agent(f'checkpoint:{path}', 'camera')
@@ -56,12 +68,12 @@ def test_round_trip_and_agent_plays(tmp_path):
 
 
 def test_resume_continues_and_mismatch_is_refused(tmp_path):
-    from mate.learn import save_checkpoint
     _, rows = _tiny_camera_checkpoint(tmp_path, total=2 * 8 * 8)
     assert rows[-1]['env_steps'] == 128
     saved = load_checkpoint(tmp_path / 'checkpoint.pt')
-    assert saved['wall_seconds'] >= rows[-1]['wall_seconds'] - 0.01
-    save_checkpoint(tmp_path / 'checkpoint.pt', dict(saved, wall_seconds=1000.0))   # as if trained 1000 s before
+    assert saved['run']['wall_seconds'] >= rows[-1]['wall_seconds'] - 0.01
+    saved['run']['wall_seconds'] = 1000.0                           # as if trained 1000 s before
+    save_checkpoint(tmp_path / 'checkpoint.pt', saved)
     log = tmp_path / 'progress.csv'   # as if written by a version that logged one column less
     log.write_text('\n'.join(','.join(line.split(',')[:-1]) for line in log.read_text().splitlines()) + '\n')
     _, more = _tiny_camera_checkpoint(tmp_path, total=4 * 8 * 8)   # resumes at 128 steps
@@ -71,15 +83,19 @@ def test_resume_continues_and_mismatch_is_refused(tmp_path):
     assert [int(row['iteration']) for row in logged] == [1, 2, 3, 4]
     assert more[0]['iteration'] == 3 and more[-1]['env_steps'] == 256
     assert 1000.0 < more[0]['wall_seconds'] <= more[-1]['wall_seconds']   # wall time continues over sessions
-    with pytest.raises(CheckpointError, match='algo'):
-        _tiny_camera_checkpoint(tmp_path, algo='ippo', total=6 * 8 * 8)
-    # checkpoints written before `full_observability` existed are partial-observability ones
-    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
-    del saved['meta']['full_observability']
-    save_checkpoint(tmp_path / 'checkpoint.pt', saved)
-    assert load_checkpoint(tmp_path / 'checkpoint.pt', expect={'full_observability': False})
-    with pytest.raises(CheckpointError, match='full_observability'):
-        load_checkpoint(tmp_path / 'checkpoint.pt', expect={'full_observability': True})
+    with pytest.raises(CheckpointError, match='trained by mappo; this run is ippo'):
+        _tiny_camera_checkpoint(tmp_path, critic='local', total=6 * 8 * 8)
+    with pytest.raises(CheckpointError, match='trained without --full-observability; this run has it'):
+        _tiny_camera_checkpoint(tmp_path, total=6 * 8 * 8, full_observability=True)
+    # checkpoints written before `full_observability` existed (version 1, no such key in their meta) are
+    # partial-observability ones
+    spec = load_policy(tmp_path / 'final.pt').spec
+    meta = dict(team='camera', counts=list(spec.counts), obs_dim=spec.obs_dim, state_dim=spec.state_dim,
+                env_id=spec.env_id, frame_skip=5, levels=5, actor='mlp')
+    old = PolicySpec.from_meta(meta, dict(hidden=[16]))
+    assert old.full_observability is False and old.differences(spec) == []
+    assert old.differences(spec.replace(full_observability=True)) == [
+        'trained without --full-observability; this run has it']
 
 
 def test_corrupt_and_foreign_checkpoints(tmp_path):
@@ -104,6 +120,14 @@ def test_corrupt_and_foreign_checkpoints(tmp_path):
         load_agent(f'checkpoint:{path}', 'target')
     with pytest.raises(ValueError, match='pretrained'):
         load_agent('pretrained:no-such-policy', 'camera')
+    # a policy file whose spec is missing or does not fit its weights
+    data = load_checkpoint(path)
+    save_checkpoint(tmp_path / 'no-spec.pt', {k: v for k, v in data.items() if k != 'spec'})
+    with pytest.raises(CheckpointError, match='lacks'):
+        load_policy(tmp_path / 'no-spec.pt')
+    save_checkpoint(tmp_path / 'wider.pt', dict(data, spec=dict(data['spec'], hidden=[32])))
+    with pytest.raises(CheckpointError, match='do not fit its spec'):
+        load_policy(tmp_path / 'wider.pt')
     # a camera policy for 2 cameras refuses an env with 4
     agent = PolicyCameraAgent.from_checkpoint(path)
     env = mate.make('MATE-4v8-9-v0')
@@ -112,51 +136,80 @@ def test_corrupt_and_foreign_checkpoints(tmp_path):
         agent.reset(camera_obs[0])
 
 
+def test_spec_differences_name_the_setting_in_the_words_of_the_command_line():
+    from .toy import CueMatching
+
+    spec = mappo.policy_spec(_camera_config('unused'))
+    assert spec.differences(spec.replace(algo='ippo', deterministic=True)) == []
+    assert spec.differences(spec.replace(action='hrl', levels=0, memory=25)) == [
+        'trained with grid moves (no --hrl); this run has per-target HRL selections (--hrl)']   # the cause only
+    assert spec.differences(spec.replace(hidden=(32, 32), memory=25)) == [
+        'trained with --hidden 16; this run has --hidden 32 32', 'trained without --memory; this run has --memory 25']
+    toy = CueMatching().spec
+    assert toy.differences(toy.replace(action='continuous', network='independent', levels=0)) == [
+        'trained with abstract discrete choices (a toy task); this run has continuous actions (matd3)']
+
+
+def _train_options(algo, argv):
+    """The config `mate train ALGO ARGV` trains with (the trainer's generated parser)."""
+    from mate.learn.command import TRAINERS, trainer_parser
+    from mate.options import config_from
+
+    parser, _, config_class = trainer_parser(algo)
+    return config_from(parser, config_class, parser.parse_args(argv), **TRAINERS[algo].fixed)
+
+
+def _refused(algo, argv, capsys) -> str:
+    """The first line of the error `mate train ALGO ARGV` exits with (status 2)."""
+    with pytest.raises(SystemExit) as exit_info:
+        _train_options(algo, argv)
+    assert exit_info.value.code == 2
+    return capsys.readouterr().err.splitlines()[0]
+
+
 def test_cli_train_parser():
     from mate.cli import build_parser
     args = build_parser().parse_args(['train', 'ippo', '--team', 'target', '--steps', '1e4'])
-    assert args.algo == 'ippo' and args.team == 'target' and args.steps == 1e4
+    assert args.algo == 'ippo' and args.options == ['--team', 'target', '--steps', '1e4']
+    config = _train_options(args.algo, args.options)
+    assert isinstance(config, mappo.MAPPOConfig) and config.algo == 'ippo' and config.critic == 'local'
+    assert config.team == 'target' and config.steps == 10_000
 
 
-def test_cli_train_defaults_and_paper_settings():
-    from mate.cli import build_parser
-    from mate.learn.command import config_from_args
+def test_cli_train_defaults_and_paper_settings(capsys):
     from mate.learn.ppo import PAPER_HYPERPARAMETERS
-    parse = build_parser().parse_args
-    camera = config_from_args(parse(['train', 'mappo'])).resolved()
-    assert camera.actor == 'per-target' and camera.entropy_schedule[0] == (0, 0.01)
-    assert config_from_args(parse(['train', 'mappo', '--team', 'target'])).resolved().actor == 'mlp'
-    paper = config_from_args(parse(['train', 'mappo', '--paper']))
+    camera = _train_options('mappo', [])
+    assert mappo.policy_spec(camera).network == 'per-target' and camera.entropy_schedule[0] == (0, 0.01)
+    assert mappo.policy_spec(_train_options('mappo', ['--team', 'target'])).network == 'mlp'
+    paper = _train_options('mappo', ['--paper'])
     assert paper.actor == 'mlp' and paper.lr_schedule == PAPER_HYPERPARAMETERS['lr_schedule']
     assert paper.entropy_schedule == PAPER_HYPERPARAMETERS['entropy_schedule']
     assert camera.kl_coeff == 0.0 and paper.kl_coeff == 0.2 and paper.kl_target == 0.01
     assert not camera.full_observability
-    assert config_from_args(parse(['train', 'ippo', '--team', 'target', '--full-observability'])).full_observability
-    assert config_from_args(parse(['train', 'mappo', '--paper', '--kl-coeff', '0'])).kl_coeff == 0.0
-    tuned = config_from_args(parse(['train', 'mappo', '--kl-coeff', '0.5', '--kl-target', '0.02']))
+    assert _train_options('ippo', ['--team', 'target', '--full-observability']).full_observability
+    assert _train_options('mappo', ['--paper', '--kl-coeff', '0']).kl_coeff == 0.0
+    tuned = _train_options('mappo', ['--kl-coeff', '0.5', '--kl-target', '0.02'])
     assert (tuned.kl_coeff, tuned.kl_target) == (0.5, 0.02)
-    with pytest.raises(SystemExit, match='--kl-coeff must be >= 0'):
-        config_from_args(parse(['train', 'mappo', '--kl-coeff', '-1']))
-    with pytest.raises(SystemExit, match='--kl-target must be > 0'):
-        config_from_args(parse(['train', 'mappo', '--kl-target', '0']))
-    mixed = config_from_args(parse(['train', 'mappo', '--paper', '--actor', 'per-target',
-                                    '--entropy-schedule', '[[0, 0.02]]']))
+    assert '--kl-coeff: expected a number >= 0' in _refused('mappo', ['--kl-coeff', '-1'], capsys)
+    assert '--kl-target: expected a number > 0' in _refused('mappo', ['--kl-target', '0'], capsys)
+    mixed = _train_options('mappo', ['--paper', '--actor', 'per-target', '--entropy-schedule', '[[0, 0.02]]'])
     assert mixed.actor == 'per-target' and mixed.entropy_schedule == ((0, 0.02),)
-    with pytest.raises(SystemExit, match='needs --team camera'):
-        config_from_args(parse(['train', 'mappo', '--team', 'target', '--actor', 'per-target']))
-    with pytest.raises(SystemExit, match='must be JSON'):
-        config_from_args(parse(['train', 'mappo', '--lr-schedule', 'fast']))
+    assert 'needs --team camera' in _refused('mappo', ['--team', 'target', '--actor', 'per-target'], capsys)
+    assert 'expected JSON' in _refused('mappo', ['--lr-schedule', 'fast'], capsys)
 
 
 def test_export_policy_is_small_and_loads(tmp_path):
     from mate.learn import export_policy
     path, _ = _tiny_camera_checkpoint(tmp_path / 'run')
-    small = export_policy(path, tmp_path / 'small.pt', note='test')
-    assert small.stat().st_size < path.stat().st_size
+    checkpoint = tmp_path / 'run' / 'checkpoint.pt'
+    small = export_policy(checkpoint, tmp_path / 'small.pt', note='test')
+    assert small.stat().st_size < checkpoint.stat().st_size
     data = load_checkpoint(small)
-    assert 'optimizer' not in data and data['note'] == 'test'
+    assert 'optimizer' not in data and 'state' not in data and data['note'] == 'test' and data['env_steps'] == 128
     agent = PolicyCameraAgent.from_checkpoint(small)
-    assert agent.policy.meta['team'] == 'camera' and not agent.deterministic
+    assert agent.policy.spec.team == 'camera' and not agent.deterministic
+    for key, value in load_checkpoint(path)['actor'].items():     # the run's last actor, as in final.pt
+        assert torch.equal(data['actor'][key], value)
     # an exported policy can carry the way it was scored (argmax) as its agents' default
     scored = export_policy(path, tmp_path / 'scored.pt', deterministic=True)
     assert PolicyCameraAgent.from_checkpoint(scored).deterministic
@@ -166,13 +219,16 @@ def test_export_policy_is_small_and_loads(tmp_path):
 @pytest.mark.parametrize('variant', [dict(actor='mlp', lstm=16), dict(hrl=True, actor='per-target'),
                                      dict(actor='per-target', lstm=8)])
 def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, variant):
-    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=4, rollout_length=4,
-                       total_steps=2 * 4 * 4, epochs=1, hidden=(16,), snapshot_every=1, seed=0, **variant)
-    train(config, tmp_path, progress=False)
+    trainer = mappo_lstm if variant.get('lstm') else mappo
+    config_class = mappo_lstm.RecurrentConfig if variant.get('lstm') else mappo.MAPPOConfig
+    config = config_class(team='camera', config='MATE-2v4-0', num_envs=4, rollout_length=4, steps=2 * 4 * 4,
+                          epochs=1, hidden=(16,), snapshot_every=1, seed=0, run_dir=str(tmp_path), progress=False,
+                          **variant)
+    trainer.train(config)
     snapshots = sorted((tmp_path / 'snapshots').glob('policy-*.pt'))
     assert [p.name for p in snapshots] == ['policy-0000000016.pt', 'policy-0000000032.pt']
     policy = load_policy(snapshots[-1], 'camera')
-    assert policy.recurrent == bool(variant.get('lstm'))
+    assert policy.recurrent == bool(variant.get('lstm')) and policy.spec.lstm == variant.get('lstm', 0)
     env = mate.make('MATE-2v4-0-v0')
     (camera_obs, _), _ = env.reset(seed=0)
     agent = PolicyCameraAgent(policy, seed=0, deterministic=True)
@@ -181,17 +237,16 @@ def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, varian
     agent.reset(camera_obs[0])                     # a reset forgets the recurrent memory: same actions again
     assert all(np.array_equal(a, b) for a, b in zip(first, [agent.act(camera_obs[0]) for _ in range(6)]))
     if variant.get('lstm'):                        # the memory changes the logits of the same observation
-        from mate.learn.envs import preprocess_observation
-        x = preprocess_observation(camera_obs[:1], 'camera', 2, 4, 0)
-        logits0, memory = policy.logits(x, policy.initial_memory(1))
-        logits1, _ = policy.logits(x, memory)
+        x = policy.features(camera_obs[:1])
+        logits0, memory = policy.outputs(x, policy.initial_memory(1))
+        logits1, _ = policy.outputs(x, memory)
         assert not np.allclose(logits0, logits1)
 
 
 def _camera_views(steps: int = 60, seed: int = 0):
     """(processed camera observations (S, Nc, D), world snapshots) of random play on MATE-2v4-0, with
     the cameras' viewing angles opened wide so that they often see each other and the same targets."""
-    from mate.learn.envs import preprocess_observation
+    from mate.learn.spec import preprocess_observation
     env = mate.make('MATE-2v4-0-v0')
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
@@ -275,20 +330,20 @@ def test_per_target_actor_slot_features_match_the_world():
     assert np.all(np.abs(inside[:, 8]) <= 1 + 1e-6) and np.allclose(inside[:, 8] ** 2 + inside[:, 9] ** 2, 1, atol=1e-5)
 
 def test_warm_start_loads_the_networks_and_rejects_another_setting(tmp_path):
-    from mate.learn import CheckpointError
-    path, _ = _tiny_camera_checkpoint(tmp_path / 'first')
-    saved = load_checkpoint(path)
-    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
-                       total_steps=8 * 8, epochs=1, hidden=(16,), seed=3, actor='mlp', init_from=str(path),
-                       lr_schedule=((0, 0.0),))
-    train(config, tmp_path / 'second', progress=False)     # learning rate 0: the weights stay the loaded ones
-    warm = load_checkpoint(tmp_path / 'second' / 'final.pt')
-    assert warm['env_steps'] == 64                          # steps count from 0
-    for key, value in saved['actor'].items():
-        assert torch.equal(warm['actor'][key], value)
-    for key, value in saved['critic'].items():
-        assert torch.equal(warm['critic'][key], value)
-    other = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=8, rollout_length=8,
-                      total_steps=8 * 8, hidden=(16,), hrl=True, actor='mlp', init_from=str(path))
-    with pytest.raises(CheckpointError, match='does not match this experiment'):
-        train(other, tmp_path / 'third', progress=False)
+    _tiny_camera_checkpoint(tmp_path / 'first')
+    first = load_checkpoint(tmp_path / 'first' / 'checkpoint.pt')['state']['networks']
+    frozen = dict(steps=8 * 8, seed=3, lr_schedule=((0, 0.0),))     # learning rate 0: the weights stay the loaded ones
+    mappo.train(_camera_config(tmp_path / 'second', init_from=str(tmp_path / 'first' / 'checkpoint.pt'), **frozen))
+    assert load_checkpoint(tmp_path / 'second' / 'final.pt')['env_steps'] == 64      # steps count from 0
+    warm = load_checkpoint(tmp_path / 'second' / 'checkpoint.pt')['state']['networks']
+    for name in ('actor', 'critic'):
+        for key, value in first[name].items():
+            assert torch.equal(warm[name][key], value), (name, key)
+    # a policy file holds the actor only: the critic starts afresh
+    mappo.train(_camera_config(tmp_path / 'policy', init_from=str(tmp_path / 'first' / 'final.pt'), **frozen))
+    from_policy = load_checkpoint(tmp_path / 'policy' / 'checkpoint.pt')['state']['networks']
+    assert all(torch.equal(from_policy['actor'][k], v) for k, v in first['actor'].items())
+    assert not all(torch.equal(from_policy['critic'][k], v) for k, v in first['critic'].items())
+    with pytest.raises(CheckpointError, match=r'warm start .*grid moves \(no --hrl\); this run has per-target HRL'):
+        mappo.train(_camera_config(tmp_path / 'third', hrl=True, steps=8 * 8,
+                                   init_from=str(tmp_path / 'first' / 'final.pt')))

@@ -126,7 +126,6 @@ def test_tarmac_checkpoints_resume_and_refuse_another_trainer(tmp_path):
     assert isinstance(actor, TarMACActor) and actor.lstm_size == 16
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_tarmac_policies_play_batched_and_as_agents(tmp_path):
     from mate.learn.policy import PolicyTargetAgent, PolicyTeam, load_agent, load_policy
     from mate.teams import make_team, play_batch
@@ -239,7 +238,7 @@ def _play_targets(path, wrappers=(), lag=0, steps=22, frame_skip=3):
                     delivered += 1
                     arrived[i, message.sender] = torch.from_numpy(message.content['tarmac'])
         if step % frame_skip == 0:
-            processed = torch.as_tensor(policy.inputs(target_obs), dtype=torch.float32)      # (N, D)
+            processed = torch.as_tensor(policy.features(target_obs), dtype=torch.float32)      # (N, D)
             with torch.no_grad():
                 if lag == 0:
                     logits, team_memory = actor.step(processed[None], team_memory)
@@ -272,7 +271,6 @@ def _play_targets(path, wrappers=(), lag=0, steps=22, frame_skip=3):
     return delivered, gap
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_single_agents_exchange_messages_through_the_env_channel_as_in_training(target_policy):
     """Targets driven by `group_step` (one broadcast per decision, in the next step's response round)
     compute what one `TarMACActor.step` on the whole team computes, decision after decision."""
@@ -283,14 +281,12 @@ def test_single_agents_exchange_messages_through_the_env_channel_as_in_training(
     assert delivered == 4 * 4 * 7 and gap > 1e-3
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 @pytest.mark.parametrize('wrapper', [mate.NoCommunication, lambda env: mate.RandomMessageDropout(env, 1.0)])
 def test_lost_messages_read_as_zeros(target_policy, wrapper):
     delivered, gap = _play_targets(target_policy, wrappers=[wrapper], lag=None)
     assert delivered == 0 and gap == 0
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_each_teammate_that_was_not_heard_reads_as_zeros(target_policy):
     """Half the copies dropped: every receiver reads exactly the messages that reached it, zeros for the rest."""
     delivered, _ = _play_targets(target_policy, wrappers=[lambda env: mate.RandomMessageDropout(env, 0.5)],
@@ -298,7 +294,6 @@ def test_each_teammate_that_was_not_heard_reads_as_zeros(target_policy):
     assert 4 * 4 * 7 * 0.25 < delivered < 4 * 4 * 7 * 0.75
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_a_late_message_is_read_at_the_first_decision_after_it_arrives(target_policy):
     """Sent in the response round of step s + 1 and held 3 steps, a message of decision s reaches its
     teammates at step s + 4, after their decision at s + 3: they read it at s + 6, one decision late."""
@@ -307,7 +302,6 @@ def test_a_late_message_is_read_at_the_first_decision_after_it_arrives(target_po
     assert delivered == 4 * 4 * 6            # the 7th broadcast (step 19) is still held at step 21
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_tarmac_messages_compare_by_value(target_policy):
     from mate.learn.policy import load_agent
 

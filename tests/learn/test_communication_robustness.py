@@ -4,18 +4,19 @@ import json
 
 import pytest
 
-from mate.learn.ppo import PPOConfig, train
 from modules import load_script
 
 robustness = load_script('communication_robustness')
 
 
+
 @pytest.fixture(scope='module')
 def tarmac_targets(tmp_path_factory):
+    from mate.learn.tarmac import TarMACConfig, train
+
     run = tmp_path_factory.mktemp('tarmac')
-    train(PPOConfig(algo='mappo', team='target', env_id='MATE-2v4-0-v0', num_envs=2, rollout_length=2,
-                    total_steps=4, epochs=1, hidden=(16,), lstm=16, comm='tarmac', seed=0, torch_threads=1),
-          run, progress=False)
+    train(TarMACConfig(team='target', config='MATE-2v4-0', num_envs=2, rollout_length=2, steps=4, epochs=1,
+                       hidden=(16,), lstm=16, seed=0, threads=1, run_dir=str(run), progress=False))
     return run / 'final.pt'
 
 

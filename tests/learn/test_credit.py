@@ -5,12 +5,18 @@ import numpy as np
 import pytest
 
 from mate.learn import CheckpointError, load_checkpoint
-from mate.learn.envs import TeamVecEnv, difference_rewards
-from mate.learn.ppo import PPOConfig, train
-from mate.spaces import observation_indices_of
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards
+from mate.learn.mappo import MAPPOConfig, train
 from mate.messages import Team
+from mate.spaces import observation_indices_of
 
 from .toy import OwnCueMatching
+
+
+def _env(num_envs, **options):
+    """Training envs of grid-move cameras on MATE-4v8-9 (the camera preset), `options` of `TeamEnvConfig`."""
+    config = TeamEnvConfig(team='camera', num_envs=num_envs, **options)
+    return config.make_env(config.policy_spec())
 
 
 def test_difference_rewards_by_hand():
@@ -32,8 +38,8 @@ def test_team_env_pays_each_camera_its_own_share():
     """Same game as the team-reward env; each camera's reward is the sum over the held raw steps of its
     difference reward, computed here from the recorded raw observations' flags, whose union is the
     coverage rate the env reports."""
-    env = TeamVecEnv('camera', num_envs=4, credit='difference', horizon=40, seed=3)
-    plain = TeamVecEnv('camera', num_envs=4, horizon=40, seed=3)
+    env = _env(4, credit='difference', horizon=40, seed=3)
+    plain = _env(4, horizon=40, seed=3)
     nc, nt, no = env.counts
     begin = int(observation_indices_of(Team.CAMERA, nc, nt, no)[2])
     raw_steps = []
@@ -69,42 +75,95 @@ def test_team_env_pays_each_camera_its_own_share():
 
 def test_learner_with_per_agent_rewards_improves(tmp_path):
     rows = []
-    config = PPOConfig(algo='mappo', actor='mlp', total_steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4,
-                       hidden=(32,), lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1)
-    train(config, tmp_path, progress=False, callback=rows.append,
-          envs=OwnCueMatching(num_envs=16, num_agents=2, num_actions=4))
+    config = MAPPOConfig(actor='mlp', steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4, hidden=(32,),
+                         lr_schedule=((0, 3e-3),), entropy_schedule=((0, 0.0),), seed=1, run_dir=str(tmp_path),
+                         progress=False)
+    train(config, OwnCueMatching(num_envs=16, num_agents=2, num_actions=4), callback=rows.append)
     assert rows[0]['rollout_coverage'] < 0.45
     assert rows[-1]['rollout_coverage'] > 0.8, [round(r['rollout_coverage'], 3) for r in rows]
-    saved = load_checkpoint(tmp_path / 'final.pt')
-    assert saved['meta']['credit'] == 'difference'
-    assert saved['critic']['head.weight'].shape[0] == 2               # one value per agent
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    assert saved['state']['networks']['critic']['head.weight'].shape[0] == 2      # one value per agent
+
+
+def _difference_config(tmp_path, **changes):
+    return MAPPOConfig(**{**dict(team='camera', config='MATE-2v4-0', num_envs=4, rollout_length=4, steps=2 * 4 * 4,
+                                 epochs=1, hidden=(16,), credit='difference', seed=0, actor='mlp',
+                                 run_dir=str(tmp_path), progress=False), **changes})
 
 
 def test_difference_credit_checkpoint_and_validation(tmp_path):
-    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-2v4-0-v0', num_envs=4, rollout_length=4,
-                       total_steps=2 * 4 * 4, epochs=1, hidden=(16,), credit='difference', seed=0, actor='mlp')
-    row = train(config, tmp_path, progress=False)
+    run = train(_difference_config(tmp_path))
+    row = run.last_row
     assert row['env_steps'] == 32 and np.isfinite(row['value_loss'])
-    saved = load_checkpoint(tmp_path / 'final.pt')
-    assert saved['meta']['credit'] == 'difference' and saved['critic']['head.weight'].shape[0] == 2
-    with pytest.raises(CheckpointError, match='credit'):   # resuming with the team reward is another experiment
-        train(PPOConfig(**{**config.__dict__, 'credit': 'team', 'total_steps': 64}), tmp_path, progress=False)
-    # older checkpoints (no 'credit' in their metadata) were trained with the team reward
-    del saved['meta']['credit']
-    from mate.learn import save_checkpoint
-    save_checkpoint(tmp_path / 'old.pt', saved)
-    assert load_checkpoint(tmp_path / 'old.pt', expect={'credit': 'team'})
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    assert saved['config']['credit'] == 'difference'
+    assert saved['state']['networks']['critic']['head.weight'].shape[0] == 2
+    assert load_checkpoint(tmp_path / 'final.pt')['config']['credit'] == 'difference'
     with pytest.raises(ValueError, match='cameras only'):
-        TeamVecEnv('target', num_envs=2, credit='difference')
+        TeamEnvConfig(team='target', num_envs=2, credit='difference')
+    target_spec = TeamEnvConfig(team='target').policy_spec()
+    with pytest.raises(ValueError, match='cameras only'):
+        TeamVecEnv(target_spec, num_envs=2, credit='difference')
     with pytest.raises(ValueError, match="credit must be one of"):
-        TeamVecEnv('camera', num_envs=2, credit='own')
+        TeamVecEnv(TeamEnvConfig(team='camera').policy_spec(), num_envs=2, credit='own')
 
 
-def test_cli_credit_option():
-    from mate.cli import build_parser
-    from mate.learn.command import config_from_args
-    parse = build_parser().parse_args
-    assert config_from_args(parse(['train', 'mappo'])).credit == 'team'
-    assert config_from_args(parse(['train', 'mappo', '--credit', 'difference'])).credit == 'difference'
-    with pytest.raises(SystemExit, match='cameras only'):
-        config_from_args(parse(['train', 'mappo', '--team', 'target', '--credit', 'difference']))
+def test_resuming_with_another_credit_is_refused(tmp_path):
+    train(_difference_config(tmp_path))
+    with pytest.raises(CheckpointError, match='trained with --credit difference; this run has --credit team'):
+        train(_difference_config(tmp_path, credit='team', steps=64))
+
+
+def test_warm_start_keeps_the_critic_only_for_the_same_credit(tmp_path):
+    """--init-from: the critic (and its value normaliser) come along from a run checkpoint of the same algorithm and
+    credit; a checkpoint of another credit gives the actor only."""
+    import torch
+
+    train(_difference_config(tmp_path / 'first'))
+    first = load_checkpoint(tmp_path / 'first' / 'checkpoint.pt')['state']['networks']
+    frozen = dict(lr_schedule=((0, 0.0),), steps=16, rollout_length=4)         # learning rate 0: loaded weights stay
+    train(_difference_config(tmp_path / 'same', init_from=str(tmp_path / 'first' / 'checkpoint.pt'), **frozen))
+    same = load_checkpoint(tmp_path / 'same' / 'checkpoint.pt')['state']['networks']
+    for name in ('actor', 'critic'):
+        assert all(torch.equal(same[name][k], v) for k, v in first[name].items()), name
+    train(_difference_config(tmp_path / 'team', credit='team', init_from=str(tmp_path / 'first' / 'checkpoint.pt'),
+                             **frozen))
+    team = load_checkpoint(tmp_path / 'team' / 'checkpoint.pt')['state']['networks']
+    assert all(torch.equal(team['actor'][k], v) for k, v in first['actor'].items())
+    assert team['critic']['head.weight'].shape[0] == 1                      # a fresh team-reward critic
+
+
+def test_version_1_checkpoints_were_trained_with_the_team_reward(tmp_path):
+    """Checkpoints written before the policy spec (format mate.learn/1) whose config has no 'credit' were trained with
+    the team reward: a team-credit warm start from one takes its critic too."""
+    import torch
+
+    train(_difference_config(tmp_path / 'first', credit='team'))
+    saved = load_checkpoint(tmp_path / 'first' / 'checkpoint.pt')
+    spec, networks = saved['spec'], saved['state']['networks']
+    config = {k: v for k, v in saved['config'].items() if k != 'credit'}
+    config.update(config=None, env_id=spec['env_id'])          # version 1 named the game by its env ID
+    meta = dict(team='camera', env_id=spec['env_id'], counts=spec['counts'], obs_dim=spec['obs_dim'],
+                state_dim=spec['state_dim'], frame_skip=spec['frame_skip'], levels=5, actor='mlp', algo='mappo')
+    old = tmp_path / 'old.pt'
+    torch.save({'format': 'mate.learn/1', 'meta': meta, 'config': config, **networks}, old)
+    train(_difference_config(tmp_path / 'warm', credit='team', init_from=str(old), lr_schedule=((0, 0.0),), steps=16))
+    warm = load_checkpoint(tmp_path / 'warm' / 'checkpoint.pt')['state']['networks']
+    for name in ('actor', 'critic'):
+        assert all(torch.equal(warm[name][k], v) for k, v in networks[name].items()), name
+
+
+def test_cli_credit_option(capsys):
+    from mate.learn.command import trainer_parser
+    from mate.options import config_from
+
+    parser, _, config_class = trainer_parser('mappo')
+
+    def config_of(argv):
+        return config_from(parser, config_class, parser.parse_args(argv))
+
+    assert config_of([]).credit == 'team'
+    assert config_of(['--credit', 'difference']).credit == 'difference'
+    with pytest.raises(SystemExit) as exit_info:
+        config_of(['--team', 'target', '--credit', 'difference'])
+    assert exit_info.value.code == 2 and 'cameras only' in capsys.readouterr().err.splitlines()[0]

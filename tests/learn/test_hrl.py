@@ -3,9 +3,16 @@ import pytest
 
 import mate
 from mate.agents.greedy import desired_viewing_angle
-from mate.learn import PolicyCameraAgent, TeamVecEnv
+from mate.learn import PolicyCameraAgent
+from mate.learn.envs import TeamEnvConfig
 from mate.learn.hrl import executor_actions
-from mate.learn.ppo import PPOConfig, train
+from mate.learn.mappo import MAPPOConfig, train
+
+
+def _hrl_env(config, num_envs, seed=0):
+    """The training envs of HRL cameras (one keep/ignore head per target slot) on preset `config`."""
+    team_env = TeamEnvConfig(team='camera', config=config, num_envs=num_envs, hrl=True, seed=seed)
+    return team_env.make_env(team_env.policy_spec(action='hrl'))
 
 
 def _camera_obs(seed=0):
@@ -41,17 +48,18 @@ def test_executor_aims_at_a_single_selected_target_like_the_greedy_rule():
     assert np.allclose(action, np.clip([rotation, zoom], [-5, -2.5], [5, 2.5]))
 
 
-@pytest.mark.parametrize('algo', ['mappo', 'ippo'])
-def test_hrl_env_and_policy_agent(tmp_path, algo):
-    env = TeamVecEnv('camera', num_envs=4, env_id='MATE-2v4-0-v0', hrl=True, seed=0)
+@pytest.mark.parametrize('critic', ['state', 'local'])        # MAPPO, IPPO
+def test_hrl_env_and_policy_agent(tmp_path, critic):
+    env = _hrl_env('MATE-2v4-0', 4)
     assert (env.action_heads, env.action_choices, env.num_actions) == (4, 2, 8)
     env.reset()
     *_, info = env.step(np.ones((4, 2, 4), dtype=np.int64))
     assert info['coverage'].shape == (4,)
-    config = PPOConfig(algo=algo, team='camera', env_id='MATE-2v4-0-v0', hrl=True, num_envs=4, rollout_length=4,
-                       total_steps=16, epochs=1, hidden=(8,))
-    train(config, tmp_path, progress=False)
+    config = MAPPOConfig(team='camera', config='MATE-2v4-0', hrl=True, critic=critic, num_envs=4, rollout_length=4,
+                         steps=16, epochs=1, hidden=(8,), run_dir=str(tmp_path), progress=False)
+    train(config)
     agent = PolicyCameraAgent.from_checkpoint(tmp_path / 'final.pt', seed=0)
+    assert agent.spec.action == 'hrl' and agent.spec.algo == ('mappo' if critic == 'state' else 'ippo')
     single = mate.make('MATE-2v4-0-v0')
     (camera_obs, _), _ = single.reset(seed=0)
     agent.reset(camera_obs[0])
@@ -63,7 +71,7 @@ def test_hrl_env_and_policy_agent(tmp_path, algo):
 def test_masked_selection_never_keeps_an_unseen_target():
     import torch
     from mate.learn.ppo import action_distribution
-    env = TeamVecEnv('camera', num_envs=8, env_id='MATE-4v8-0-v0', hrl=True, seed=0)
+    env = _hrl_env('MATE-4v8-0', 8)
     obs, _ = env.reset(seed=3)
     allowed = env.allowed_actions(obs)                                        # (B, Nc, Nt, 2)
     flags = obs[..., 22 + 4:22 + 40:5] > 0.5
@@ -79,3 +87,28 @@ def test_masked_selection_never_keeps_an_unseen_target():
     assert torch.allclose(entropy[~torch.from_numpy(flags)], torch.zeros(()))
     assert torch.allclose(entropy[torch.from_numpy(flags)], torch.tensor(np.log(2.0), dtype=torch.float32))
     assert torch.all(dist.log_prob(torch.zeros(8, 4, 8, dtype=torch.long))[~torch.from_numpy(flags)] == 0)
+
+
+def test_joint_selections_never_keep_an_unseen_target():
+    """`PolicySpec.choose` of an 'hrl-joint' policy (one head of 2^Nt subsets): argmax and samples only ever pick a
+    subset of the targets the camera sees, however large the masked-out logits; decode aims as the per-target
+    selection of the same bits does."""
+    from mate.learn.hrl import selection_bits
+    from mate.learn.spec import PolicySpec
+
+    joint = PolicySpec.for_game('camera', 'MATE-4v8-0-v0', frame_skip=5, action='hrl-joint', network='mlp')
+    per_target = joint.replace(action='hrl')
+    assert (joint.heads, joint.choices) == (1, 256)
+    camera_obs, flags = _camera_obs()
+    features = joint.features(camera_obs)
+    visible = joint.visible(features)
+    assert np.array_equal(visible, flags > 0.5)
+    bits = selection_bits(8)                                                  # (256, 8)
+    outside = (bits[None] & ~visible[:, None]).any(-1)                        # (Nc, 256) keeps an unseen target
+    logits = np.where(outside, 10.0, 0.0)                                     # the masked choices look best
+    rng = np.random.default_rng(0)
+    for deterministic in (True, False):
+        for _ in range(20 if not deterministic else 1):
+            held = joint.choose(logits, features, deterministic, rng)        # (Nc, 1)
+            assert held.shape == (4, 1) and not outside[np.arange(4), held[:, 0]].any()
+    np.testing.assert_array_equal(joint.decode(held, camera_obs), per_target.decode(bits[held[:, 0]], camera_obs))

@@ -211,7 +211,6 @@ def test_i2c_checkpoints_resume_and_refuse_another_trainer(tmp_path):
     assert isinstance(actor, I2CActor) and actor.num_agents == 4
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_i2c_policies_play_batched_and_as_agents(tmp_path):
     from mate.learn.policy import PolicyTeam, load_policy
     from mate.teams import make_team, play_batch
@@ -308,7 +307,7 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
         camera_action = mate.group_step(env, cameras, camera_obs, camera_infos)
         target_action = mate.group_step(env, targets, target_obs, target_infos)
         if step % frame_skip == 0:
-            processed = torch.as_tensor(policy.inputs(target_obs), dtype=torch.float32)      # (N, D)
+            processed = torch.as_tensor(policy.features(target_obs), dtype=torch.float32)      # (N, D)
             arrived = torch.zeros(N, N - 1, processed.shape[-1])
             with torch.no_grad():
                 selected = actor.request_logits(processed) >= 0                              # (N, K)
@@ -318,7 +317,7 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
                     replies += 1
                     slot = (message.sender - i - 1) % N
                     if selected[i, slot]:                # (only the asked answer, unless a delay mixes steps)
-                        reply = torch.as_tensor(policy.inputs(message.content['i2c']), dtype=torch.float32)
+                        reply = torch.as_tensor(policy.features(message.content['i2c']), dtype=torch.float32)
                         torch.testing.assert_close(reply, processed[message.sender]) if not wrappers else None
                         arrived[i, slot] = reply
             with torch.no_grad():
@@ -341,7 +340,6 @@ def _play_targets(path, wrappers=(), steps=22, frame_skip=3):
     return (requests, asked, replies, decisions) + ((late,) if wrappers else ())
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_single_agents_ask_and_answer_through_the_env_channel_as_in_training(target_policy):
     requests, asked, replies, decisions = _play_targets(target_policy)
     assert decisions == 8 and asked > 0
@@ -350,21 +348,18 @@ def test_single_agents_ask_and_answer_through_the_env_channel_as_in_training(tar
     assert decisions == 6 and requests == asked == replies > 0
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 @pytest.mark.parametrize('wrapper', [mate.NoCommunication, lambda env: mate.RandomMessageDropout(env, 1.0)])
 def test_unanswered_requests_read_as_zeros(target_policy, wrapper):
     requests, asked, replies, _, late = _play_targets(target_policy, wrappers=[wrapper])
     assert requests == replies == late == 0 and asked > 0
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_each_reply_that_was_lost_reads_as_zeros(target_policy):
     requests, asked, replies, _, _ = _play_targets(target_policy,
                                                    wrappers=[lambda env: mate.RandomMessageDropout(env, 0.5)])
     assert replies < requests < asked
 
 
-@pytest.mark.skip(reason='deployment agents: policy.py in progress')
 def test_late_replies_are_not_read(target_policy):
     """Delayed by one step, a request reaches its teammate after the asker's decision and the reply comes a step
     later still: every decision reads zeros in the asked slots (the reference gets no reply at a decision)."""

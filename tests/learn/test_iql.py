@@ -18,7 +18,7 @@ from mate.learn.spec import PolicySpec
 
 from .toy import CueMatching
 
-DEPLOYMENT = pytest.mark.skip(reason='deployment agents: policy.py in progress')
+
 
 # MATE-2v4-0 targets, 4 envs: 60 decisions of 4 decision steps, a log row every 80
 SMALL = dict(team='target', config='MATE-2v4-0', steps=4 * 60, num_envs=4, update_every=4, buffer_size=2_000,
@@ -120,10 +120,9 @@ def test_iql_checkpoints_resume_and_refuse_another_experiment(tmp_path):
         train(IQLConfig(**{**SMALL, 'steps': 4 * 120, 'team': 'camera'}, run_dir=str(tmp_path)))
 
 
-@DEPLOYMENT
 def test_iql_policy_plays_in_mate_evaluate(tmp_path):
-    from mate.learn.agents import load_policy
-    from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+    from mate.learn.policy import PolicyTeam, load_policy, make_team
+    from mate.teams import play_batch
 
     train(IQLConfig(**SMALL, run_dir=str(tmp_path)))
     policy = load_policy(tmp_path / 'final.pt', 'target')
@@ -167,11 +166,10 @@ def test_hrl_joint_selection_trains_one_of_2_to_the_nt_choices(tmp_path):
         IQLConfig(selection='per-target')
 
 
-@DEPLOYMENT
 def test_hrl_joint_iql_plays_only_selections_of_visible_targets(tmp_path):
     import mate
-    from mate.learn.agents import PolicyCameraAgent, load_policy
-    from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+    from mate.learn.policy import PolicyCameraAgent, PolicyTeam, load_policy, make_team
+    from mate.teams import play_batch
     from mate.learn.hrl import target_records
 
     train(IQLConfig(**HRL_JOINT, run_dir=str(tmp_path)))

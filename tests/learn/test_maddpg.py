@@ -18,7 +18,7 @@ from mate.learn.spec import PolicySpec, SpecError, action_high
 
 from .toy import ContinuousCue
 
-DEPLOYMENT = pytest.mark.skip(reason='deployment agents: policy.py in progress')
+
 
 # MATE-2v4-0 targets, 4 envs: 60 decisions of 4 decision steps, a log row every 80
 SMALL = dict(team='target', config='MATE-2v4-0', steps=4 * 60, num_envs=4, buffer_size=2_000, batch_size=32,
@@ -114,11 +114,10 @@ def test_maddpg_checkpoints_resume_and_refuse_another_experiment(tmp_path):
         train(MATD3Config(**{**SMALL, 'steps': 4 * 120, 'hidden': (8,)}, run_dir=str(tmp_path)))
 
 
-@DEPLOYMENT
 def test_maddpg_policy_plays_in_mate_evaluate(tmp_path):
     import mate
-    from mate.learn.agents import PolicyTargetAgent, load_policy
-    from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+    from mate.learn.policy import PolicyTargetAgent, PolicyTeam, load_policy, make_team
+    from mate.teams import play_batch
 
     train(MATD3Config(**SMALL, run_dir=str(tmp_path)))
     policy = load_policy(tmp_path / 'final.pt', 'target')

@@ -8,13 +8,20 @@ import torch
 import mate
 from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
-from mate.learn.envs import TeamVecEnv
+from mate.learn.envs import TeamEnvConfig
+from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.memory import MEMORY_FEATURES, SightingMemory
 from mate.learn.networks import PerTargetActor
-from mate.learn.ppo import PPOConfig, train
+from mate.learn.spec import PolicySpec, SpecError
 from mate.spaces import observation_indices_of
 
 COUNTS = (2, 3, 0)
+
+
+def _env(num_envs, **options):
+    """Training envs of grid-move cameras on MATE-4v8-9 (the camera preset), `options` of `TeamEnvConfig`."""
+    config = TeamEnvConfig(team='camera', num_envs=num_envs, **options)
+    return config.make_env(config.policy_spec())
 
 
 def _camera_obs(cameras, targets):
@@ -61,12 +68,14 @@ def test_memory_rejects_a_bad_period():
     with pytest.raises(ValueError, match='at least 1'):
         SightingMemory(1, COUNTS, period=0)
     with pytest.raises(ValueError, match='cameras only'):
-        TeamVecEnv('target', num_envs=2, memory=25)
+        TeamEnvConfig(team='target', num_envs=2, memory=25)
+    with pytest.raises(SpecError, match='cameras only'):
+        PolicySpec.for_game('target', 'MATE-2v4-0-v0', frame_skip=10, memory=25)
 
 
 def test_team_env_appends_memory_and_forgets_at_new_episodes():
-    env = TeamVecEnv('camera', num_envs=4, memory=25, horizon=40, seed=3)
-    plain = TeamVecEnv('camera', num_envs=4, horizon=40, seed=3)
+    env = _env(4, memory=25, horizon=40, seed=3)
+    plain = _env(4, horizon=40, seed=3)
     nc, nt, no = env.counts
     begin = int(observation_indices_of(mate.Team.CAMERA, nc, nt, no)[2])
     obs, _ = env.reset(seed=3)
@@ -104,20 +113,19 @@ def test_team_env_appends_memory_and_forgets_at_new_episodes():
 @pytest.fixture(scope='module')
 def memory_policy(tmp_path_factory):
     run = tmp_path_factory.mktemp('memory-run')
-    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-4v8-9-v0', num_envs=4, rollout_length=4,
-                       total_steps=2 * 4 * 4, epochs=1, hidden=(16,), memory=25, seed=0)
-    train(config, run, progress=False)
+    train(MAPPOConfig(team='camera', config='MATE-4v8-9', num_envs=4, rollout_length=4, steps=2 * 4 * 4, epochs=1,
+                      hidden=(16,), memory=25, seed=0, run_dir=str(run), progress=False))
     return run / 'final.pt'
 
 
 def test_actor_reads_memory_and_checkpoint_keeps_it(memory_policy):
     data = load_checkpoint(memory_policy)
-    assert data['meta']['memory'] == 25
+    assert data['spec']['memory'] == 25
     policy = load_policy(memory_policy, 'camera')
     actor = policy.actor
     assert isinstance(actor, PerTargetActor) and actor.slot_features_dim == 15
     # a target known only from memory is a present slot: it changes the logits; a forgotten one does not
-    env = TeamVecEnv('camera', num_envs=1, memory=25, seed=0)
+    env = _env(1, memory=25, seed=0)
     obs, _ = env.reset(seed=0)
     x = torch.from_numpy(obs[0, :1])
     nt = env.counts[1]
@@ -172,14 +180,22 @@ def test_agents_rebuild_the_training_memory_through_messages(memory_policy):
     assert told > 0
 
 
-def test_train_command_validates_memory():
-    import argparse
+def test_train_command_validates_memory(capsys):
+    from mate.learn.command import trainer_parser
+    from mate.options import config_from
 
-    from mate.learn.command import add_arguments, config_from_args
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    assert config_from_args(parser.parse_args(['mappo', '--memory', '25'])).memory == 25
-    with pytest.raises(SystemExit, match='>= 0'):
-        config_from_args(parser.parse_args(['mappo', '--memory', '-1']))
-    with pytest.raises(SystemExit, match='cameras only'):
-        config_from_args(parser.parse_args(['mappo', '--team', 'target', '--memory', '25']))
+    parser, _, config_class = trainer_parser('mappo')
+
+    def config_of(argv):
+        return config_from(parser, config_class, parser.parse_args(argv))
+
+    def refused(argv) -> str:   # the parser's one-line error (status 2)
+        with pytest.raises(SystemExit) as exit_info:
+            config_of(argv)
+        assert exit_info.value.code == 2
+        return capsys.readouterr().err.splitlines()[0]
+
+    assert config_of(['--memory', '25']).memory == 25
+    assert config_of([]).memory == 0
+    assert '>= 0' in refused(['--memory', '-1'])
+    assert 'cameras only' in refused(['--team', 'target', '--memory', '25'])

@@ -6,7 +6,8 @@ import pytest
 
 import mate
 from mate.evaluate import play_episode, resolve_agent
-from mate.learn.agents import PRETRAINED_DIR, load_agent, load_policy
+from mate.learn.policy import PRETRAINED_DIR, load_agent, load_policy
+from mate.learn.spec import PolicySpec
 from mate.messages import Team
 
 SHIPPED = sorted(p.stem for p in PRETRAINED_DIR.glob('*.pt'))
@@ -24,10 +25,12 @@ def test_the_promised_policies_are_shipped():
 @pytest.mark.parametrize('name', SHIPPED)
 def test_shipped_policy_loads_and_plays(name):
     policy = load_policy(PRETRAINED_DIR / f'{name}.pt')
-    team = Team[policy.meta['team'].upper()]
-    assert policy.meta.get('deterministic'), 'shipped policies act the way they were scored (argmax)'
-    env = mate.make(policy.meta['env_id'])
-    assert list(policy.meta['counts']) == [env.num_cameras, env.num_targets, env.num_obstacles]
+    spec = policy.spec
+    team = spec.team_enum
+    assert spec.deterministic, 'shipped policies act the way they were scored (argmax)'
+    env = mate.make(spec.env_id)
+    assert spec.counts == (env.num_cameras, env.num_targets, env.num_obstacles)
+    assert PolicySpec.from_dict(spec.to_dict()) == spec                # what an export of it would save
     learned = load_agent(f'pretrained:{name}', team)
     greedy = resolve_agent('greedy', Team.TARGET if team is Team.CAMERA else Team.CAMERA)
     pair = (learned, greedy) if team is Team.CAMERA else (greedy, learned)
@@ -40,7 +43,7 @@ def test_shipped_policy_loads_and_plays(name):
 def test_shipped_policy_beats_the_greedy_agent(name):
     team, metric, max_steps = PROTOCOL[name]
     policy = load_policy(PRETRAINED_DIR / f'{name}.pt', team)
-    env = mate.make(policy.meta['env_id'])
+    env = mate.make(policy.spec.env_id)
     opponent = resolve_agent('greedy', Team.TARGET if team is Team.CAMERA else Team.CAMERA)
 
     def score(factory):

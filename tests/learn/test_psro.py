@@ -11,18 +11,20 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 import pytest
 
 import mate
 from mate.cli import main
-from mate.learn.agents import pretrained_path
 from mate.learn.checkpoint import load_checkpoint
-from mate.learn.envs import TeamVecEnv, discrete_to_continuous, mixed_camera_reward
-from mate.learn.evaluate import MixtureTeam, PolicyTeam, RandomTeam, play_batch
+from mate.learn.envs import TeamEnvConfig, mixed_camera_reward
+from mate.learn.mappo import MAPPOConfig, train
+from mate.learn.policy import PolicyTeam, pretrained_path
 from mate.learn.population.jobs import best_response, payoff_entries, policy_from_bytes, rescaled_schedules
 from mate.learn.population.psro import LocalRunner, PSROError, PSROSettings, RayRunner, load_state, run_psro
 from mate.learn.population.solvers import exploitability
-from mate.learn.ppo import PPOConfig, train
+from mate.learn.spec import discrete_to_continuous
+from mate.teams import MixtureTeam, RandomTeam, play_batch
 
 from conftest import needs_extra
 
@@ -52,8 +54,9 @@ def test_team_env_takes_an_opponent_and_the_mixed_camera_reward():
     """The camera reward 'mixed' is 0.5 coverage + 0.5 real coverage + 0.1 raw camera reward of the raw
     step, as a plain vector env playing the same actions against the same opponent reports them."""
     still = StillTargets()
-    env = TeamVecEnv('camera', num_envs=3, env_id='MATE-2v4-0-v0', frame_skip=1, horizon=50, seed=3,
-                     camera_reward='mixed', opponent=lambda b, counts, seed: still)
+    config = TeamEnvConfig(config='MATE-2v4-0', frame_skip=1, horizon=50, num_envs=3, seed=3)
+    spec = config.policy_spec()
+    env = config.make_env(spec, opponent=lambda b, counts, seed: still, camera_reward='mixed')
     vec = mate.make_vec('MATE-2v4-0-v0', num_envs=3, observation_dtype=np.float32, autoreset_mode='next_step',
                         max_episode_steps=50)
     env.reset()
@@ -68,9 +71,10 @@ def test_team_env_takes_an_opponent_and_the_mixed_camera_reward():
         expected = mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
         np.testing.assert_allclose(reward, expected, rtol=1e-12, atol=1e-12)
     with pytest.raises(ValueError, match="camera_reward must be one of"):
-        TeamVecEnv('camera', num_envs=1, env_id='MATE-2v4-0-v0', camera_reward='delivery')
+        config.make_env(spec, camera_reward='delivery')
+    target = TeamEnvConfig(team='target', num_envs=1)
     with pytest.raises(ValueError, match='camera team reward'):
-        TeamVecEnv('target', num_envs=1, env_id='MATE-2v4-0-v0', camera_reward='mixed')
+        target.make_env(target.policy_spec(), camera_reward='mixed')
 
 
 def test_mixture_members_decide_only_in_their_rows_and_assignments_are_fixed():
@@ -112,17 +116,17 @@ def test_train_keeps_the_best_actor(tmp_path):
                 self.score = 0.0
             return result
 
-    config = PPOConfig(algo='mappo', actor='mlp', total_steps=16 * 8 * 30, num_envs=16, rollout_length=8, seed=0,
-                       torch_threads=1)
-    train(config, tmp_path, progress=False, envs=Scored(num_envs=16, length=2))
+    config = MAPPOConfig(actor='mlp', hidden=(8,), steps=16 * 8 * 30, num_envs=16, rollout_length=8, seed=0, threads=1,
+                         run_dir=str(tmp_path), progress=False)
+    train(config, envs=Scored(num_envs=16, length=2))
     rows = [row for row in map(str.split, (tmp_path / 'progress.csv').read_text().splitlines())]
     header = rows[0][0].split(',')
     table = [dict(zip(header, map(float, line[0].split(',')))) for line in rows[1:]]
     eligible = [row['episode_return'] for row in table if row['episodes'] == 25]
     saved = load_checkpoint(tmp_path / 'checkpoint.pt')
-    assert saved['best_return'] == pytest.approx(max(eligible))
+    assert saved['run']['best_return'] == pytest.approx(max(eligible))
     best = load_checkpoint(tmp_path / 'best.pt')
-    assert 'critic' not in best and set(best['actor']) == set(saved['actor'])
+    assert 'critic' not in best and 'state' not in best and set(best['actor']) == set(saved['state']['networks']['actor'])
 
 
 def test_rescaled_schedules_follow_the_spec():
@@ -136,8 +140,8 @@ def test_best_response_job_returns_a_policy_of_its_team(tmp_path):
     result = best_response('camera', ENV, ['random', target], [0.0, 1.0], steps=200, seed=0,
                            run_dir=str(tmp_path / 'br'), num_envs=4)
     policy = policy_from_bytes(result['policy'], 'camera')
-    assert policy.meta['hrl'] and policy.meta['counts'] == [2, 4, 0] and result['chosen'] in ('best', 'final')
-    assert result['steps'] >= 200
+    assert policy.spec.hrl and policy.spec.counts == (2, 4, 0) and result['chosen'] in ('best', 'final')
+    assert result['steps'] >= 200 and not result['interrupted']
     config = load_checkpoint(tmp_path / 'br' / 'checkpoint.pt')['config']
     assert config['entropy_schedule'][0] == [0, 0.05]                     # the PSRO schedules
     with pytest.raises(ValueError, match='positive weight'):
@@ -181,7 +185,7 @@ def test_psro_end_to_end_then_plots(tmp_path, capsys):
     _state_checks(state, 2)
     for side in ('camera', 'target'):
         for i in (1, 2):
-            assert policy_from_bytes((out / f'players/{side}-{i}.pt').read_bytes(), side).meta['counts'] == [2, 4, 0]
+            assert policy_from_bytes((out / f'players/{side}-{i}.pt').read_bytes(), side).spec.counts == (2, 4, 0)
     # the second best responses were warm-started from the first ones
     assert load_checkpoint(out / 'players/camera-2/checkpoint.pt')['config']['init_from'].endswith('init.pt')
     printed = capsys.readouterr().out
@@ -248,6 +252,44 @@ def test_psro_resumes_after_a_kill(tmp_path):
     _state_checks(after, 2)
     assert (out / 'players/camera-1.pt').read_bytes() == camera_policy
     assert after['payoff'][0][0] == before['payoff'][0][0]
+
+
+@pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_psro_at_an_iteration_of_a_best_response_and_the_run_resumes_exactly(tmp_path, signal_number):
+    """SIGINT/SIGTERM while the camera best response trains: it finishes the iteration, writes its checkpoint
+    (networks, optimiser, generators, envs with the opponent mixture) and the command exits 130; the same command
+    continues and ends with the state of a run never stopped (pools' policies, payoffs, strategies)."""
+    arguments = ['psro', '--workers', '1', '--iterations', '1', '--br-steps', '2000', '--num-envs', '4',
+                 '--eval-episodes', '2', '--eval-steps', '60', '--device', 'cpu']
+    env = dict(os.environ, MATE_COMPILE_NOTICE='0')
+    straight = tmp_path / 'straight'
+    assert subprocess.run([sys.executable, '-m', 'mate', *arguments, '--out', str(straight)], env=env,
+                          capture_output=True).returncode == 0
+    stopped = tmp_path / 'stopped'
+    process = subprocess.Popen([sys.executable, '-m', 'mate', *arguments, '--out', str(stopped)], env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    log = stopped / 'players' / 'camera-1' / 'progress.csv'
+    deadline = time.time() + 600
+    while time.time() < deadline and process.poll() is None and not (log.exists() and log.read_text().count('\n') >= 2):
+        time.sleep(0.02)                     # the best response has logged an iteration: it is training
+    process.send_signal(signal_number)
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 130, err[-2000:]
+    assert 'Traceback' not in err and 'stopping after this iteration' in out + err
+    saved = load_checkpoint(stopped / 'players' / 'camera-1' / 'checkpoint.pt')
+    assert 0 < saved['run']['env_steps'] < 2000 and not (stopped / 'players' / 'camera-1.pt').exists()
+    resumed = subprocess.run([sys.executable, '-m', 'mate', *arguments, '--out', str(stopped)], env=env,
+                             capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    a, b = load_state(straight), load_state(stopped)
+    for key in ('payoff', 'coverage', 'iterations'):
+        a_value, b_value = a[key], b[key]
+        if key == 'iterations':
+            a_value, b_value = ([{k: v for k, v in r.items() if k != 'seconds'} for r in x] for x in (a_value, b_value))
+        assert a_value == b_value, key
+    for side in ('camera', 'target'):
+        left, right = (load_checkpoint(run / 'players' / f'{side}-1.pt')['actor'] for run in (straight, stopped))
+        assert all(torch.equal(left[name], right[name]) for name in left), side
 
 
 def test_psro_on_a_local_ray_instance(tmp_path):

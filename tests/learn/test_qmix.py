@@ -18,7 +18,7 @@ from mate.learn.spec import PolicySpec
 
 from .toy import TwoStepGame
 
-DEPLOYMENT = pytest.mark.skip(reason='deployment agents: policy.py in progress')
+
 
 # MATE-2v4-0 HRL cameras (a keep/ignore head per target), 4 envs: 60 decisions of 4 decision steps, a log row every 80
 SMALL = dict(team='camera', config='MATE-2v4-0', hrl=True, selection='per-target', steps=4 * 60, num_envs=4,
@@ -163,10 +163,9 @@ def test_qmix_checkpoints_resume_and_refuse_another_experiment(tmp_path):
                                 num_envs=4, run_dir=str(tmp_path), progress=False))
 
 
-@DEPLOYMENT
 def test_qmix_policy_plays_in_mate_evaluate(tmp_path):
-    from mate.learn.agents import load_policy
-    from mate.learn.evaluate import PolicyTeam, make_team, play_batch
+    from mate.learn.policy import PolicyTeam, load_policy, make_team
+    from mate.teams import play_batch
 
     train(QMIXConfig(**SMALL, run_dir=str(tmp_path)))
     policy = load_policy(tmp_path / 'final.pt', 'camera')

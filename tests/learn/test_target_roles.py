@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 import mate
-from mate.learn.agents import PolicyTargetAgent, load_policy
-from mate.learn.ppo import PPOConfig, train
+from mate.learn.policy import PolicyTargetAgent, load_policy
 from mate.render import Renderer
 from modules import load_script
 
 roles_script = load_script('target_roles')
 NAMES = roles_script.NAMES
+
 
 
 def _record(config, target_factory, steps, seed=0, renderers=None):
@@ -78,10 +78,11 @@ def test_play_measures_the_same_episode():
 @pytest.fixture(scope='module')
 def i2c_targets(tmp_path_factory):
     """A nearly untrained I2C policy of the 4 targets of MATE-2v4-0 (one iteration of tiny nets)."""
+    from mate.learn.i2c import I2CConfig, train
+
     run = tmp_path_factory.mktemp('i2c-roles')
-    train(PPOConfig(algo='mappo', team='target', env_id='MATE-2v4-0-v0', num_envs=2, rollout_length=2,
-                    total_steps=4, epochs=1, hidden=(16,), lstm=16, comm='i2c', seed=0, torch_threads=1,
-                    influence_samples=6), run, progress=False)
+    train(I2CConfig(team='target', config='MATE-2v4-0', num_envs=2, rollout_length=2, steps=4, epochs=1, hidden=(16,),
+                    lstm=16, seed=0, threads=1, influence_samples=6, run_dir=str(run), progress=False))
     return run / 'final.pt'
 
 
@@ -91,7 +92,7 @@ def test_i2c_requests_and_replies_are_counted_and_drawn_apart(i2c_targets):
     renderers = Renderer('rgb_array', window_size=600), Renderer('rgb_array', window_size=600)
     features, infos, frames, steps = _record('MATE-2v4-0', factory, 24, renderers=renderers)
     f = dict(zip(NAMES, features.T))
-    decisions = steps / policy.meta['frame_skip']
+    decisions = steps / policy.spec.frame_skip
     # requests are {'i2c': None}, replies carry an observation: classified by content, independently of rounds
     requests = np.array([sum(m.content['i2c'] is None for i in infos for m in i[t]['messages']) for t in range(4)])
     replies = np.array([sum(m.content['i2c'] is not None for i in infos for m in i[t]['messages']) for t in range(4)])
@@ -110,13 +111,14 @@ def test_i2c_requests_and_replies_are_counted_and_drawn_apart(i2c_targets):
 
 
 def test_tarmac_broadcasts_are_counted(tmp_path):
-    train(PPOConfig(algo='mappo', team='target', env_id='MATE-2v4-0-v0', num_envs=2, rollout_length=2,
-                    total_steps=4, epochs=1, hidden=(16,), lstm=16, comm='tarmac', seed=0, torch_threads=1),
-          tmp_path, progress=False)
+    from mate.learn.tarmac import TarMACConfig, train
+
+    train(TarMACConfig(team='target', config='MATE-2v4-0', num_envs=2, rollout_length=2, steps=4, epochs=1,
+                       hidden=(16,), lstm=16, seed=0, threads=1, run_dir=str(tmp_path), progress=False))
     policy = load_policy(tmp_path / 'final.pt', 'target')
     features, infos, _, steps = _record('MATE-2v4-0', lambda seed: PolicyTargetAgent(policy, seed=seed), 12)
     f = dict(zip(NAMES, features.T))
-    decisions = steps / policy.meta['frame_skip']
+    decisions = steps / policy.spec.frame_skip
     own = np.array([sum(m.sender == t for i in infos for m in i[t]['messages']) for t in range(4)])
     others = np.array([sum(m.sender != t for i in infos for m in i[t]['messages']) for t in range(4)])
     assert own.sum() > 0 and np.allclose(f['broadcasts_sent'] * decisions, own)     # each broadcast reaches its sender

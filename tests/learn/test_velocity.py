@@ -8,13 +8,20 @@ import torch
 import mate
 from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
-from mate.learn.envs import TeamVecEnv, preprocess_observation
+from mate.learn.envs import TeamEnvConfig
+from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.networks import PerTargetActor
-from mate.learn.ppo import PPOConfig, train
+from mate.learn.spec import PolicySpec, SpecError, preprocess_observation
 from mate.learn.velocity import VELOCITY_FEATURES, target_displacements
 from mate.spaces import observation_indices_of
 
 COUNTS = (2, 3, 0)
+
+
+def _env(num_envs, **options):
+    """Training envs of grid-move cameras on MATE-4v8-9 (the camera preset), `options` of `TeamEnvConfig`."""
+    config = TeamEnvConfig(team='camera', num_envs=num_envs, **options)
+    return config.make_env(config.policy_spec())
 
 
 def _camera_obs(targets):
@@ -40,14 +47,16 @@ def test_displacements_by_hand():
     # leading batch axes pass through
     assert target_displacements(now[None], before[None], COUNTS, 1).shape == (1, 2, 3 * VELOCITY_FEATURES)
     with pytest.raises(ValueError, match='cameras only'):
-        TeamVecEnv('target', num_envs=2, velocity=True)
+        TeamEnvConfig(team='target', num_envs=2, velocity=True)
+    with pytest.raises(SpecError, match='cameras only'):
+        PolicySpec.for_game('target', 'MATE-2v4-0-v0', frame_skip=10, velocity=True)
 
 
 def test_team_env_appends_the_last_raw_step_motion():
     """The columns are the displacement between the last two raw steps of the decision, recorded here
     from the vector env itself, and zero for rows that started an episode at the last raw step."""
-    env = TeamVecEnv('camera', num_envs=4, velocity=True, horizon=40, seed=3)
-    plain = TeamVecEnv('camera', num_envs=4, horizon=40, seed=3)
+    env = _env(4, velocity=True, horizon=40, seed=3)
+    plain = _env(4, horizon=40, seed=3)
     nc, nt, _ = env.counts
     raw_steps = []
     vec_step = env.vec.step
@@ -84,17 +93,16 @@ def test_team_env_appends_the_last_raw_step_motion():
 @pytest.fixture(scope='module')
 def velocity_policy(tmp_path_factory):
     run = tmp_path_factory.mktemp('velocity-run')
-    config = PPOConfig(algo='mappo', team='camera', env_id='MATE-4v8-9-v0', num_envs=4, rollout_length=4,
-                       total_steps=2 * 4 * 4, epochs=1, hidden=(16,), velocity=True, seed=0)
-    train(config, run, progress=False)
+    train(MAPPOConfig(team='camera', config='MATE-4v8-9', num_envs=4, rollout_length=4, steps=2 * 4 * 4, epochs=1,
+                      hidden=(16,), velocity=True, seed=0, run_dir=str(run), progress=False))
     return run / 'final.pt'
 
 
 def test_actor_reads_velocity_and_checkpoint_keeps_it(velocity_policy):
-    assert load_checkpoint(velocity_policy)['meta']['velocity'] is True
+    assert load_checkpoint(velocity_policy)['spec']['velocity'] is True
     actor = load_policy(velocity_policy, 'camera').actor
     assert isinstance(actor, PerTargetActor) and actor.slot_features_dim == 17
-    env = TeamVecEnv('camera', num_envs=1, velocity=True, seed=0)
+    env = _env(1, velocity=True, seed=0)
     obs, _ = env.reset(seed=0)
     nt, first = env.counts[1], env.obs_dim - VELOCITY_FEATURES * env.counts[1]
     for _ in range(20):   # until some camera sees a target
@@ -130,8 +138,8 @@ def test_agents_feed_their_policy_the_training_columns(velocity_policy):
     env = mate.make('MATE-4v8-9-v0')
     policy = load_policy(velocity_policy, 'camera')
     seen_inputs = []
-    logits = policy.logits
-    policy.logits = lambda processed, memory=None: (seen_inputs.append(processed[0].copy()), logits(processed))[1]
+    outputs = policy.outputs
+    policy.outputs = lambda features, memory=None: (seen_inputs.append(features[0].copy()), outputs(features))[1]
     cameras = PolicyCameraAgent(policy, seed=0, frame_skip=1).spawn(env.num_cameras)
     targets = mate.GreedyTargetAgent(seed=0).spawn(env.num_targets)
     (camera_obs, target_obs), (camera_infos, target_infos) = env.reset(seed=5)
@@ -153,13 +161,17 @@ def test_agents_feed_their_policy_the_training_columns(velocity_policy):
     assert moved_any
 
 
-def test_train_command_validates_velocity():
-    import argparse
+def test_train_command_validates_velocity(capsys):
+    from mate.learn.command import trainer_parser
+    from mate.options import config_from
 
-    from mate.learn.command import add_arguments, config_from_args
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    assert config_from_args(parser.parse_args(['mappo', '--velocity'])).velocity is True
-    assert config_from_args(parser.parse_args(['mappo'])).velocity is False
-    with pytest.raises(SystemExit, match='cameras only'):
-        config_from_args(parser.parse_args(['mappo', '--team', 'target', '--velocity']))
+    parser, _, config_class = trainer_parser('mappo')
+
+    def config_of(argv):
+        return config_from(parser, config_class, parser.parse_args(argv))
+
+    assert config_of(['--velocity']).velocity is True
+    assert config_of([]).velocity is False
+    with pytest.raises(SystemExit) as exit_info:
+        config_of(['--team', 'target', '--velocity'])
+    assert exit_info.value.code == 2 and 'cameras only' in capsys.readouterr().err.splitlines()[0]
