@@ -67,7 +67,7 @@ def measure(name: str, steps: int, tree: Path | None = None, extra: list[str] = 
         command = [sys.executable, '-m', 'mate.cli', 'train', *arguments, '--steps', str(steps), '--no-progress',
                    '--run-dir', run_dir, *extra]
         start = time.perf_counter()
-        result = subprocess.run(command, capture_output=True, text=True, env=env)
+        result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=run_dir)   # (not this checkout)
         wall = time.perf_counter() - start
         if result.returncode != 0:
             raise RuntimeError(f'{" ".join(command)} exited with {result.returncode}:\n{result.stderr[-3000:]}')

@@ -43,6 +43,9 @@ TRAINERS = {
     'matd3': Trainer('mate.learn.matd3', 'MATD3Config', 'MADDPG as MA-TD3: one actor and twin centralised critics per '
                                                         'agent, continuous actions'),
 }
+"""The trainers of `mate train`: name -> `Trainer` (the algorithm's module, its config class, a line of help, and
+the config fields the name fixes, as `critic='local'` for `ippo`). A new algorithm is a file with a config
+dataclass, `policy_spec` and `train`, and a line here; 'maddpg' is another name for 'matd3'."""
 TRAINERS['maddpg'] = TRAINERS['matd3']       # the paper's name for it
 
 
@@ -124,8 +127,10 @@ def run(args: argparse.Namespace, console) -> int:
 
 
 def run_name(algo: str, config) -> str:
-    """The run's name in its default directory: the trainer, 'hrl-' first for HRL cameras, the observability and
-    the channel's perturbations after."""
+    """The run's name in its default directory: the algorithm (its config's `algo` when it has one: 'ippo-tarmac'
+    for `mate train tarmac --critic local`), 'hrl-' first for HRL cameras, the observability and the channel's
+    perturbations after."""
+    algo = getattr(config, 'algo', algo)
     name = ('hrl-' if config.hrl else '') + algo + ('-full-obs' if config.full_observability else '')
     for attribute, tag in (('message_dropout', 'dropout'), ('communication_range', 'range'), ('message_delay', 'delay')):
         value = getattr(config, attribute, None)

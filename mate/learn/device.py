@@ -1,4 +1,4 @@
-"""`--device auto|cpu|cuda[:N]`: where a trainer's networks, rollout buffers and updates run.
+"""Where a trainer computes: `--device auto|cpu|cuda[:N]` (networks, rollout buffers, updates) and `--threads`.
 
 The simulation always runs on the CPU (numba); a trainer moves each decision's observations to the device
 once and the chosen actions back once. `auto` takes the first GPU when PyTorch sees one, else the CPU.
@@ -6,9 +6,13 @@ once and the chosen actions back once. `auto` takes the first GPU when PyTorch s
 
 from __future__ import annotations
 
+import os
 import re
 
-__all__ = ['parse_device', 'resolve_device']
+__all__ = ['CORES', 'parse_device', 'resolve_device', 'update_threads']
+
+CORES = max(1, len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count() or 1)
+"""The cores this process may use."""
 
 _PATTERN = re.compile(r'^(auto|cpu|cuda(:\d+)?)$')
 
@@ -38,3 +42,8 @@ def resolve_device(name: str = 'auto'):
         raise ValueError(f'--device {name}: PyTorch sees {torch.cuda.device_count()} GPU(s), indices 0..'
                          f'{torch.cuda.device_count() - 1}')
     return device
+
+
+def update_threads(config) -> int:
+    """Torch threads of a trainer's update phase: `config.threads`, or (0) every core this process may use."""
+    return config.threads or CORES

@@ -44,7 +44,7 @@ import torch
 from ..options import option
 from .checkpoint import CheckpointError
 from .comm import I2C_REGULARISER, Channel, I2CTraining, channel_difference
-from .device import resolve_device
+from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .networks import Critic, restarted
 from .policy import make_actor
@@ -56,12 +56,9 @@ from .ppo import (
     action_distribution,
     adapt_kl_coeff,
     bootstrapped,
-    clipped_step,
     compute_gae,
-    learn_threads,
     minibatch_rows,
-    ppo_policy_loss,
-    sampled_kl,
+    ppo_update,
     warm_start,
 )
 from .run import Run
@@ -130,9 +127,7 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
     `callback(row)` sees every log row. Returns the `Run`."""
     device = resolve_device(config.device)
     spec = policy_spec(config, envs)
-    run = Run(config.run_dir or f'runs/{config.algo}-{config.team}-seed{config.seed}', config.algo, config, spec,
-              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
-              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+    run = Run.of(config, config.algo, spec, callback, console)
 
     # ---- environments and the channel (which replies of a decision arrive; `delivered` None: all of them)
     envs = envs or config.make_env(spec)
@@ -149,7 +144,7 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
         return None if delivered is None else delivered.to(device)
 
     # ---- networks (the actors, the critic, I2C's training signals), optimiser, the actors' memory
-    threads = learn_threads(config)          # torch threads of the updates and of the initialisation, whose
+    threads = update_threads(config)          # torch threads of the updates and of the initialisation, whose
     torch.set_num_threads(threads)           # orthogonal matrices (QR) depend on the thread count
     torch.manual_seed(config.seed)
     actor = make_actor(spec).to(device)                            # an `I2CActor`: N networks
@@ -283,27 +278,16 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
                 for idx in minibatch_rows(T, B, config.minibatches, True, generator):
                     logits = logits_of(idx)
                     dist = action_distribution(logits, 1, A)
-                    new_logp = dist.log_prob(b_action[idx]).sum(-1)
-                    policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
                     predicted = critic(b_state[idx])
                     predicted = predicted if per_agent_rewards else predicted.unsqueeze(-1).expand(*predicted.shape, N)
-                    value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
-                    entropy = dist.entropy().sum(-1).mean()
-                    kl = sampled_kl(new_logp, b_logp[idx])
-                    loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
-                    if kl_coeff > 0:
-                        loss = loss + kl_coeff * kl
+                    # I2C's own terms: the joint action-value regression, the prior's labels, the correlation regulariser
                     q_loss, regulariser = signals.losses(logits, b_state[idx], b_action[idx][..., 0], b_ret[idx],
                                                          own_values[idx])
                     prior_loss = signals.prior_loss(actor, label_obs, labels)
-                    loss = loss + q_loss + prior_loss + I2C_REGULARISER * regulariser
-                    clipped_step(optimizer, loss, learned, config.max_grad_norm)
-                    with torch.no_grad():
-                        clipped = ((new_logp - b_logp[idx]).exp() - 1).abs() > config.clip
-                    stats.add(approx_kl=kl.item(), clip_fraction=float(clipped.float().mean()),
-                              policy_loss=policy_loss.item(), value_loss=value_loss.item(), entropy=entropy.item(),
-                              q_loss=q_loss.item(), prior_loss=prior_loss.item(), regulariser=regulariser.item())
-                    stats.updates += 1
+                    ppo_update(optimizer, learned, config, dist, b_action[idx], b_logp[idx], b_adv[idx], predicted,
+                               b_ret[idx], entropy_coef, kl_coeff, stats,
+                               extra=(q_loss, prior_loss, I2C_REGULARISER * regulariser))
+                    stats.add(q_loss=q_loss.item(), prior_loss=prior_loss.item(), regulariser=regulariser.item())
             means = stats.means()
             row_kl_coeff = kl_coeff                     # the coefficient this iteration used
             if kl_coeff > 0:

@@ -41,7 +41,7 @@ import torch
 from torch import nn
 
 from ..options import option
-from .device import resolve_device
+from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .policy import make_actor
 from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_targets, epsilon_greedy
@@ -107,9 +107,7 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
     and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
     device = resolve_device(config.device)
     spec = policy_spec(config, envs)
-    run = Run(config.run_dir or f'runs/iql-{config.team}-seed{config.seed}', 'iql', config, spec,
-              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
-              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+    run = Run.of(config, 'iql', spec, callback, console)
 
     # ---- environments
     envs = envs or config.make_env(spec)
@@ -163,7 +161,7 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
             algorithm['replay'] = replay.state_dict()
         return algorithm
 
-    learn_threads = config.threads or _cores()
+    learn_threads = update_threads(config)
     coverage, episodes, losses, q_means = [], [], [], []
     with run:
         while run.running():
@@ -221,9 +219,3 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
             coverage, episodes, losses, q_means = [], [], [], []
     run.finish(run_state(with_replay=True), q_net.state_dict())
     return run
-
-
-def _cores() -> int:
-    from ..core.engine import NUM_THREADS
-
-    return NUM_THREADS

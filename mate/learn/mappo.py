@@ -25,7 +25,7 @@ from typing import Literal
 import torch
 
 from ..options import option
-from .device import resolve_device
+from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .networks import Critic
 from .policy import make_actor
@@ -39,11 +39,9 @@ from .ppo import (
     action_distribution,
     adapt_kl_coeff,
     bootstrapped,
-    clipped_step,
     compute_gae,
     minibatch_rows,
-    ppo_policy_loss,
-    sampled_kl,
+    ppo_update,
     warm_start,
 )
 from .run import Run
@@ -121,9 +119,7 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
     (`last_row`, `interrupted`, counters)."""
     device = resolve_device(config.device)
     spec = policy_spec(config, envs)
-    run = Run(config.run_dir or f'runs/{config.algo}-{config.team}-seed{config.seed}', config.algo, config, spec,
-              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
-              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+    run = Run.of(config, config.algo, spec, callback, console)
 
     # ---- environments
     envs = envs or config.make_env(spec)
@@ -183,7 +179,7 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
     value_buf = torch.zeros(T, B, N, device=device)
     reward_buf = torch.zeros(T, B, N, device=device)
     done_buf = torch.zeros(T, B, device=device)
-    learn_threads = config.threads or _cores()
+    learn_threads = update_threads(config)
 
     with run:
         while run.running():
@@ -233,22 +229,10 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, False, generator):
                     dist = action_distribution(actor(b_obs[idx]), H, C, allowed_of(b_obs[idx]))
-                    new_logp = dist.log_prob(b_action[idx]).sum(-1)
-                    policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
                     predicted = per_agent(config.critic, critic(critic_inputs(config.critic, b_obs[idx], b_state[idx])),
                                           N, shared=not per_agent_rewards)
-                    value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
-                    entropy = dist.entropy().sum(-1).mean()
-                    kl = sampled_kl(new_logp, b_logp[idx])
-                    loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
-                    if kl_coeff > 0:
-                        loss = loss + kl_coeff * kl
-                    clipped_step(optimizer, loss, learned, config.max_grad_norm)
-                    with torch.no_grad():
-                        clipped = ((new_logp - b_logp[idx]).exp() - 1).abs() > config.clip
-                    stats.add(approx_kl=kl.item(), clip_fraction=float(clipped.float().mean()),
-                              policy_loss=policy_loss.item(), value_loss=value_loss.item(), entropy=entropy.item())
-                    stats.updates += 1
+                    ppo_update(optimizer, learned, config, dist, b_action[idx], b_logp[idx], b_adv[idx], predicted,
+                               b_ret[idx], entropy_coef, kl_coeff, stats)
             means = stats.means()
             row_kl_coeff = kl_coeff                     # the coefficient this iteration used
             if kl_coeff > 0:
@@ -264,9 +248,3 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
                 run.save_policy(f'snapshots/policy-{run.env_steps:010d}.pt', actor.state_dict())
     run.finish(run_state(), actor.state_dict())
     return run
-
-
-def _cores() -> int:
-    from ..core.engine import NUM_THREADS
-
-    return NUM_THREADS

@@ -44,7 +44,7 @@ import torch
 from torch import nn
 
 from ..options import option
-from .device import resolve_device
+from .device import resolve_device, update_threads
 from .envs import TeamEnvConfig, TeamVecEnv
 from .networks import AgentwiseMLP
 from .policy import make_actor
@@ -57,7 +57,7 @@ __all__ = ['MATD3Config', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'criti
 
 
 @dataclasses.dataclass
-class MATD3Config(TeamEnvConfig, RunConfig):
+class MATD3Config(RunConfig, TeamEnvConfig):
     """Settings of an MA-TD3 run (`train(config)`, `mate train matd3`)."""
 
     num_envs: int = option(16, 'games played at once', minimum=1)
@@ -163,9 +163,7 @@ def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, co
     `Run`."""
     device = resolve_device(config.device)
     spec = policy_spec(config, envs)
-    run = Run(config.run_dir or f'runs/matd3-{config.team}-seed{config.seed}', 'matd3', config, spec,
-              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
-              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+    run = Run.of(config, 'matd3', spec, callback, console)
 
     # ---- environments
     envs = envs or config.make_env(spec)
@@ -230,7 +228,7 @@ def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, co
             algorithm['replay'] = replay.state_dict()
         return algorithm
 
-    learn_threads = config.threads or _cores()
+    learn_threads = update_threads(config)
     coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
     with run:
         while run.running():
@@ -303,9 +301,3 @@ def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, co
             coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
     run.finish(run_state(with_replay=True), actor.state_dict())
     return run
-
-
-def _cores() -> int:
-    from ..core.engine import NUM_THREADS
-
-    return NUM_THREADS

@@ -27,12 +27,12 @@ from .run import RunConfig
 from .schedules import piecewise
 
 __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'ValueNormalizer', 'action_distribution',
-           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'learn_threads', 'minibatch_rows', 'ppo_policy_loss',
+           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'minibatch_rows', 'ppo_policy_loss', 'ppo_update',
            'sampled_kl', 'warm_start']
 
 
 @dataclasses.dataclass
-class PPOConfig(TeamEnvConfig, RunConfig):
+class PPOConfig(RunConfig, TeamEnvConfig):
     """Settings of a PPO trainer: the team env's and the run's options, then PPO's hyper-parameters."""
 
     rollout_length: int = option(25, 'decisions per env per iteration (the paper: 25-step fragments)', minimum=1)
@@ -228,11 +228,30 @@ def clipped_step(optimizer: torch.optim.Optimizer, loss: torch.Tensor, parameter
     optimizer.step()
 
 
-def learn_threads(config: PPOConfig) -> int:
-    """Torch threads of the update phase: `config.threads`, or (0) every core the simulation uses."""
-    from ..core.engine import NUM_THREADS
-
-    return config.threads or NUM_THREADS
+def ppo_update(optimizer: torch.optim.Optimizer, parameters, config: PPOConfig, dist, actions: torch.Tensor,
+               old_logp: torch.Tensor, advantages: torch.Tensor, predicted: torch.Tensor, returns: torch.Tensor,
+               entropy_coef: float, kl_coeff: float, stats: UpdateStats, extra=()) -> None:
+    """One clipped-PPO step on a minibatch: loss = the clipped surrogate (`ppo_policy_loss`) + `value_coef` x half
+    the squared error of the critic's `predicted` (normalised) values to `returns` - `entropy_coef` x the entropy
+    of `dist` (+ `kl_coeff` x the sampled KL when it is > 0, + each term of `extra`: an algorithm's own losses, e.g.
+    I2C's); the optimiser's step with the gradient norm clipped; the minibatch's terms added to `stats`.
+    `actions` (..., heads) were drawn from the old policy with log-probabilities `old_logp` (...)."""
+    new_logp = dist.log_prob(actions).sum(-1)
+    policy_loss = ppo_policy_loss(new_logp, old_logp, advantages, config.clip)
+    value_loss = 0.5 * (predicted - returns).pow(2).mean()
+    entropy = dist.entropy().sum(-1).mean()
+    kl = sampled_kl(new_logp, old_logp)
+    loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
+    if kl_coeff > 0:
+        loss = loss + kl_coeff * kl
+    for term in extra:
+        loss = loss + term
+    clipped_step(optimizer, loss, parameters, config.max_grad_norm)
+    with torch.no_grad():
+        clipped = ((new_logp - old_logp).exp() - 1).abs() > config.clip
+    stats.add(approx_kl=kl.item(), clip_fraction=float(clipped.float().mean()), policy_loss=policy_loss.item(),
+              value_loss=value_loss.item(), entropy=entropy.item())
+    stats.updates += 1
 
 
 def warm_start(path, spec, actor: nn.Module, critics: dict[str, nn.Module], algo: str, credit: str) -> None:

@@ -33,7 +33,7 @@ SELECTIONS = ('joint', 'per-target')
 
 
 @dataclasses.dataclass
-class QLearningConfig(TeamEnvConfig, RunConfig):
+class QLearningConfig(RunConfig, TeamEnvConfig):
     """Settings of a Q-learning run (IQL, QMIX): the team env's and the run's options, then what both learners share."""
 
     num_envs: int = option(16, 'games played at once', minimum=1)

@@ -22,6 +22,12 @@ __all__ = ['ReplayBuffer', 'SequenceReplay', 'TransitionRing']
 
 
 class TransitionRing:
+    """A ring of `capacity` rows with one preallocated array per named field, `name=(shape, dtype)`: arrays of
+    shape (capacity, *shape). `add(**arrays)` writes M rows (M <= capacity), overwriting the oldest;
+    `sample(K, rng)` returns K stored rows, uniformly drawn with the numpy generator `rng`, as tensors.
+    `nbytes` is the full size (the zero-allocated arrays take memory as they are filled); `state_dict()` holds
+    the filled rows and the write position."""
+
     def __init__(self, capacity: int, **fields: tuple[tuple[int, ...], type]) -> None:
         self.capacity, self.size, self.cursor = int(capacity), 0, 0
         self.fields = tuple(fields)

@@ -1,11 +1,11 @@
 """`Run`: one training run's directory and life, shared by every trainer.
 
-    run = Run(run_dir, 'mappo', config, spec, total_steps=..., time_limit=..., checkpoint_every=20)
+    run = Run.of(config, 'mappo', spec)     # or Run(run_dir, 'mappo', config, spec, total_steps=..., ...)
     state = run.resume()                  # the checkpoint's algorithm state, or None for a fresh run
     with run:                             # SIGINT / SIGTERM: finish the iteration, checkpoint, stop
         while run.running():
             ... one iteration ...
-            run.end_iteration(row, episodes, save=lambda: algorithm_state)
+            run.end_iteration(steps, coverage, episodes, columns, save_best=..., save=lambda: algorithm_state)
     run.finish(algorithm_state, policy)   # checkpoint.pt, and final.pt once the run is complete
 
 What lives in the run directory:
@@ -135,6 +135,15 @@ class Run:
         self._writer = self._csv_fields = self._line = None
         self._handlers = {}
         self.last_row: dict = {}
+
+    @classmethod
+    def of(cls, config: RunConfig, algo: str, spec: PolicySpec, callback=None, console=None) -> Run:
+        """The run of a trainer's `config` (its `RunConfig` fields: directory, default runs/ALGO-TEAM-seedN, budget,
+        checkpoints, progress, --fresh) training the policy of `spec` with algorithm `algo`."""
+        run_dir = config.run_dir or f'runs/{algo}-{config.team}-seed{config.seed}'
+        return cls(run_dir, algo, config, spec, total_steps=config.steps, time_limit=config.time_limit,
+                   checkpoint_every=config.checkpoint_every, progress=config.progress, callback=callback,
+                   resume=not config.fresh, console=console)
 
     # ------------------------------------------------------------------ resume
     @property

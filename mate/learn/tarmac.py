@@ -43,7 +43,7 @@ import torch
 from ..options import option
 from .checkpoint import CheckpointError
 from .comm import Channel, channel_difference
-from .device import resolve_device
+from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .mappo import critic_input_dim, critic_inputs, per_agent
 from .networks import Critic, restarted
@@ -56,12 +56,9 @@ from .ppo import (
     action_distribution,
     adapt_kl_coeff,
     bootstrapped,
-    clipped_step,
     compute_gae,
-    learn_threads,
     minibatch_rows,
-    ppo_policy_loss,
-    sampled_kl,
+    ppo_update,
     warm_start,
 )
 from .run import Run
@@ -127,9 +124,7 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
     `callback(row)` sees every log row. Returns the `Run`."""
     device = resolve_device(config.device)
     spec = policy_spec(config, envs)
-    run = Run(config.run_dir or f'runs/{config.algo}-{config.team}-seed{config.seed}', config.algo, config, spec,
-              total_steps=config.steps, time_limit=config.time_limit, checkpoint_every=config.checkpoint_every,
-              progress=config.progress, callback=callback, resume=not config.fresh, console=console)
+    run = Run.of(config, config.algo, spec, callback, console)
 
     # ---- environments and the channel (which messages of a decision arrive; `delivered` None: all of them)
     envs = envs or config.make_env(spec)
@@ -146,7 +141,7 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
         return None if delivered is None else delivered.to(device)
 
     # ---- networks, optimiser, the actor's memory
-    threads = learn_threads(config)          # torch threads of the updates and of the initialisation, whose
+    threads = update_threads(config)          # torch threads of the updates and of the initialisation, whose
     torch.set_num_threads(threads)           # orthogonal matrices (QR) depend on the thread count
     torch.manual_seed(config.seed)
     actor = make_actor(spec)                                       # a `TarMACActor`
@@ -284,22 +279,10 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, True, generator):
                     dist = action_distribution(logits_of(idx), H, C, allowed_of(b_obs[idx]))
-                    new_logp = dist.log_prob(b_action[idx]).sum(-1)
-                    policy_loss = ppo_policy_loss(new_logp, b_logp[idx], b_adv[idx], config.clip)
                     inputs = critic_inputs(config.critic, b_obs[idx], b_state[idx], b_messages[idx])
                     predicted = per_agent(config.critic, critic(inputs), N, shared=not per_agent_rewards)
-                    value_loss = 0.5 * (predicted - b_ret[idx]).pow(2).mean()
-                    entropy = dist.entropy().sum(-1).mean()
-                    kl = sampled_kl(new_logp, b_logp[idx])
-                    loss = policy_loss + config.value_coef * value_loss - entropy_coef * entropy
-                    if kl_coeff > 0:
-                        loss = loss + kl_coeff * kl
-                    clipped_step(optimizer, loss, learned, config.max_grad_norm)
-                    with torch.no_grad():
-                        clipped = ((new_logp - b_logp[idx]).exp() - 1).abs() > config.clip
-                    stats.add(approx_kl=kl.item(), clip_fraction=float(clipped.float().mean()),
-                              policy_loss=policy_loss.item(), value_loss=value_loss.item(), entropy=entropy.item())
-                    stats.updates += 1
+                    ppo_update(optimizer, learned, config, dist, b_action[idx], b_logp[idx], b_adv[idx], predicted,
+                               b_ret[idx], entropy_coef, kl_coeff, stats)
             means = stats.means()
             row_kl_coeff = kl_coeff                     # the coefficient this iteration used
             if kl_coeff > 0:
