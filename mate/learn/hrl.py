@@ -17,31 +17,19 @@ that keep only visible targets.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of
+from ..teams.rules import desired_viewing_angle
 
-__all__ = ['desired_viewing_angles', 'executor_actions', 'joint_allowed', 'masked_selection_logits', 'selection_bits', 'target_records']
+__all__ = ['executor_actions', 'joint_allowed', 'selection_bits', 'target_records']
 
 _OWN = PRESERVED_DIM
-
-
-def desired_viewing_angles(distance, viewing_angle, sight_range, max_sight_range, iterations: int = 20):
-    """The greedy camera's desired viewing angle (`mate.teams.rules.desired_viewing_angle`) on arrays, in degrees,
-    element-wise: the executor's zoom (the same fixed-point iteration, numpy's rounding)."""
-    half = 0.5 * np.pi / 180.0
-    theta_min = viewing_angle * (sight_range / max_sight_range) ** 2
-    area = viewing_angle * sight_range ** 2
-    theta = np.full(np.shape(distance), 180.0)
-    for _ in range(iterations):
-        reach = distance * (1.0 + np.sin(np.minimum(theta * half, 0.5 * np.pi)))
-        theta = area / np.maximum(reach * reach, 1e-12)
-    theta = np.clip(theta, theta_min, 180.0)
-    theta = np.where(distance <= 0.5 * np.sqrt(area / 180.0), 180.0, theta)
-    far = distance * (1.0 + np.sin(theta_min * half)) >= max_sight_range
-    return np.where(far, theta_min, theta)
 
 
 def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int) -> np.ndarray:
@@ -51,33 +39,46 @@ def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, 
     return observation[..., begin:begin + 5 * num_targets].reshape(observation.shape[:-1] + (num_targets, 5))
 
 
-def masked_selection_logits(logits: np.ndarray, observation: np.ndarray, num_cameras: int, num_targets: int,
-                            num_obstacles: int) -> np.ndarray:
-    """Logits (..., 2^Nt) of one-choice (`selection='joint'`) HRL policies with the selections that keep an
-    invisible target set to -inf, as in training: such choices were never taken, so their values are untrained."""
-    visible = target_records(np.asarray(observation), num_cameras, num_targets, num_obstacles)[..., 4] > 0.5
-    return np.where(joint_allowed(visible), logits, -np.inf)
-
-
 def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras: int, num_targets: int,
                      num_obstacles: int) -> np.ndarray:
-    """Continuous camera actions (..., 2) in degrees from raw observations (..., D) and selection bits
-    (..., Nt). Also returns nothing else: the valid-selection statistics are cheap to recompute."""
-    observation = np.asarray(observation, dtype=np.float64)
-    records = target_records(observation, num_cameras, num_targets, num_obstacles)
-    valid = (np.asarray(selection) > 0.5) & (records[..., 4] > 0.5)                  # (..., Nt)
-    count = valid.sum(axis=-1)
-    centroid = (records[..., :2] * valid[..., None]).sum(axis=-2) / np.maximum(count, 1)[..., None]
-    own = observation[..., _OWN:_OWN + 9]
-    x, y, rx, ry, theta, max_range = (own[..., k] for k in (0, 1, 3, 4, 5, 6))
-    high = own[..., 7:9]
-    orientation = np.degrees(np.arctan2(ry, rx))
-    bearing = np.degrees(np.arctan2(centroid[..., 1] - y, centroid[..., 0] - x))
-    rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
-    distance = np.hypot(centroid[..., 0] - x, centroid[..., 1] - y)
-    zoom = desired_viewing_angles(np.where(count > 0, distance, 1.0), theta, np.hypot(rx, ry), max_range) - theta
-    aimed = np.clip(np.stack([rotation, zoom], axis=-1), -high, high)
-    return np.where((count > 0)[..., None], aimed, -high)
+    """Continuous camera actions (..., 2) float64, in degrees, from raw observations (..., D) and selection bits
+    (..., Nt) (1 keeps the slot's target): the module docstring's rule, one compiled loop over the cameras (its
+    zoom is the greedy camera's `mate.teams.rules.desired_viewing_angle`)."""
+    observation = np.asarray(observation)
+    lead = observation.shape[:-1]
+    begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
+    flat = np.ascontiguousarray(observation.reshape(-1, observation.shape[-1]))
+    keep = np.ascontiguousarray(np.broadcast_to(selection, lead + (num_targets,)).reshape(-1, num_targets) > 0.5)
+    out = np.empty((flat.shape[0], 2))
+    _aim(flat, keep, begin, num_targets, out)
+    return out.reshape(lead + (2,))
+
+
+@njit(cache=True)
+def _aim(observation, keep, begin, num_targets, out):
+    """`executor_actions` on (R, D) observations and (R, Nt) bool selections into `out` (R, 2)."""
+    for r in range(observation.shape[0]):
+        row = observation[r]
+        x, y = float(row[_OWN]), float(row[_OWN + 1])
+        rx, ry, theta, max_range = float(row[_OWN + 3]), float(row[_OWN + 4]), float(row[_OWN + 5]), float(row[_OWN + 6])
+        high_rotation, high_zoom = float(row[_OWN + 7]), float(row[_OWN + 8])
+        count, cx, cy = 0, 0.0, 0.0
+        for t in range(num_targets):
+            slot = begin + 5 * t
+            if keep[r, t] and row[slot + 4] > 0.5:
+                count += 1
+                cx += float(row[slot])
+                cy += float(row[slot + 1])
+        if count == 0:                        # nothing to aim at: a clockwise sweep that narrows the view
+            out[r, 0], out[r, 1] = -high_rotation, -high_zoom
+            continue
+        cx, cy = cx / count, cy / count
+        orientation = math.degrees(math.atan2(ry, rx))
+        bearing = math.degrees(math.atan2(cy - y, cx - x))
+        rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
+        zoom = desired_viewing_angle(math.hypot(cx - x, cy - y), theta, math.hypot(rx, ry), max_range) - theta
+        out[r, 0] = min(max(rotation, -high_rotation), high_rotation)
+        out[r, 1] = min(max(zoom, -high_zoom), high_zoom)
 
 
 def selection_bits(num_targets: int) -> np.ndarray:
