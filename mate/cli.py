@@ -139,6 +139,16 @@ def _evaluation_path(args: argparse.Namespace) -> tuple[bool, str]:
     return True, ''
 
 
+def _policy_device(args: argparse.Namespace):
+    """The torch device of `mate evaluate --device` for batched policies ('cpu' when no policy plays: no torch)."""
+    from .learn.device import parse_device, resolve_device
+
+    parse_device(args.device)
+    if not any(agent.partition(':')[0] in ('checkpoint', 'pretrained') for agent in (args.camera_agent, args.target_agent)):
+        return 'cpu'
+    return resolve_device(args.device)
+
+
 def _recorder(args: argparse.Namespace):
     from . import evaluate as ev
 
@@ -178,6 +188,7 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
     from .messages import Team
 
     with resolving_arguments():
+        device = _policy_device(args)
         camera_kwargs = _json_kwargs(args.camera_kwargs, '--camera-kwargs')
         target_kwargs = _json_kwargs(args.target_kwargs, '--target-kwargs')
         env = make('MultiAgentTracking-v0', config=args.config)
@@ -187,7 +198,7 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
     for agent, team, kwargs, flag in ((args.camera_agent, Team.CAMERA, camera_kwargs, '--camera-kwargs'),
                                       (args.target_agent, Team.TARGET, target_kwargs, '--target-kwargs')):
         try:
-            teams.append(ev.batched_team(env, agent, team, args.episodes, args.seed, kwargs))
+            teams.append(ev.batched_team(env, agent, team, args.episodes, args.seed, kwargs, device=device))
         except (TypeError, ValueError) as exc:
             raise CommandError(f'{flag}: {exc}' if kwargs else str(exc)) from exc
     cameras, targets = teams
@@ -379,6 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
                                'agents have a batched form: random, greedy, checkpoint:PATH, pretrained:NAME, and no '
                                'wrapper is asked for): an error if it cannot. The rule agents play the same episodes '
                                'either way; policies that sample draw from other random streams')
+    evaluate.add_argument('--device', default='cpu',
+                          help='where batched policies (checkpoint:, pretrained:) run their forward passes: cpu '
+                               '(default), cuda, cuda:N or auto; the games are played on the CPU')
     evaluate.add_argument('--single-env', action='store_true',
                           help='play the episodes one after the other in the single env with per-agent objects (the '
                                'path of agents without a batched form, and of wrappers)')

@@ -191,12 +191,14 @@ def has_batched_team(agent: str) -> bool:
     return agent in BATCHED or agent.partition(':')[0] in ('checkpoint', 'pretrained')
 
 
-def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: dict | None = None):
+def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: dict | None = None,
+                 device: str = 'cpu'):
     """The batched team of `mate evaluate`'s agent name `agent` for `team` (random, greedy: `mate.teams`;
     checkpoint:PATH, pretrained:NAME: `mate.learn.policy.PolicyTeam`; `kwargs`: the agents' options, e.g.
     `frame_skip`, `memory_period`, and `deterministic` for policies) for `episodes` games of `env`'s sizes, seeded
-    with `seed`: row i plays as the agents of `play_episode`'s episode i (for the rule agents, the same episode).
-    ValueError for an unknown agent or one without a batched version; TypeError/ValueError for bad options."""
+    with `seed`: row i plays as the agents of `play_episode`'s episode i (for the rule agents, the same episode);
+    a policy's forward passes run on `device`. ValueError for an unknown agent or one without a batched version;
+    TypeError/ValueError for bad options."""
     from . import teams
 
     resolve_agent(agent, team)                       # unknown names: the usual message
@@ -208,7 +210,7 @@ def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: 
     except ImportError as exc:
         raise ValueError(f"{agent}: batched policies need the training extra (pip install 'mate[train]'): "
                          f'{exc}') from None
-    return make_team(agent, team, episodes, counts, seed=seed, **(kwargs or {}))
+    return make_team(agent, team, episodes, counts, seed=seed, device=device, **(kwargs or {}))
 
 
 def batched_teams(env, camera_agent: str, target_agent: str, episodes: int, seed: int,

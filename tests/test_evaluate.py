@@ -140,3 +140,18 @@ def test_batched_refuses_what_it_cannot_play(capsys, argv, message):
     assert main(['evaluate', '--episodes', '1', '--no-render', *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith('mate evaluate: error: ') and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_device_of_batched_policies(capsys):
+    import torch
+
+    assert main(['evaluate', '--episodes', '1', '--no-render', '--device', 'gpu']) == 2
+    assert "device must be auto, cpu, cuda or cuda:N" in capsys.readouterr().err
+    policy = ['--camera-agent', 'pretrained:hrl-mappo-camera-4v8-9', '--episodes', '2', '--max-episode-steps', '30',
+              '--no-render']
+    if torch.cuda.is_available():    # the same games with the forward passes on the GPU
+        assert main(['evaluate', *policy, '--device', 'cuda']) == 0
+    else:
+        assert main(['evaluate', *policy, '--device', 'cuda']) == 2
+        assert 'PyTorch sees no CUDA GPU here' in capsys.readouterr().err
+    assert main(['evaluate', *policy, '--device', 'cpu']) == 0

@@ -36,6 +36,7 @@ The network is shared, read-only, by every agent cloned from one prototype (`spa
 from __future__ import annotations
 
 import contextlib
+import copy
 import functools
 from pathlib import Path
 
@@ -110,13 +111,22 @@ class LoadedPolicy:
 
     threads = 1
 
-    def __init__(self, actor: nn.Module, spec: PolicySpec, source: str = '') -> None:
-        self.actor = actor.eval()
+    def __init__(self, actor: nn.Module, spec: PolicySpec, source: str = '', device='cpu') -> None:
+        self.device = torch.device(device)
+        self.actor = actor.eval().to(self.device)
         self.spec = spec
         self.source = source
 
     def __deepcopy__(self, memo):
         return self
+
+    def on(self, device) -> LoadedPolicy:
+        """This policy with its network on `device` (a torch device or name; itself when it is there already):
+        batched teams of many games run their forward passes there, one transfer in and out per decision."""
+        device = torch.device(device)
+        if device == self.device:
+            return self
+        return LoadedPolicy(copy.deepcopy(self.actor), self.spec, self.source, device)
 
     @property
     def recurrent(self) -> bool:
@@ -133,8 +143,8 @@ class LoadedPolicy:
         return self.spec.comm != 'none'
 
     def initial_memory(self, *shape: int):
-        """The recurrent actor's zero state for `shape` agents (None for a feed-forward actor)."""
-        return self.actor.initial_state(*shape) if self.recurrent else None
+        """The recurrent actor's zero state for `shape` agents, on its device (None for a feed-forward actor)."""
+        return tuple(part.to(self.device) for part in self.actor.initial_state(*shape)) if self.recurrent else None
 
     def features(self, raw: np.ndarray, memory: np.ndarray | None = None, previous: np.ndarray | None = None):
         """The spec's features (the network's input) of raw observations (`PolicySpec.features`)."""
@@ -144,20 +154,21 @@ class LoadedPolicy:
     def outputs(self, features: np.ndarray, memory=None, **inputs):
         """Outputs (..., A) of features (..., D): logits, Q-values or actions; with a recurrent actor also the next
         memory. `inputs`: more arguments of the recurrent actor's `step` (I2C: `teammates`, `agents`)."""
-        obs = torch.as_tensor(features, dtype=torch.float32)
+        obs = torch.as_tensor(features, dtype=torch.float32, device=self.device)
+        inputs = {k: v.to(self.device) if isinstance(v, torch.Tensor) else v for k, v in inputs.items()}
         with torch_threads(self.threads):
             if not self.recurrent:
-                return self.actor(obs).numpy()
+                return self.actor(obs).cpu().numpy()
             outputs, memory = self.actor.step(obs, memory, **inputs)
-        return outputs.numpy(), memory
+        return outputs.cpu().numpy(), memory
 
     @torch.no_grad()
     def requests(self, features: np.ndarray, agent: int) -> np.ndarray:
         """I2C: the teammates (indices in the team) that agent `agent` asks, from its features (D,)."""
         with torch_threads(self.threads):
-            logits = self.actor.request_logits(torch.as_tensor(features[None], dtype=torch.float32),
-                                               torch.tensor([agent]))[0]
-        return (agent + 1 + np.flatnonzero(logits.numpy() >= 0)) % self.actor.num_agents
+            features = torch.as_tensor(features[None], dtype=torch.float32, device=self.device)
+            logits = self.actor.request_logits(features, torch.tensor([agent], device=self.device))[0]
+        return (agent + 1 + np.flatnonzero(logits.cpu().numpy() >= 0)) % self.actor.num_agents
 
 
 def _actor_weights(data: dict) -> dict:
@@ -223,12 +234,14 @@ class PolicyTeam:
         seed: seed of the sampling generator.
         deterministic: argmax instead of sampling (None: the policy file's default).
         frame_skip: env steps a decision is held (None: the training frame skip).
+        device: where the forward passes run ('cpu', 'cuda', a `torch.device`): the features go there once per
+            decision, the outputs come back.
     """
 
     def __init__(self, policy, team, num_envs: int, counts, seed: int | None = None,
-                 deterministic: bool | None = None, frame_skip: int | None = None) -> None:
+                 deterministic: bool | None = None, frame_skip: int | None = None, device='cpu') -> None:
         self.team = as_team(team)
-        self.policy = policy if isinstance(policy, LoadedPolicy) else load_policy(policy, self.team)
+        self.policy = (policy if isinstance(policy, LoadedPolicy) else load_policy(policy, self.team)).on(device)
         spec = self.spec = self.policy.spec
         spec.check_game(self.team, counts, f'policy {self.policy.source!r}')
         if spec.full_observability:
@@ -257,7 +270,7 @@ class PolicyTeam:
             self.previous = np.array(observation, dtype=np.float64)
         self.previous[rows] = observation[rows]
         if self.memory is not None:
-            index = torch.as_tensor(rows)
+            index = torch.as_tensor(rows, device=self.policy.device)
             for part in self.memory:
                 part[index] = 0.0
 
@@ -271,7 +284,7 @@ class PolicyTeam:
         memory = None if self.sightings is None else self.sightings.features(raw, rows)
         features = self.spec.features(raw, memory, self.previous[rows])
         if self.memory is not None:
-            index = torch.as_tensor(rows)
+            index = torch.as_tensor(rows, device=self.policy.device)
             outputs, memory = self.policy.outputs(features, tuple(part[index] for part in self.memory))
             for part, value in zip(self.memory, memory):
                 part[index] = value
@@ -317,10 +330,10 @@ class PolicyTeam:
             self.sightings.location[...], self.sightings.age[...] = state['sightings']['location'], state['sightings']['age']
 
 
-def make_team(name: str, team, num_envs: int, counts, seed: int | None = None, **kwargs):
+def make_team(name: str, team, num_envs: int, counts, seed: int | None = None, device='cpu', **kwargs):
     """A batched team from an agent name of `mate evaluate`: 'random', 'greedy' (the `mate.teams` rule teams, with
-    their options), 'checkpoint:PATH' or 'pretrained:NAME' (kwargs: deterministic, frame_skip). ValueError naming
-    the batched agents otherwise."""
+    their options), 'checkpoint:PATH' or 'pretrained:NAME' (kwargs: deterministic, frame_skip; their forward passes
+    on `device`). ValueError naming the batched agents otherwise."""
     from .. import teams
 
     team = as_team(team)
@@ -329,7 +342,7 @@ def make_team(name: str, team, num_envs: int, counts, seed: int | None = None, *
         return teams.make_team(name, team, num_envs, counts, seed=seed, **kwargs)
     if kind in ('checkpoint', 'pretrained') and value:
         path = Path(value).expanduser() if kind == 'checkpoint' else pretrained_path(value)   # as `load_agent`
-        return PolicyTeam(load_policy(path, team), team, num_envs, counts, seed=seed, **kwargs)
+        return PolicyTeam(load_policy(path, team), team, num_envs, counts, seed=seed, device=device, **kwargs)
     raise ValueError(f'agent {name!r} has no batched version; batched agents: {", ".join(BATCHED_AGENTS)}')
 
 

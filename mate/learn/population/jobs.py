@@ -34,15 +34,17 @@ def policy_from_bytes(data: bytes, team):
         return load_policy(path, team)
 
 
-def member_team(payload, team, num_envs: int, counts, seed: int | None):
-    """The batched team of one pool member: a policy file's bytes, or an agent name of `make_team`."""
+def member_team(payload, team, num_envs: int, counts, seed: int | None, device='cpu'):
+    """The batched team of one pool member: a policy file's bytes, or an agent name of `make_team` (a policy's
+    forward passes on `device`)."""
     from ..policy import PolicyTeam, make_team
 
     if isinstance(payload, (bytes, bytearray)):
         return PolicyTeam(policy_from_bytes(bytes(payload), team), team, num_envs, counts, seed=seed,
-                          deterministic=False)
-    kwargs = {'deterministic': False} if str(payload).partition(':')[0] in ('pretrained', 'checkpoint') else {}
-    return make_team(str(payload), team, num_envs, counts, seed=seed, **kwargs)
+                          deterministic=False, device=device)
+    if str(payload).partition(':')[0] in ('pretrained', 'checkpoint'):
+        return make_team(str(payload), team, num_envs, counts, seed=seed, deterministic=False, device=device)
+    return make_team(str(payload), team, num_envs, counts, seed=seed)
 
 
 def rescaled_schedules(total_steps: int) -> dict:
@@ -103,9 +105,10 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
 
 
 def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[int, int]], episodes: int,
-                   seed: int = 0, max_episode_steps: int | None = None) -> list[dict]:
+                   seed: int = 0, max_episode_steps: int | None = None, device: str = 'cpu') -> list[dict]:
     """Play each pairing (camera member k, target member l) of `pairs` for `episodes` episodes with env
-    seeds seed .. seed + episodes - 1 (the same seeds for every pairing), all in one vector env.
+    seeds seed .. seed + episodes - 1 (the same seeds for every pairing), all in one vector env (the policies'
+    forward passes on `device`).
 
     `cameras` / `targets` are the pools' payloads (only the members named in `pairs` are built).
     Returns one dict per pair, in order: k, l, `payoff` (mean normalised target-team return, the target's
@@ -127,7 +130,8 @@ def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[in
 
     def team_of(pool, ids, assignment, side, offset):
         def build(num_envs, counts):
-            members = [member_team(pool[i], side, num_envs, counts, seed=10_000 * offset + i) for i in ids]
+            members = [member_team(pool[i], side, num_envs, counts, seed=10_000 * offset + i, device=device)
+                       for i in ids]
             return MixtureTeam(members, assignment=assignment)
         return build
 

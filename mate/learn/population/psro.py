@@ -292,6 +292,7 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
     if missing:
         say(f'iteration {i}: evaluating {len(missing)} payoff entr{"y" if len(missing) == 1 else "ies"} '
             f'({settings.eval_episodes} episodes each)')
+        payoff_device = 'cpu' if device == 'auto' else device    # (auto: the CPU; small forward passes)
         chunks = [missing[c::runner.parallel] for c in range(min(runner.parallel, len(missing)))]
         cameras = [member_payload(member, out) for member in pools['camera']]
         targets = [member_payload(member, out) for member in pools['target']]
@@ -306,7 +307,7 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
 
         runner.run([(jobs.payoff_entries, dict(env=env, cameras=cameras, targets=targets, pairs=chunk,
                                                episodes=settings.eval_episodes, seed=0,
-                                               max_episode_steps=settings.eval_steps))
+                                               max_episode_steps=settings.eval_steps, device=payoff_device))
                     for chunk in chunks], evaluated_chunk)
         say(f'iteration {i}: payoff entries done in {time.perf_counter() - evaluated:.0f} s')
 
