@@ -6,9 +6,9 @@ rendering) and print a markdown table: coverage rate for cameras, normalised tar
         results/runs/maddpg-target-2v4-0-seed*/final.pt pretrained:mappo-target-2v4-0 greedy
 
 A path is played as `checkpoint:PATH`; anything else (`greedy`, `pretrained:NAME`) is passed as the agent spec.
-`--batched` plays all episodes at once (`mate evaluate --batched`: the batched greedy opponents, which differ a
-little from the Python ones, and tens of times faster). `--json OUT` also writes every row (policy, mean, std,
-episodes, seconds).
+The episodes are played as `mate evaluate` plays them: all at once in one vector env (batched: the greedy
+opponents play the Python agents' episodes draw for draw), or one after the other in the single env with
+`--single-env`. `--json OUT` also writes every row (policy, mean, std, episodes, seconds).
 """
 
 from __future__ import annotations
@@ -24,19 +24,19 @@ from pathlib import Path
 METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}
 
 
-def evaluate(spec: str, team: str, config: str, episodes: int, seed: int, max_steps: int, batched: bool) -> dict:
+def evaluate(spec: str, team: str, config: str, episodes: int, seed: int, max_steps: int, single_env: bool) -> dict:
     agent = f'checkpoint:{spec}' if Path(spec).is_file() else spec
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / 'result.json'
         command = [sys.executable, '-m', 'mate.cli', 'evaluate', '--config', config, f'--{team}-agent', agent,
                    '--episodes', str(episodes), '--seed', str(seed), '--max-episode-steps', str(max_steps),
-                   '--no-render', '--json', str(out), *(['--batched'] if batched else [])]
+                   '--no-render', '--json', str(out), *(['--single-env'] if single_env else [])]
         start = time.perf_counter()
         subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
         seconds = time.perf_counter() - start
         summary = json.loads(out.read_text())['summary']
     row = next(r for r in summary if r['key'] == METRIC[team])
-    return dict(policy=spec, mean=row['mean'], std=row['std'], episodes=episodes, batched=batched,
+    return dict(policy=spec, mean=row['mean'], std=row['std'], episodes=episodes, single_env=single_env,
                 seconds=round(seconds, 1))
 
 
@@ -48,15 +48,15 @@ def main(argv=None) -> int:
     parser.add_argument('--episodes', type=int, default=20)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--max-episode-steps', type=int, default=2000)
-    parser.add_argument('--batched', action='store_true', help='batched play against the batched greedy opponents')
+    parser.add_argument('--single-env', action='store_true', help='one episode after the other in the single env')
     parser.add_argument('--json', type=Path, default=None)
     args = parser.parse_args(argv)
     rows = []
     print(f'| policy ({args.team}s, {args.config}, seeds {args.seed}-{args.seed + args.episodes - 1}) '
-          f'| {METRIC[args.team].replace("_", " ")} (mean ± std{", batched" if args.batched else ""}) |')
+          f'| {METRIC[args.team].replace("_", " ")} (mean ± std{", single env" if args.single_env else ""}) |')
     print('|---|---|')
     for spec in args.policies:
-        row = evaluate(spec, args.team, args.config, args.episodes, args.seed, args.max_episode_steps, args.batched)
+        row = evaluate(spec, args.team, args.config, args.episodes, args.seed, args.max_episode_steps, args.single_env)
         rows.append(row)
         print(f"| {spec} | {row['mean']:.3f} ± {row['std']:.3f} |", flush=True)
     if args.json:

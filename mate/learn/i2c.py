@@ -302,7 +302,7 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
                 entropy_coef=entropy_coef, **means, edges=float(edges), influence_kl=float(influence.mean()),
                 influence_threshold=signals.threshold.threshold(), kl_coeff=row_kl_coeff),
                 status=f"entropy {means['entropy']:.2f}",
-                save_best=lambda: run.save_policy('best.pt', actor.state_dict(), note=f'best, iteration {run.iteration}'),
+                actor=actor.state_dict,
                 save=run_state)
             if config.snapshot_every and run.iteration % config.snapshot_every == 0:
                 run.save_policy(f'snapshots/policy-{run.env_steps:010d}.pt', actor.state_dict())

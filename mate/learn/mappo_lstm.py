@@ -244,7 +244,7 @@ def train(config: RecurrentConfig, envs: TeamVecEnv | None = None, callback=None
             run.end_iteration(T * B, coverage, episodes, dict(
                 collect_share=collect_seconds / max(time.perf_counter() - t_collect, 1e-9), lr=lr,
                 entropy_coef=entropy_coef, **means, kl_coeff=row_kl_coeff), status=f"entropy {means['entropy']:.2f}",
-                save_best=lambda: run.save_policy('best.pt', actor.state_dict(), note=f'best, iteration {run.iteration}'),
+                actor=actor.state_dict,
                 save=run_state)
             if config.snapshot_every and run.iteration % config.snapshot_every == 0:
                 run.save_policy(f'snapshots/policy-{run.env_steps:010d}.pt', actor.state_dict())

@@ -295,8 +295,7 @@ def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, co
             run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
                 critic_loss=mean_or_nan(critic_losses), actor_loss=mean_or_nan(actor_losses),
                 q_mean=mean_or_nan(q_means), buffer=replay.size),
-                save_best=lambda: run.save_policy('best.pt', actor.state_dict(),
-                                                  note=f'best, iteration {run.iteration}'),
+                actor=actor.state_dict,
                 save=run_state)
             coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
     run.finish(run_state(with_replay=True), actor.state_dict())

@@ -260,8 +260,7 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
             run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
                 epsilon=epsilon, lr=piecewise(config.lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
                 q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
-                save_best=lambda: run.save_policy('best.pt', q_net.state_dict(),
-                                                  note=f'best, iteration {run.iteration}'),
+                actor=q_net.state_dict,
                 save=run_state)
             coverage, episodes, losses, q_means = [], [], [], []
     run.finish(run_state(with_replay=True), q_net.state_dict())

@@ -5,7 +5,7 @@
     with run:                             # SIGINT / SIGTERM: finish the iteration, checkpoint, stop
         while run.running():
             ... one iteration ...
-            run.end_iteration(steps, coverage, episodes, columns, save_best=..., save=lambda: algorithm_state)
+            run.end_iteration(steps, coverage, episodes, columns, actor=policy_state, save=lambda: algorithm_state)
     run.finish(algorithm_state, policy)   # checkpoint.pt, and final.pt once the run is complete
 
 What lives in the run directory:
@@ -45,6 +45,7 @@ import numpy as np
 
 from ..options import option
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
+from .evaluation import EVALUATION_SEEDS, Evaluator
 from .spec import PolicySpec
 
 __all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'mean_or_nan']
@@ -72,6 +73,10 @@ class RunConfig:
     fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
     progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
     checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
+    eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
+                                '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
+                             minimum=0)
+    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1)
 
     def __post_init__(self) -> None:
         from .device import parse_device
@@ -113,12 +118,14 @@ class Run:
         callback: `callback(row)` after every logged row.
         resume: continue from `run_dir/checkpoint.pt` when it exists (else start over, overwriting).
         console: where progress and notices go (default: a rich Console on stdout).
+        evaluator: the run's evaluation protocol (`mate.learn.evaluation.Evaluator`), or None.
     """
 
     def __init__(self, run_dir, algo: str, config, spec: PolicySpec, *, total_steps: int, time_limit: float = 0.0,
                  checkpoint_every: int = 20, progress: bool = True, callback: Callable[[dict], None] | None = None,
-                 resume: bool = True, console=None) -> None:
+                 resume: bool = True, console=None, evaluator: Evaluator | None = None) -> None:
         self.dir = Path(run_dir)
+        self.evaluator = evaluator
         self.dir.mkdir(parents=True, exist_ok=True)
         self.algo, self.config, self.spec = algo, config, spec
         self.total_steps, self.time_limit = int(total_steps), float(time_limit)
@@ -141,9 +148,18 @@ class Run:
         """The run of a trainer's `config` (its `RunConfig` fields: directory, default runs/ALGO-TEAM-seedN, budget,
         checkpoints, progress, --fresh) training the policy of `spec` with algorithm `algo`."""
         run_dir = config.run_dir or f'runs/{algo}-{config.team}-seed{config.seed}'
+        evaluator = None
+        if config.eval_every:
+            from .device import resolve_device
+
+            if config.seed + config.num_envs > EVALUATION_SEEDS:
+                raise ValueError(f'--seed {config.seed} with --num-envs {config.num_envs} would train on evaluation '
+                                 f'seeds: with --eval-every, seed + num_envs must be at most {EVALUATION_SEEDS:,}')
+            evaluator = Evaluator(run_dir, spec, config.eval_every, config.eval_episodes, config.resolved_horizon,
+                                  resolve_device(config.device))
         return cls(run_dir, algo, config, spec, total_steps=config.steps, time_limit=config.time_limit,
                    checkpoint_every=config.checkpoint_every, progress=config.progress, callback=callback,
-                   resume=not config.fresh, console=console)
+                   resume=not config.fresh, console=console, evaluator=evaluator)
 
     # ------------------------------------------------------------------ resume
     @property
@@ -179,6 +195,8 @@ class Run:
         self.env_steps, self.iteration = int(run['env_steps']), int(run['iteration'])
         self._earlier_seconds, self.best_return = float(run['wall_seconds']), float(run['best_return'])
         self.episodes.extend(run['episodes'])
+        if self.evaluator is not None:
+            self.evaluator.resume(run.get('evaluation'), self.iteration, self.env_steps)
         return data['state']
 
     # ------------------------------------------------------------------ the session
@@ -293,19 +311,29 @@ class Run:
                     rollout_coverage=float(np.mean(coverage)), **self.episode_means(), **columns)
 
     def end_iteration(self, steps: int, coverage, episodes, columns: dict, status: str = '',
-                      save_best: Callable[[], None] | None = None, save: Callable[[], dict] | None = None) -> dict:
-        """Count the iteration's `steps` and finished `episodes`, log its row (CSV, TensorBoard, progress, callback),
-        keep the policy as `best.pt` (`save_best()`) when the episode window's mean return is the best so far, and
-        write the periodic checkpoint (`save()` gives the algorithm's state). Returns the row."""
+                      actor: Callable[[], dict] | None = None, save: Callable[[], dict] | None = None) -> dict:
+        """Count the iteration's `steps` and finished `episodes`; evaluate the policy (`actor()` gives its network's
+        state) when the evaluation protocol is due; log the row (CSV, TensorBoard, progress, callback), keep the
+        policy as `best.pt` when the episode window's mean return is the best so far (and as `best-eval.pt` after its
+        best evaluation), and write the periodic checkpoint (`save()` gives the algorithm's state). Returns the row."""
         self.env_steps += int(steps)
         self.iteration += 1
         self.episodes.extend(episodes)
+        if self.evaluator is not None:
+            last = self.env_steps >= self.total_steps or self.out_of_time()
+            evaluation = math.nan
+            if actor is not None and (self.evaluator.due(self.env_steps) or last):
+                record = self.evaluator(actor(), self.iteration, self.env_steps)
+                evaluation = record['mean']
+                if record['best']:
+                    self.save_policy('best-eval.pt', actor(), note=f'best evaluation, iteration {self.iteration}')
+            columns = dict(columns, **{f'evaluation_{self.evaluator.metric}': evaluation})
         row = self.row(coverage, **columns)
         self._write(row)
         if len(self.episodes) == EPISODE_WINDOW and row['episode_return'] > self.best_return:
             self.best_return = row['episode_return']
-            if save_best is not None:
-                save_best()
+            if actor is not None:
+                self.save_policy('best.pt', actor(), note=f'best, iteration {self.iteration}')
         if self.callback is not None:
             self.callback(row)
         if self._line is not None:
@@ -337,7 +365,8 @@ class Run:
         return save_checkpoint(path or self.checkpoint_path, dict(
             spec=self.spec.to_dict(), algo=self.algo, config=_config_dict(self.config),
             run=dict(env_steps=self.env_steps, iteration=self.iteration, wall_seconds=self.wall_seconds,
-                     best_return=self.best_return, episodes=[dict(e) for e in self.episodes]),
+                     best_return=self.best_return, episodes=[dict(e) for e in self.episodes],
+                     evaluation=None if self.evaluator is None else self.evaluator.state_dict()),
             state=state))
 
     def save_policy(self, path, actor_state: dict, note: str = '') -> Path:
@@ -347,10 +376,13 @@ class Run:
             env_steps=self.env_steps, note=note or f'iteration {self.iteration}'))
 
     def finish(self, state: dict, actor_state: dict) -> dict:
-        """The end of a session: the checkpoint, and `final.pt` when the run is complete. Returns the last row."""
+        """The end of a session: the checkpoint, and when the run is complete `final.pt` and (with an evaluation
+        protocol) the absolute metric of its best evaluated policy. Returns the last row."""
         self.checkpoint(state)
         if self.complete and not self.interrupted:
             self.save_policy('final.pt', actor_state, note='final')
+            if self.evaluator is not None and not (self.dir / 'absolute.json').exists():
+                self.evaluator.absolute()
         return self.last_row
 
 
