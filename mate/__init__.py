@@ -15,8 +15,8 @@ from .agents import (AgentBase, CameraAgentBase, CameraStatePrivate, CameraState
                      GreedyTargetAgent, HeuristicCameraAgent, HeuristicTargetAgent, MixtureCameraAgent,
                      MixtureTargetAgent, NaiveCameraAgent, NaiveTargetAgent, ObstacleState, RandomCameraAgent,
                      RandomTargetAgent, StateBase, TargetAgentBase, TargetStatePrivate, TargetStatePublic,
-                     convert_coordinates, group_act, group_communicate, group_observe, group_reset, group_step,
-                     normalize_observation, rescale_observation, split_observation)
+                     UpperBoundCameraAgent, convert_coordinates, group_act, group_communicate, group_observe,
+                     group_reset, group_step, normalize_observation, rescale_observation, split_observation)
 from .config import ConfigError, list_presets, read_config
 from .constants import *  # noqa: F403  (the original re-exports its constants at package level)
 from .core.snapshot import SnapshotError

@@ -96,6 +96,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         ev.check_agents_fit(env, camera_factory, target_factory, args.seed)
     console.print(f'environment: {env} (single env, one episode after the other: {reason})', soft_wrap=True)
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+    _say_true_state(args)
 
     recorder = _recorder(args)
     results = []
@@ -127,8 +128,8 @@ def _evaluation_path(args: argparse.Namespace) -> tuple[bool, str]:
         raise CommandError('--batched and --single-env exclude each other')
     if args.batched and (wrappers or unbatched):
         problem = (f'plays the game without wrappers; drop {", ".join(wrappers)}' if wrappers else
-                   f'has no batched form of {", ".join(unbatched)} (batched agents: random, greedy, checkpoint:PATH, '
-                   'pretrained:NAME)')
+                   f'has no batched form of {", ".join(unbatched)} (batched agents: random, greedy, upper-bound, '
+                   'checkpoint:PATH, pretrained:NAME)')
         raise CommandError(f'--batched {problem}, or --batched')
     if args.single_env:
         return False, '--single-env'
@@ -137,6 +138,14 @@ def _evaluation_path(args: argparse.Namespace) -> tuple[bool, str]:
     if unbatched:
         return False, f'{", ".join(unbatched)} has no batched form'
     return True, ''
+
+
+def _say_true_state(args: argparse.Namespace) -> None:
+    from . import evaluate as ev
+
+    if args.camera_agent in ev.SEES_TRUE_STATE:
+        console.print(f'{args.camera_agent} cameras see the true state (every target\'s position every step): a '
+                      'reference, not a camera team of the game', soft_wrap=True)
 
 
 def _policy_device(args: argparse.Namespace):
@@ -204,6 +213,7 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
     cameras, targets = teams
     console.print(f'environment: {env} (batched: {args.episodes} games at once in one vector env)', soft_wrap=True)
     console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+    _say_true_state(args)
     recorder = _recorder(args)
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
@@ -228,12 +238,17 @@ def _json_kwargs(text: str, flag: str) -> dict:
 
 
 def _evaluation_wrappers(args: argparse.Namespace) -> list:
+    """The single env's wrappers: those asked for, and `EnhancedObservation` on the cameras for camera agents that
+    see the true state (`mate.evaluate.SEES_TRUE_STATE`: upper-bound)."""
+    from . import evaluate as ev
     from . import wrappers
     stack = []
     for flag, wrapper in (('enhanced_observation', wrappers.EnhancedObservation),
                           ('shared_field_of_view', wrappers.SharedFieldOfView),
                           ('no_communication', wrappers.NoCommunication)):
         team = getattr(args, flag)
+        if flag == 'enhanced_observation' and args.camera_agent in ev.SEES_TRUE_STATE:
+            team = {'none': 'camera', 'target': 'both'}.get(team, team)
         if team != 'none':
             stack.append(lambda env, w=wrapper, t=team: w(env, team=t))
     if args.render_communication:
@@ -328,6 +343,12 @@ def _psro(args: argparse.Namespace) -> int:
     return command.run(args, console)
 
 
+def _benchmark(args: argparse.Namespace) -> int:
+    from .benchmark import command
+
+    return command.run(args, console)
+
+
 def build_parser() -> argparse.ArgumentParser:
     debug = argparse.ArgumentParser(add_help=False)   # --debug before or after the command name
     debug.add_argument('--debug', action='store_true', default=argparse.SUPPRESS, help=DEBUG_HELP)
@@ -359,7 +380,8 @@ def build_parser() -> argparse.ArgumentParser:
                     'greedy targets on MATE-4v8-9 and the first episode is saved as a GIF.')
     evaluate.add_argument('--config', '--cfg', default='MATE-4v8-9', help='preset name or YAML/JSON path (default MATE-4v8-9)')
     evaluate.add_argument('--camera-agent', default='greedy',
-                          help="random|naive|greedy|heuristic|mixture, module:Class, checkpoint:PATH or pretrained:NAME")
+                          help='random|naive|greedy|heuristic|mixture|upper-bound, module:Class, checkpoint:PATH or '
+                               'pretrained:NAME (upper-bound: a centralised reference that sees the true state)')
     evaluate.add_argument('--target-agent', default='greedy', help='as --camera-agent')
     evaluate.add_argument('--camera-kwargs', default='{}', help='JSON keyword arguments of the camera agent')
     evaluate.add_argument('--target-kwargs', default='{}', help='JSON keyword arguments of the target agent')
@@ -387,9 +409,9 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument('--json', default=None, metavar='PATH', help='write per-episode results and the summary')
     evaluate.add_argument('--batched', action='store_true',
                           help='insist on playing every episode at once in one vector env (the default whenever both '
-                               'agents have a batched form: random, greedy, checkpoint:PATH, pretrained:NAME, and no '
-                               'wrapper is asked for): an error if it cannot. The rule agents play the same episodes '
-                               'either way; policies that sample draw from other random streams')
+                               'agents have a batched form: random, greedy, upper-bound, checkpoint:PATH, '
+                               'pretrained:NAME, and no wrapper is asked for): an error if it cannot. The rule agents '
+                               'play the same episodes either way; policies that sample draw from other random streams')
     evaluate.add_argument('--device', default='cpu',
                           help='where batched policies (checkpoint:, pretrained:) run their forward passes: cpu '
                                '(default), cuda, cuda:N or auto; the games are played on the CPU')
@@ -431,6 +453,16 @@ def build_parser() -> argparse.ArgumentParser:
                                'DIR..." draws the figures.')
     add_psro_arguments(psro)
     psro.set_defaults(run=_psro)
+
+    from .benchmark.command import add_arguments as add_benchmark_arguments  # imports no torch
+    benchmark = command('benchmark', help="the paper's experiments: list, run (resumable jobs), report (IQM, CIs, "
+                                          'marl_eval.json)',
+                        description="The paper's experiments as data: \"mate benchmark list\" names them, \"mate "
+                                    'benchmark run NAME\" runs every missing (setting, seed) job with evaluations on '
+                                    'held-out seeds, "mate benchmark report DIR..." writes figures, a markdown table '
+                                    'and marl_eval.json with interquartile means and 95 %% bootstrap intervals.')
+    add_benchmark_arguments(benchmark)
+    benchmark.set_defaults(run=_benchmark)
     return parser
 
 

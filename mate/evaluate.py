@@ -32,6 +32,7 @@ from .agents import (
     RandomCameraAgent,
     RandomTargetAgent,
     TargetAgentBase,
+    UpperBoundCameraAgent,
     group_reset,
     group_step,
 )
@@ -40,11 +41,15 @@ from .teams.play import EpisodeSummary
 
 BUILT_IN_AGENTS = {
     Team.CAMERA: {'random': RandomCameraAgent, 'naive': NaiveCameraAgent, 'greedy': GreedyCameraAgent,
-                  'heuristic': HeuristicCameraAgent, 'mixture': MixtureCameraAgent},
+                  'heuristic': HeuristicCameraAgent, 'mixture': MixtureCameraAgent,
+                  'upper-bound': UpperBoundCameraAgent},
     Team.TARGET: {'random': RandomTargetAgent, 'naive': NaiveTargetAgent, 'greedy': GreedyTargetAgent,
                   'heuristic': HeuristicTargetAgent, 'mixture': MixtureTargetAgent},
 }
 BASE_CLASSES = {Team.CAMERA: CameraAgentBase, Team.TARGET: TargetAgentBase}
+SEES_TRUE_STATE = ('upper-bound',)
+"""Agents that read the true state: in the single env the cameras get the `EnhancedObservation` wrapper, batched
+the team watches the vector env (`UpperBoundTeam.watch`)."""
 
 
 def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
@@ -182,7 +187,7 @@ SUMMARY_ROWS = (
 )
 
 
-BATCHED = ('random', 'greedy')
+BATCHED = ('random', 'greedy', 'upper-bound')
 """Built-in agents with a batched team (`mate.teams`); learned policies (checkpoint:, pretrained:) have one too."""
 
 
@@ -193,7 +198,7 @@ def has_batched_team(agent: str) -> bool:
 
 def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: dict | None = None,
                  device: str = 'cpu'):
-    """The batched team of `mate evaluate`'s agent name `agent` for `team` (random, greedy: `mate.teams`;
+    """The batched team of `mate evaluate`'s agent name `agent` for `team` (random, greedy, upper-bound: `mate.teams`;
     checkpoint:PATH, pretrained:NAME: `mate.learn.policy.PolicyTeam`; `kwargs`: the agents' options, e.g.
     `frame_skip`, `memory_period`, and `deterministic` for policies) for `episodes` games of `env`'s sizes, seeded
     with `seed`: row i plays as the agents of `play_episode`'s episode i (for the rule agents, the same episode);
@@ -225,12 +230,20 @@ def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: 
                  recorder: FrameRecorder | None = None) -> list[EpisodeResult]:
     """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
     (`batched_teams`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
-    game's frames."""
+    game's frames. A team that reads the true state (`watch(vec, step)`: `UpperBoundTeam`) watches the vector env."""
     from .teams import play_batch
     if max_steps < 1:
         raise ValueError(f'max_steps must be at least 1, got {max_steps}')
+    watchers = [team.watch for team in (cameras, targets) if hasattr(team, 'watch')]
+    if recorder is not None:
+        watchers.append(recorder.record_row)
+
+    def on_step(vec, step: int) -> None:
+        for watcher in watchers:
+            watcher(vec, step)
+
     batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress,
-                               on_step=None if recorder is None else recorder.record_row)
+                               on_step=on_step if watchers else None)
     return [EpisodeResult(**asdict(episode), steps_per_second=timing['env_steps_per_second']) for episode in batch]
 
 

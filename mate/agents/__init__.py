@@ -5,9 +5,10 @@
 
 Modules: `base` (life cycle, seeding, decoders), `group` (drive a team through a step),
 `utils` (observation helpers, state views), `geometry` (degrees, Vector2D) and one module per
-built-in family: `random`, `naive`, `greedy`, `heuristic`, `mixture`. The greedy rules (and the
-targets' noisy walk) are compiled functions of `mate.teams.rules`, which the batched teams of
-`mate.teams` run on B games at once.
+built-in family: `random`, `naive`, `greedy`, `heuristic`, `mixture`, and `upper_bound` (a reference
+camera that sees the true state). The greedy rules (and the targets' noisy walk) are compiled functions
+of `mate.teams.rules`, which the batched teams of `mate.teams` run on B games at once; the upper-bound
+rule is `mate.teams.upper_bound.plan`.
 """
 
 from .base import AgentBase, CameraAgentBase, TargetAgentBase
@@ -18,6 +19,7 @@ from .heuristic import HeuristicCameraAgent, HeuristicTargetAgent
 from .mixture import MixtureCameraAgent, MixtureTargetAgent
 from .naive import NaiveCameraAgent, NaiveTargetAgent
 from .random import RandomCameraAgent, RandomTargetAgent
+from .upper_bound import UpperBoundCameraAgent
 from .utils import (
     CameraStatePrivate,
     CameraStatePublic,
@@ -35,7 +37,7 @@ __all__ = [
     'AgentBase', 'CameraAgentBase', 'TargetAgentBase',
     'RandomCameraAgent', 'RandomTargetAgent', 'NaiveCameraAgent', 'NaiveTargetAgent',
     'GreedyCameraAgent', 'GreedyTargetAgent', 'HeuristicCameraAgent', 'HeuristicTargetAgent',
-    'MixtureCameraAgent', 'MixtureTargetAgent',
+    'MixtureCameraAgent', 'MixtureTargetAgent', 'UpperBoundCameraAgent',
     'group_reset', 'group_observe', 'group_communicate', 'group_act', 'group_step',
     'convert_coordinates', 'normalize_observation', 'rescale_observation', 'split_observation',
     'StateBase', 'CameraStatePublic', 'CameraStatePrivate', 'TargetStatePublic', 'TargetStatePrivate',

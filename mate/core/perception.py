@@ -51,25 +51,31 @@ def is_occluded(p, w, b, c, x, y):
     for o in range(p.num_obstacles):
         if not w.camera_obstacle_view_mask[b, c, o]:
             continue
-        r = w.obstacle_radius[b, o]
-        ox, oy = w.obstacle_pos[b, o, 0] - cx, w.obstacle_pos[b, o, 1] - cy
-        centre_sq = ox * ox + oy * oy
-        if centre_sq < r * r:  # camera inside the disc: it sees nothing (beyond its own centre)
-            if dist > 0.0:
-                return True
-            continue
-        if dist == 0.0:
-            continue
-        along = (ox * dx + oy * dy) / dist
-        if along < 0.0:
-            continue
-        h_sq = centre_sq - along * along
-        if h_sq >= r * r:
-            continue
-        entry = along - math.sqrt(r * r - h_sq)
-        if dist > min(entry, p.camera_max_sight_range) * (1.0 + 1e-6):
+        if disc_hides(dx, dy, dist, w.obstacle_pos[b, o, 0] - cx, w.obstacle_pos[b, o, 1] - cy,
+                      w.obstacle_radius[b, o], p.camera_max_sight_range):
             return True
     return False
+
+
+@inline_kernel
+def disc_hides(dx, dy, dist, ox, oy, r, max_range):
+    """Whether the disc of radius r centred at (ox, oy) hides the point (dx, dy) at distance `dist` (> 0 or 0),
+    all relative to the camera: the ray from the camera enters the disc before the point (relative tolerance
+    1e-6; entries beyond `max_range` count at `max_range`). A camera inside the disc sees nothing beyond its own
+    centre."""
+    centre_sq = ox * ox + oy * oy
+    if centre_sq < r * r:
+        return dist > 0.0
+    if dist == 0.0:
+        return False
+    along = (ox * dx + oy * dy) / dist
+    if along < 0.0:
+        return False
+    h_sq = centre_sq - along * along
+    if h_sq >= r * r:
+        return False
+    entry = along - math.sqrt(r * r - h_sq)
+    return dist > min(entry, max_range) * (1.0 + 1e-6)
 
 
 @inline_kernel

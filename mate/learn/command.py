@@ -92,6 +92,7 @@ def run(args: argparse.Namespace, console) -> int:
         if done:
             reason, flag = done
             console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
+            _absolute_metric(config, console)
             return 0
     elif getattr(config, 'init_from', None):   # a bad file fails now, before the envs are built
         try:
@@ -149,3 +150,20 @@ def already_done(saved: dict, config) -> tuple[str, str] | None:
     if config.minutes and seconds >= config.time_limit:
         return f'{seconds / 60:.3g} minutes of training >= --minutes {config.minutes:g}', '--minutes'
     return None
+
+
+def _absolute_metric(config, console) -> None:
+    """A complete run with an evaluation protocol whose absolute metric is missing (the process stopped between its
+    last checkpoint and the end): play it now."""
+    run_dir = Path(config.run_dir)
+    if not config.eval_every or (run_dir / 'absolute.json').exists() or not (run_dir / 'best-eval.pt').exists():
+        return
+    from .checkpoint import load_checkpoint, read_spec
+    from .evaluation import Evaluator
+
+    path = run_dir / 'best-eval.pt'
+    evaluator = Evaluator(run_dir, read_spec(load_checkpoint(path), path), config.eval_every, config.eval_episodes,
+                          config.resolved_horizon)
+    record = evaluator.absolute()
+    console.print(f'absolute metric (best evaluated policy, {len(record["episodes"])} held-out episodes): '
+                  f'{record["metric"]} {record["mean"]:.3f} -> {run_dir / "absolute.json"}', soft_wrap=True)

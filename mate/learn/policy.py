@@ -57,8 +57,8 @@ __all__ = ['AGENT_CLASSES', 'BATCHED_AGENTS', 'PRETRAINED_DIR', 'LoadedPolicy', 
            'PolicyTeam', 'export_policy', 'load_agent', 'load_policy', 'make_actor', 'make_team', 'pretrained_path']
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / 'pretrained'
-BATCHED_AGENTS = ('random', 'greedy', 'checkpoint:PATH', 'pretrained:NAME')
-"""Agent names of `mate evaluate` that have a batched team."""
+BATCHED_AGENTS = ('random', 'greedy', 'upper-bound', 'checkpoint:PATH', 'pretrained:NAME')
+"""Agent names of `mate evaluate` that have a batched team (upper-bound: cameras only)."""
 _NEVER = np.iinfo(np.int64).max // 2
 """A decision countdown that does not run out within any episode."""
 

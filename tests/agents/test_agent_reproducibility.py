@@ -48,7 +48,10 @@ SETTINGS = {
                        lambda: mate.GreedyTargetAgent(seed=1)),
     'policy-targets': ('MATE-2v4-0', lambda: mate.GreedyCameraAgent(seed=0),
                        lambda: _policy('mappo-target-2v4-0', mate.Team.TARGET, frame_skip=3)),
+    'upper-bound': ('MATE-4v8-9', lambda: mate.UpperBoundCameraAgent(seed=0), lambda: mate.GreedyTargetAgent(seed=1)),
 }
+SEES_TRUE_STATE = {'upper-bound'}
+"""Settings whose cameras read the true state: played with `EnhancedObservation` on the cameras."""
 
 
 def _play(env, cameras, targets, seed):
@@ -74,7 +77,8 @@ def _play(env, cameras, targets, seed):
 @pytest.mark.parametrize('setting', sorted(SETTINGS))
 def test_reused_agents_replay_a_seeded_episode(setting):
     preset, make_camera, make_target = SETTINGS[setting]
-    env = mate.make(f'{preset}-v0')
+    wrappers = [lambda env: mate.EnhancedObservation(env, team='camera')] if setting in SEES_TRUE_STATE else []
+    env = mate.make(f'{preset}-v0', wrappers=wrappers)
 
     def team():
         return make_camera().spawn(env.num_cameras), make_target().spawn(env.num_targets)

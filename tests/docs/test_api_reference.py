@@ -1,4 +1,4 @@
-"""Every public name of mate, mate.wrappers, mate.agents, mate.learn and mate.integrations is on an
+"""Every public name of mate, mate.wrappers, mate.agents, mate.learn, mate.integrations and mate.benchmark is on an
 API page (a `::: path` directive that resolves to that very object) and has a docstring as
 mkdocstrings reads it (griffe's static analysis, the text the site shows).
 
@@ -33,10 +33,11 @@ DIRECTIVE = re.compile(r'^::: (?P<path>[\w.]+)\s*$', re.M)
 
 
 def public_names() -> dict[str, object]:
-    """'module.name' -> object, for every public name of the five modules."""
+    """'module.name' -> object, for every public name of the six modules."""
     import mate
+    import mate.benchmark
     import mate.integrations.pettingzoo
-    modules = [mate.wrappers, mate.agents, mate.learn, mate.integrations.pettingzoo]
+    modules = [mate.wrappers, mate.agents, mate.learn, mate.integrations.pettingzoo, mate.benchmark]
     if HAVE_RAY:
         modules.append(importlib.import_module(RLLIB))
     names = {f'mate.{name}': getattr(mate, name) for name in dir(mate)
@@ -69,7 +70,7 @@ def directives(importable_only: bool = False) -> list[str]:
 
 
 def test_api_pages_exist():
-    assert {page.stem for page in API_PAGES} == {'mate', 'wrappers', 'agents', 'learn', 'integrations'}
+    assert {page.stem for page in API_PAGES} == {'mate', 'wrappers', 'agents', 'learn', 'integrations', 'benchmark'}
 
 
 def test_every_public_name_is_on_an_api_page():

@@ -332,8 +332,8 @@ def test_exploitability_plot_of_one_iteration_has_integer_ticks(tmp_path, monkey
         dict(iteration=1, exploitability=dict(camera=0.1, target=0.2, mean=0.15), camera_strategy=[0.5, 0.5],
              target_strategy=[1.0, 0.0])])
     figures = []
-    saved = plots._save
-    monkeypatch.setattr(plots, '_save', lambda plt, figure, path: (figures.append(figure), saved(plt, figure, path))[1])
+    saved = plots.save_figure
+    monkeypatch.setattr(plots, 'save_figure', lambda figure, path: (figures.append(figure), saved(figure, path))[1])
     plots.plot_exploitability([state], tmp_path / 'exploitability.png')
     ticks = [tick for ax in figures[0].axes for tick in ax.get_xticks() if ax.get_xlim()[0] <= tick <= ax.get_xlim()[1]]
     assert ticks and all(float(tick).is_integer() for tick in ticks), ticks

@@ -61,6 +61,7 @@ def run(args: argparse.Namespace, console) -> int:
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
     from ...config import ConfigError
+    from ...runners import RunnerError
 
     settings = PSROSettings(solver=args.solver, config=args.config, iterations=args.iterations, br_steps=args.br_steps,
                             eval_episodes=args.eval_episodes, eval_steps=args.eval_steps, seed=args.seed,
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace, console) -> int:
                       f'payoff entry, on {where} -> {out}', soft_wrap=True)
         state = run_psro(settings, out, runner, say=lambda line: console.print(line, soft_wrap=True, highlight=False),
                          device=args.device)
-    except (PSROError, ConfigError) as exc:
+    except (PSROError, ConfigError, RunnerError) as exc:
         raise CommandError(str(exc)) from None
     except KeyboardInterrupt:
         console.print(f'interrupted; run the same command again to resume from {out / "state.json"} (a best '

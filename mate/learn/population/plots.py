@@ -13,27 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ...plotting import pyplot, save_figure
+
 __all__ = ['SOLVER_NAMES', 'exploitability_table', 'plot_exploitability', 'plot_meta_strategies']
 
 SOLVER_NAMES = {'nash': 'PSRO-Nash', 'uniform': 'FSP (uniform)', 'last': 'SP (newest)'}
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(plt, figure, path) -> Path:
-    figure.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-    return path
 
 
 def exploitability_table(states: list[dict]) -> dict[str, dict[str, np.ndarray]]:
@@ -55,7 +39,7 @@ def exploitability_table(states: list[dict]) -> dict[str, dict[str, np.ndarray]]
 
 def plot_exploitability(states: list[dict], path) -> Path:
     """Fig. 7: exploitability against iteration for each solver (mean ± std over its runs)."""
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.ticker import MaxNLocator
 
     table = exploitability_table(states)
@@ -79,12 +63,12 @@ def plot_exploitability(states: list[dict], path) -> Path:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel('normalised target-team return')
     axes[0].legend(fontsize=8)
-    return _save(plt, figure, path)
+    return save_figure(figure, path)
 
 
 def plot_meta_strategies(state: dict, path) -> Path:
     """Fig. 8: each iteration's meta-strategy over each pool as a heat map (row: iteration, column: policy)."""
-    plt = _pyplot()
+    plt = pyplot()
     records = state['iterations']
     if not records:
         raise ValueError('the run has no finished iteration yet')
@@ -102,4 +86,4 @@ def plot_meta_strategies(state: dict, path) -> Path:
         ax.set_xticks(range(size))
         ax.set_yticks(range(len(records)))
         figure.colorbar(image, ax=ax, fraction=0.046, pad=0.04)
-    return _save(plt, figure, path)
+    return save_figure(figure, path)

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ...runners import LocalRunner, RayRunner
+from ..evaluation import EVALUATION_SEEDS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
 __all__ = ['LocalRunner', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT', 'env_of', 'load_state', 'member_payload',
@@ -36,6 +38,9 @@ __all__ = ['LocalRunner', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMA
 
 STATE_FORMAT = 'mate.psro/1'
 SIDES = ('camera', 'target')
+FRESH_SEEDS = EVALUATION_SEEDS
+"""First env seed of the fresh-seed exploitability (`exploitability_fresh`): the held-out evaluation seeds of
+`mate.learn.evaluation`, which no best response trains on (`PSROSettings.validate` keeps their games below)."""
 MATRICES = ('payoff', 'payoff_sem', 'coverage', 'real_coverage')
 """The (cameras x targets) matrices of a state: mean normalised target return U_T, its standard error over
 the episodes, mean coverage rate, mean real coverage rate."""
@@ -69,7 +74,16 @@ class PSROSettings:
                 raise PSROError(f'{name} must be an integer >= {minimum}, got {value!r}')
         if self.eval_steps is not None and (not isinstance(self.eval_steps, int) or self.eval_steps < 1):
             raise PSROError(f'eval_steps must be a positive integer (or None: the preset\'s limit), got {self.eval_steps!r}')
+        last_game = self.best_response_seed(self.iterations, 'target') + self.num_envs - 1
+        if last_game >= FRESH_SEEDS:
+            raise PSROError(f'seed {self.seed} with {self.iterations} iterations and {self.num_envs} envs trains on env '
+                            f'seeds up to {last_game:,}, into the held-out seeds from {FRESH_SEEDS:,}; use seed <= '
+                            f'{(FRESH_SEEDS - self.num_envs - 2 * self.iterations - 1) // 1000}')
         return self
+
+    def best_response_seed(self, iteration: int, side: str) -> int:
+        """The seed of the `side` best response of `iteration` (its training games: this seed + row)."""
+        return self.seed * 1_000 + 2 * iteration + (side == 'target')
 
     def same_experiment(self, other: PSROSettings) -> list[str]:
         """Names of the settings that differ from `other`'s, except `iterations` (a run may be extended)."""
@@ -122,77 +136,6 @@ def _grow(matrix: list, rows: int, columns: int) -> list:
 def member_payload(member: str, out: Path):
     """What a job receives for a pool member: a policy file's bytes, or the agent name."""
     return (out / member).read_bytes() if member.endswith('.pt') else member
-
-
-# ============================================================================ runners
-
-class LocalRunner:
-    """Runs jobs in this process (workers = 1) or in a pool of `workers` processes (spawned: numba and
-    torch are not fork-safe once they run threads)."""
-
-    def __init__(self, workers: int = 1) -> None:
-        self.workers = int(workers)
-        self.pool = None
-        if self.workers > 1:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context('spawn'))
-
-    @property
-    def parallel(self) -> int:
-        return self.workers
-
-    def run(self, jobs: list[tuple[Callable, dict]], done: Callable[[int, object], None]) -> None:
-        """Run `jobs` [(function, kwargs)], calling `done(index, result)` as each finishes."""
-        if self.pool is None:
-            for index, (function, kwargs) in enumerate(jobs):
-                done(index, function(**kwargs))
-            return
-        from concurrent.futures import as_completed
-
-        futures = {self.pool.submit(function, **kwargs): index for index, (function, kwargs) in enumerate(jobs)}
-        for future in as_completed(futures):
-            done(futures[future], future.result())
-
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(cancel_futures=True)
-
-
-class RayRunner:
-    """Runs jobs as Ray tasks: on an existing cluster (`address` 'auto' or 'ray://host:port') or a local
-    Ray instance (`address` None). Each task asks for one CPU."""
-
-    def __init__(self, address: str | None = None, num_cpus: int | None = None) -> None:
-        try:
-            import ray
-        except ImportError:
-            raise PSROError("running on Ray needs Ray: pip install 'mate[rllib]'") from None
-        self.ray = ray
-        self.owned = not ray.is_initialized()
-        if self.owned:
-            kwargs = dict(address=address) if address else dict(num_cpus=num_cpus, include_dashboard=False)
-            ray.init(log_to_driver=False, configure_logging=False, **kwargs)
-        self._remote = {}
-
-    @property
-    def parallel(self) -> int:
-        return max(1, int(self.ray.cluster_resources().get('CPU', 1)))
-
-    def run(self, jobs: list[tuple[Callable, dict]], done: Callable[[int, object], None]) -> None:
-        refs = {}
-        for index, (function, kwargs) in enumerate(jobs):
-            remote = self._remote.setdefault(function, self.ray.remote(num_cpus=1)(function))
-            refs[remote.remote(**kwargs)] = index
-        pending = list(refs)
-        while pending:
-            finished, pending = self.ray.wait(pending, num_returns=1)
-            done(refs[finished[0]], self.ray.get(finished[0]))
-
-    def close(self) -> None:
-        if self.owned:
-            self.ray.shutdown()
 
 
 # ============================================================================ the loop
@@ -256,7 +199,7 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
             job_list.append((jobs.best_response, dict(
                 team=side, env=env, opponents=[member_payload(m, out) for m in pools[other][:len(strategies[other])]],
                 weights=strategies[other], steps=settings.br_steps,
-                seed=settings.seed * 1_000 + 2 * i + (side == 'target'),
+                seed=settings.best_response_seed(i, side),
                 run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs,
                 device=device)))
         if todo:
@@ -318,6 +261,8 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
         previous = state['iterations'][i - 1]
         gains = exploitability(camera_utility, previous['camera_strategy'], previous['target_strategy'])
         record['exploitability'] = dict(camera=gains['row'], target=gains['column'], mean=gains['mean'])
+        record['exploitability_fresh'] = _fresh_exploitability(state, settings, env, out, runner, jobs, previous,
+                                                               device)
     else:
         record['exploitability'] = None
     camera_strategy, target_strategy = meta_strategies(settings.solver, camera_utility)
@@ -326,11 +271,47 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
                   seconds=time.perf_counter() - started)
     state['iterations'].append(record)
     _save_state(out, state)
-    gains = record['exploitability']
+    gains, fresh = record['exploitability'], record.get('exploitability_fresh')
     say(f'iteration {i}: exploitability '
         + ('- (no best responses yet)' if gains is None else
-           f'{gains["mean"]:.4f} (cameras {gains["camera"]:.4f}, targets {gains["target"]:.4f})')
+           f'{gains["mean"]:.4f} (cameras {gains["camera"]:.4f}, targets {gains["target"]:.4f}; on fresh seeds '
+           f'{fresh["mean"]:.4f})')
         + f'; {settings.solver} meta-strategies: cameras {_fmt(camera_strategy)}, targets {_fmt(target_strategy)}')
+
+
+def _fresh_exploitability(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, previous: dict,
+                          device: str) -> dict:
+    """The exploitability with each side's best response re-played on fresh seeds (FRESH_SEEDS, ...).
+
+    The best response of Eq. 2 is the pool member with the highest entry against the other side's meta-strategy;
+    picking the maximum of noisy entries biases the estimate upwards. Here that member (`camera_response`,
+    `target_response`) plays again against every member of the other meta-strategy's support, on `eval_episodes`
+    episodes of seeds no best response trained on, and its gain is measured from those entries (the meta-game's
+    value stays that of the payoff matrix)."""
+    camera_utility = -np.array(state['payoff'], dtype=np.float64)
+    p, q = np.asarray(previous['camera_strategy']), np.asarray(previous['target_strategy'])
+    m, n = p.size, q.size
+    value = float(p @ camera_utility[:m, :n] @ q)
+    camera_response = int(np.argmax(camera_utility[:, :n] @ q))
+    target_response = int(np.argmax(-(p @ camera_utility[:m, :])))
+    pairs = [(camera_response, l) for l in np.flatnonzero(q > 0)] + \
+            [(k, target_response) for k in np.flatnonzero(p > 0)]
+    pairs = list(dict.fromkeys((int(k), int(l)) for k, l in pairs))
+    fresh: dict[tuple[int, int], float] = {}
+
+    def played(_, entries):
+        for entry in entries:
+            fresh[(entry['k'], entry['l'])] = entry['payoff']
+
+    runner.run([(jobs.payoff_entries, dict(env=env, cameras=[member_payload(x, out) for x in state['pools']['camera']],
+                                           targets=[member_payload(x, out) for x in state['pools']['target']],
+                                           pairs=pairs, episodes=settings.eval_episodes, seed=FRESH_SEEDS,
+                                           max_episode_steps=settings.eval_steps,
+                                           device='cpu' if device == 'auto' else device))], played)
+    camera_gain = float(sum(q[l] * -fresh[(camera_response, l)] for l in np.flatnonzero(q > 0))) - value
+    target_gain = float(sum(p[k] * fresh[(k, target_response)] for k in np.flatnonzero(p > 0))) + value
+    return dict(camera=camera_gain, target=target_gain, mean=0.5 * (camera_gain + target_gain),
+                camera_response=camera_response, target_response=target_response, seeds=FRESH_SEEDS)
 
 
 def _fmt(strategy) -> str:

@@ -1,0 +1,20 @@
+"""The paper's experiments as a benchmark (`mate benchmark`).
+
+- `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `EXPERIMENTS`);
+- `mate.benchmark.runner`: an experiment's jobs (references, training runs, PSRO runs), resumable, on a local
+  process pool or Ray (`mate.runners`);
+- `mate.benchmark.report`: `results.md`, `results.json`, figures and `marl_eval.json` from benchmark directories;
+- `mate.benchmark.stats`: IQM, mean and probability of improvement with stratified-bootstrap confidence
+  intervals (rliable's definitions, in numpy), curves with bands, normalised scores;
+- `mate.benchmark.marl_eval`: results in marl-eval's JSON layout.
+
+None imports torch (the training runs are `mate train` processes).
+"""
+
+from .marl_eval import AbsoluteRecord, StepRecord, marl_eval_json, write_marl_eval
+from .stats import (Interval, curve_intervals, improvement_intervals, interval_estimates, iqm, mean, normalised,
+                    probability_of_improvement, stratified_bootstrap)
+
+__all__ = ['iqm', 'mean', 'stratified_bootstrap', 'interval_estimates', 'probability_of_improvement',
+           'improvement_intervals', 'curve_intervals', 'normalised', 'Interval',
+           'StepRecord', 'AbsoluteRecord', 'marl_eval_json', 'write_marl_eval']

@@ -1,0 +1,152 @@
+"""`mate benchmark list | run NAME | report DIR...`: the paper's experiments (argument parsing and the commands;
+torch is imported only by the jobs, which run `mate train` in their own processes)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+from pathlib import Path
+
+from ..arguments import CommandError, positive_int
+
+__all__ = ['add_arguments', 'run']
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,report}', required=True)
+    commands.add_parser('list', help='the experiments: figure, settings, budget, seeds',
+                        description='List the experiments: the figure of the paper each reproduces, its settings, '
+                                    'the budget per run and the default number of seeds.')
+    run = commands.add_parser('run', help="run an experiment's missing (setting, seed) jobs; resumable",
+                              description='Run every missing job of an experiment: the references (random, greedy, '
+                                          'upper-bound cameras) on the evaluation seeds, then each (setting, task, '
+                                          'seed) training run with periodic evaluations on held-out seeds and the '
+                                          'absolute metric at the end. Jobs run side by side in local processes (or '
+                                          'as Ray tasks with --address); the same command resumes an interrupted '
+                                          'benchmark. One line per finished job, also in OUT/benchmark.log.')
+    run.add_argument('name', metavar='NAME', help='the experiment (mate benchmark list)')
+    run.add_argument('--seeds', default=None, help="run seeds, e.g. '0-4' or '0,2,5' (default: the experiment's, "
+                                                   '0-4 for the figures)')
+    run.add_argument('--out', default=None, help='the benchmark directory (default runs/benchmark/NAME)')
+    run.add_argument('--steps', type=positive_int, default=None,
+                     help="decision steps per training run (PSRO: per best response); default the experiment's "
+                          "budget (the paper's 10 M for the cooperative runs)")
+    run.add_argument('--jobs', type=positive_int, default=None,
+                     help='jobs side by side on this machine (default: cores / threads, at least 1)')
+    run.add_argument('--threads', type=positive_int, default=None,
+                     help='torch threads per training run (default: cores / jobs, at least 1)')
+    run.add_argument('--address', default=None,
+                     help="run the jobs as Ray tasks: 'local', 'auto' or 'ray://HOST:PORT' (OUT must be on storage "
+                          'every node sees)')
+    report = commands.add_parser('report', help='figures, a markdown table and marl_eval.json from benchmark '
+                                                'directories',
+                                 description='Aggregate benchmark directories (of one or several experiments; an '
+                                             "experiment's seeds may be split over directories): IQM and mean with "
+                                             '95 %% stratified-bootstrap confidence intervals, probability of '
+                                             'improvement, normalised scores against the references, curves with '
+                                             'bands; writes results.md, results.json, the figures and '
+                                             'marl_eval.json.')
+    report.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
+    report.add_argument('--out', dest='report_out', default='runs/benchmark/report',
+                        help='output directory (default runs/benchmark/report)')
+    report.add_argument('--reps', type=positive_int, default=50_000,
+                        help='bootstrap replications per interval (default 50,000)')
+
+
+def run(args: argparse.Namespace, console) -> int:
+    say = _say(console)
+    if args.benchmark_command == 'list':
+        return _list(say)
+    if args.benchmark_command == 'report':
+        from .report import write_report
+
+        try:
+            files = write_report(args.dirs, args.report_out, reps=args.reps, say=say)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        say(f'report: {", ".join(str(path) for path in files.values())}')
+        return 0
+    return _run(args, say)
+
+
+def _say(console):
+    def say(line: str) -> None:
+        console.print(line, soft_wrap=True, highlight=False, markup=False)
+    return say
+
+
+def _list(say) -> int:
+    from .experiments import EXPERIMENTS
+
+    for experiment in EXPERIMENTS.values():
+        budget = (f'{experiment.iterations} iterations, {experiment.steps:,} decision steps per best response'
+                  if experiment.population else f'{experiment.steps:,} decision steps per run')
+        say(f'{experiment.name}: {experiment.figure}')
+        say(f'    {", ".join(experiment.presets)}; {", ".join(s.label for s in experiment.settings)}; {budget}; '
+            f'{experiment.seeds} seeds')
+    return 0
+
+
+def _run(args: argparse.Namespace, say) -> int:
+    from ..runners import RayRunner, RunnerError, ThreadRunner
+    from .experiments import experiment as experiment_named
+    from .runner import parse_seeds, plan, run_jobs, stop_children, write_manifest
+
+    try:
+        experiment = experiment_named(args.name)
+        seeds = parse_seeds(args.seeds) if args.seeds else list(range(experiment.seeds))
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    if args.address and args.jobs is not None:
+        raise CommandError('--jobs is for this machine; with --address Ray places the jobs')
+    cores = os.cpu_count() or 1
+    jobs = args.jobs or max(1, cores // (args.threads or 2))
+    threads = args.threads or max(1, cores // jobs)
+    out = Path(args.out or f'runs/benchmark/{experiment.name}')
+    steps = args.steps or experiment.steps
+    planned = plan(experiment, seeds, out, steps=steps, threads=threads)
+    try:
+        write_manifest(experiment, planned, out, steps, seeds)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    def say_and_log(line: str) -> None:
+        say(line)
+        with open(out / 'benchmark.log', 'a') as log:
+            log.write(line + '\n')
+
+    where = f'Ray ({args.address})' if args.address else f'{jobs} job{"s" * (jobs > 1)} at a time on this machine'
+    say_and_log(f'benchmark {experiment.name}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps per run, '
+                f'{threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    runner = None
+    try:
+        runner = RayRunner(None if args.address == 'local' else args.address, task_cpus=threads) if args.address \
+            else ThreadRunner(jobs)
+        failed = run_jobs(planned, runner, say=say_and_log)
+    except RunnerError as exc:
+        raise CommandError(str(exc)) from None
+    except KeyboardInterrupt:
+        running = stop_children()
+        say_and_log(f'interrupted: stopping {running} running job{"s" * (running != 1)} at a checkpoint (Ctrl-C '
+                    'again: at once); run the same command again to resume')
+        try:
+            if runner is not None:
+                runner.close()
+        except KeyboardInterrupt:
+            stop_children(kill=True)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if runner is not None:
+            runner.close()
+    if failed:
+        say_and_log(f'{len(failed)} job{"s" * (len(failed) > 1)} did not complete; their logs name why; run the same '
+                    'command again to retry them')
+        return 1
+    say_and_log(f'all jobs done; the report: mate benchmark report {out} --out REPORT_DIR')
+    return 0
+
+
+def _interrupt(number, frame):
+    raise KeyboardInterrupt(signal.Signals(number).name)

@@ -1,0 +1,211 @@
+"""The paper's experiments as data: one `Experiment` per figure, each a list of (algorithm, settings) x seeds x budget.
+
+    smoke                a seconds-long run of the whole pipeline (CI)
+    smoke-psro           the same for a population experiment
+    fig4a-cameras        camera learners on MATE-4v8-9 (flat and HRL), against the greedy targets
+    fig4b-cameras-comm   HRL cameras with and without learned communication (TarMAC)
+    fig5-targets-comm    target learners with and without learned communication (TarMAC, I2C) on MATE-4v8-0
+    fig6-observability   targets with partial and full observability (MATE-2v4-0 and MATE-4v8-0)
+    fig7-psro            PSRO-Nash, fictitious self-play and self-play on MATE-2v4-0: exploitability
+    fig8-psro-4v8-0      PSRO-Nash on MATE-4v8-0 (>= 10 iterations): exploitability and meta-strategies
+    diag-targets-4v8-0   short diagnostic runs of MAPPO targets on MATE-4v8-0 (one change each)
+
+A training setting is the command line of a `mate train` trainer (the experiment adds the team, the preset, the
+budget, the seed, the evaluation protocol and the run directory); a PSRO setting the command line of `mate psro`.
+An experiment plays every setting on each of its presets (its tasks: two for Fig. 6, one otherwise).
+Every training run is evaluated on held-out seeds (`mate.learn.evaluation`: `eval_every`, `eval_episodes`); the
+references (random and greedy, and for cameras the upper-bound controller of `mate.teams`) are played on the same
+evaluation seeds. `steps` is the paper's budget per run (10 M decisions for the cooperative runs, its Table 2); a
+run may use a smaller one (`mate benchmark run --steps`), which the report states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+__all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'Setting', 'experiment']
+
+
+@dataclasses.dataclass(frozen=True)
+class Setting:
+    """One algorithm's configuration in an experiment.
+
+    Args:
+        label: its name in figures and tables ('HRL-MAPPO', 'MAPPO+TarMAC', ...).
+        command: the `mate train` trainer ('mappo', 'ippo', 'mappo-lstm', 'tarmac', 'i2c', 'iql', 'qmix', 'matd3'),
+            or 'psro' for a population run.
+        options: further command-line options of the trainer (or of `mate psro`).
+    """
+
+    label: str
+    command: str
+    options: tuple[str, ...] = ()
+
+    @property
+    def slug(self) -> str:
+        """The setting's name in file names: its label in lower case, every run of other characters than letters and
+        digits as one '-' ('MAPPO+TarMAC': 'mappo-tarmac', 'MAPPO full obs.': 'mappo-full-obs')."""
+        return re.sub(r'[^a-z0-9]+', '-', self.label.lower()).strip('-')
+
+
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """One comparison the paper makes, which the report judges: `better` scores above `worse` (for population
+    experiments: a lower final exploitability).
+
+    Args:
+        text: the claim in words.
+        better, worse: setting labels of the experiment, or a reference ('random', 'greedy', 'upper-bound').
+        preset: the game it is about (None: each of the experiment's).
+
+    The verdict (`mate.benchmark.report`): between two settings, from the probability of improvement P(better >
+    worse) and its 95 % interval: *confirmed* when the interval lies above 1/2, *refuted* when below, *unresolved*
+    otherwise; between a setting and a reference, from the setting's absolute IQM interval against the reference's
+    score on the same episodes.
+    """
+
+    text: str
+    better: str
+    worse: str
+    preset: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """One figure of the paper as runs (module docstring).
+
+    Args:
+        name: the experiment's name (`mate benchmark run NAME`).
+        figure: what of the paper it reproduces.
+        team: the trained team ('camera' or 'target'; PSRO trains both: 'both').
+        presets: the games (tasks) every setting plays.
+        settings: the algorithms and their options.
+        steps: decision steps per training run (PSRO: per best response).
+        eval_every: decision steps between evaluations; eval_episodes: episodes per evaluation.
+        horizon: env steps per training and evaluation episode (None: the trainer's, 500 decisions).
+        references: rule-based teams played on the evaluation seeds ('random', 'greedy', 'upper-bound').
+        iterations: PSRO iterations (population experiments only).
+        seeds: runs per (setting, preset) unless `mate benchmark run --seeds` says otherwise.
+        claim: the paper's claim the experiment tests, in a sentence.
+        claims: that claim as comparisons the report judges.
+    """
+
+    name: str
+    figure: str
+    team: str
+    presets: tuple[str, ...]
+    settings: tuple[Setting, ...]
+    steps: int
+    eval_every: int = 500_000
+    eval_episodes: int = 32
+    horizon: int | None = None
+    references: tuple[str, ...] = ('random', 'greedy')
+    iterations: int = 0
+    seeds: int = 5
+    claim: str = ''
+    claims: tuple[Claim, ...] = ()
+
+    @property
+    def population(self) -> bool:
+        return any(setting.command == 'psro' for setting in self.settings)
+
+    def task(self, preset: str) -> str:
+        """The task's name in tables and results files: the preset and the trained team ('MATE-4v8-9 cameras')."""
+        return preset if self.population else f'{preset} {self.team}s'
+
+
+CAMERA_REFERENCES = ('random', 'greedy', 'upper-bound')
+RECIPE = ('--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]')
+"""The HRL-MAPPO recipe of the shipped camera policy (a larger entropy bonus than the defaults)."""
+
+EXPERIMENTS = {experiment.name: experiment for experiment in (
+    Experiment(
+        'smoke', 'the whole pipeline in seconds (CI)', 'camera', ('MATE-2v4-0',),
+        (Setting('MAPPO', 'mappo', ('--num-envs', '4', '--rollout-length', '10', '--hidden', '16', '16')),
+         Setting('IPPO', 'ippo', ('--num-envs', '4', '--rollout-length', '10', '--hidden', '16', '16'))),
+        steps=200, eval_every=80, eval_episodes=3, horizon=50, references=CAMERA_REFERENCES, seeds=3,
+        claim='the pipeline runs end to end',
+        claims=(Claim('(pipeline check) MAPPO beats IPPO', 'MAPPO', 'IPPO'),
+                Claim('(pipeline check) MAPPO beats the random cameras', 'MAPPO', 'random'))),
+    Experiment(
+        'smoke-psro', 'the population pipeline in seconds (CI)', 'both', ('MATE-2v4-0',),
+        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash', '--num-envs', '4', '--eval-episodes', '2',
+                                       '--eval-steps', '20')),),
+        steps=150, iterations=1, seeds=2, claim='the population pipeline runs end to end'),
+    Experiment(
+        'fig4a-cameras', 'Fig. 4 (left): camera learners against greedy targets', 'camera', ('MATE-4v8-9',),
+        (Setting('MAPPO', 'mappo'), Setting('IPPO', 'ippo'), Setting('HRL-MAPPO', 'mappo', ('--hrl', *RECIPE)),
+         Setting('HRL-IPPO', 'ippo', ('--hrl', *RECIPE)), Setting('HRL-IQL', 'iql', ('--hrl',)),
+         Setting('HRL-QMIX', 'qmix', ('--hrl',)), Setting('MA-TD3', 'matd3')),
+        steps=10_000_000, references=CAMERA_REFERENCES,
+        claim='HRL cameras learn faster and cover more than flat ones; the learned cameras beat the greedy rules',
+        claims=(Claim('HRL-MAPPO cameras cover more than flat MAPPO ones', 'HRL-MAPPO', 'MAPPO'),
+                Claim('HRL-IPPO cameras cover more than flat IPPO ones', 'HRL-IPPO', 'IPPO'),
+                Claim('HRL-MAPPO cameras cover more than the greedy cameras', 'HRL-MAPPO', 'greedy'))),
+    Experiment(
+        'fig4b-cameras-comm', 'Fig. 4 (right): HRL cameras with learned communication', 'camera', ('MATE-4v8-9',),
+        (Setting('HRL-MAPPO', 'mappo', ('--hrl', *RECIPE)),
+         Setting('HRL-MAPPO+TarMAC', 'tarmac', ('--hrl', *RECIPE))),
+        steps=10_000_000, references=CAMERA_REFERENCES,
+        claim='learned communication helps the cameras little',
+        claims=(Claim('HRL-MAPPO+TarMAC cameras cover more than HRL-MAPPO ones', 'HRL-MAPPO+TarMAC', 'HRL-MAPPO'),)),
+    Experiment(
+        'fig5-targets-comm', 'Fig. 5: target learners with learned communication', 'target', ('MATE-4v8-0',),
+        (Setting('MAPPO', 'mappo'), Setting('IPPO', 'ippo'), Setting('MAPPO+TarMAC', 'tarmac'),
+         Setting('IPPO+TarMAC', 'tarmac', ('--critic', 'local')), Setting('MAPPO+I2C', 'i2c')),
+        steps=10_000_000,
+        claim='communication helps the targets; MAPPO+I2C is best',
+        claims=(Claim('MAPPO targets score above the greedy targets', 'MAPPO', 'greedy'),
+                Claim('TarMAC helps MAPPO targets', 'MAPPO+TarMAC', 'MAPPO'),
+                Claim('TarMAC helps IPPO targets', 'IPPO+TarMAC', 'IPPO'),
+                Claim('I2C helps MAPPO targets', 'MAPPO+I2C', 'MAPPO'),
+                Claim('MAPPO+I2C beats MAPPO+TarMAC', 'MAPPO+I2C', 'MAPPO+TarMAC'))),
+    Experiment(
+        'fig6-observability', 'Fig. 6: targets with partial and full observability', 'target',
+        ('MATE-2v4-0', 'MATE-4v8-0'),
+        (Setting('MAPPO', 'mappo'), Setting('MAPPO full obs.', 'mappo', ('--full-observability',))),
+        steps=10_000_000,
+        claim='partial observability costs the targets about 0.1 of normalised return',
+        claims=(Claim('full observability helps the targets', 'MAPPO full obs.', 'MAPPO'),
+                Claim('MAPPO targets learn off the floor (above the random targets)', 'MAPPO', 'random'))),
+    Experiment(
+        'diag-targets-4v8-0', 'diagnostics: why MAPPO targets stay on the floor on MATE-4v8-0 (short runs)', 'target',
+        ('MATE-4v8-0',),
+        (Setting('MAPPO', 'mappo'), Setting('full obs.', 'mappo', ('--full-observability',)),
+         Setting('entropy 0.03', 'mappo', ('--entropy-schedule', '[[0, 0.03]]')),
+         Setting('16 envs', 'mappo', ('--num-envs', '16')),
+         Setting('hold 5', 'mappo', ('--frame-skip', '5')),
+         Setting('hidden 64', 'mappo', ('--hidden', '64', '64')),
+         Setting('gamma 0.995', 'mappo', ('--gamma', '0.995'))),
+        steps=1_000_000, eval_every=250_000, eval_episodes=16, seeds=2,
+        claim='one of these settings lifts MAPPO targets off the floor',
+        claims=(Claim('MAPPO targets learn off the floor (above the random targets)', 'MAPPO', 'random'),
+                Claim('full observability helps', 'full obs.', 'MAPPO'),
+                Claim('a larger entropy bonus helps', 'entropy 0.03', 'MAPPO'),
+                Claim('fewer envs (more updates per decision) help', '16 envs', 'MAPPO'),
+                Claim('a 5-step hold helps', 'hold 5', 'MAPPO'),
+                Claim('a narrower network helps', 'hidden 64', 'MAPPO'),
+                Claim('a longer discount horizon helps', 'gamma 0.995', 'MAPPO'))),
+    Experiment(
+        'fig7-psro', 'Fig. 7: exploitability of PSRO-Nash, FSP and SP', 'both', ('MATE-2v4-0',),
+        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')), Setting('FSP', 'psro', ('--solver', 'uniform')),
+         Setting('SP', 'psro', ('--solver', 'last'))),
+        steps=100_000, iterations=10,
+        claim='PSRO-Nash and SP reach less exploitable populations; FSP decreases slowly',
+        claims=(Claim('PSRO-Nash ends less exploitable than FSP', 'PSRO-Nash', 'FSP'),
+                Claim('SP ends less exploitable than FSP', 'SP', 'FSP'))),
+    Experiment(
+        'fig8-psro-4v8-0', 'Fig. 8: PSRO-Nash on MATE-4v8-0', 'both', ('MATE-4v8-0',),
+        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')),),
+        steps=100_000, iterations=10,
+        claim='both teams adapt; the Nash meta-strategies spread over several policies'),
+)}
+"""Every experiment, by name."""
+
+
+def experiment(name: str) -> Experiment:
+    """The experiment `name`; ValueError listing the experiments otherwise."""
+    if name not in EXPERIMENTS:
+        raise ValueError(f'unknown experiment {name!r}; experiments: {", ".join(EXPERIMENTS)}')
+    return EXPERIMENTS[name]

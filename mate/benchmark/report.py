@@ -1,0 +1,441 @@
+"""`mate benchmark report DIR... --out DIR`: an experiment's results with the field's statistics.
+
+What a report holds, for every experiment found in the benchmark directories (`mate benchmark run` outputs; an
+experiment's seeds may be spread over several directories, e.g. run on several machines):
+
+* `results.md`: per task, one row per setting: the runs (complete runs only; the others are named), the absolute
+  metric (each run's best evaluated policy re-played on 10 x E held-out episodes) as IQM and mean with 95 %
+  stratified-bootstrap confidence intervals over the runs, the last periodic evaluation's IQM, and the absolute
+  IQM normalised as (score - random) / (reference - random) with the greedy rules and, for cameras, the upper-bound
+  controller as reference; the references' own scores on the same episodes; the probability of improvement between
+  every two settings. Population experiments: the final exploitability (IQM and mean with CIs over the runs), from
+  the payoff matrix and with the best responses re-played on fresh seeds (`mate psro`'s `exploitability_fresh`).
+* `results.json`: the same numbers, machine-readable (what README and docs quote).
+* `<experiment>-curves.png`: the periodic evaluations against decision steps, IQM with its 95 % CI band per
+  setting, the references as horizontal lines; population experiments: `<experiment>-exploitability.png`.
+* `marl_eval.json`: every training run's evaluations and absolute metric in marl-eval's layout (environment: the
+  experiment, task: '<preset> <team>s', algorithm: the setting, run: `seed_<k>`; `mate.benchmark.marl_eval`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+
+from ..learn.evaluation import read_evaluations
+from .experiments import Experiment
+from .experiments import experiment as experiment_named
+from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
+from .runner import read_manifest
+from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
+
+__all__ = ['Results', 'TrainingRun', 'collect', 'summarise', 'write_report']
+
+REPS = 50_000
+"""Bootstrap replications of every interval."""
+
+
+@dataclasses.dataclass
+class TrainingRun:
+    """One complete training run: its periodic evaluations and its absolute metric (per-episode values)."""
+
+    label: str
+    preset: str
+    seed: int
+    steps: list[int]                    # decision steps at each evaluation
+    evaluations: list[list[float]]      # per evaluation, the metric of each episode
+    absolute: list[float]               # the absolute metric of each episode
+
+    @property
+    def score(self) -> float:
+        """The run's score: the mean absolute metric."""
+        return float(np.mean(self.absolute))
+
+
+@dataclasses.dataclass
+class Results:
+    """Everything read for one experiment."""
+
+    experiment: Experiment
+    steps: int                                           # decision steps per run (the budget run)
+    runs: list[TrainingRun] = dataclasses.field(default_factory=list)
+    incomplete: list[str] = dataclasses.field(default_factory=list)       # jobs not (yet) complete, by name
+    references: dict = dataclasses.field(default_factory=dict)           # (agent, preset) -> {evaluation, absolute}
+    populations: dict = dataclasses.field(default_factory=dict)          # (label, preset, seed) -> state.json
+
+    def settings(self, preset: str) -> list[str]:
+        """The labels of the settings with complete runs on `preset`, in the experiment's order."""
+        present = {run.label for run in self.runs if run.preset == preset}
+        present |= {label for label, p, _ in self.populations if p == preset}
+        return [s.label for s in self.experiment.settings if s.label in present]
+
+    def runs_of(self, label: str, preset: str) -> list[TrainingRun]:
+        return sorted((r for r in self.runs if r.label == label and r.preset == preset), key=lambda r: r.seed)
+
+
+# ============================================================================ reading
+
+
+def collect(directories: Iterable) -> dict[str, Results]:
+    """The results of the benchmark directories, merged by experiment (same budget and protocol required);
+    ValueError for a directory that is not a benchmark or holds a run twice."""
+    merged: dict[str, Results] = {}
+    for directory in directories:
+        directory = Path(directory)
+        manifest = read_manifest(directory)
+        experiment = experiment_named(manifest['experiment'])
+        results = merged.setdefault(experiment.name, Results(experiment, manifest['steps']))
+        if results.steps != manifest['steps']:
+            raise ValueError(f'{directory}: {experiment.name} at {manifest["steps"]:,} steps per run, another '
+                             f'directory at {results.steps:,}; report them apart')
+        for job in manifest['jobs']:
+            _read_job(results, directory, job)
+    return merged
+
+
+def _read_job(results: Results, directory: Path, job: dict) -> None:
+    folder = directory / job['dir']
+    kind, label, preset, seed = job['kind'], job['label'], job['preset'], job['seed']
+    name = f'{label} on {preset}' + ('' if seed is None else f' seed {seed}')
+    if kind == 'reference':
+        files = {part: folder / f'{part}.json' for part in ('evaluation', 'absolute')}
+        if not all(path.exists() for path in files.values()):
+            results.incomplete.append(name)
+            return
+        metric = _metric(results.experiment)
+        results.references[(label, preset)] = {
+            part: [episode[metric] for episode in json.loads(path.read_text())['episodes']]
+            for part, path in files.items()}
+        return
+    if kind == 'psro':
+        state_path = folder / 'state.json'
+        state = json.loads(state_path.read_text()) if state_path.exists() else None
+        if state is None or len(state['iterations']) <= int(state['settings']['iterations']):
+            results.incomplete.append(name)
+            return
+        _add_once(results.populations, (label, preset, seed), state, name)
+        return
+    absolute_path = folder / 'absolute.json'
+    if not absolute_path.exists():
+        results.incomplete.append(name)
+        return
+    absolute = json.loads(absolute_path.read_text())
+    evaluations = read_evaluations(folder)
+    run = TrainingRun(label, preset, int(seed), [int(e['env_steps']) for e in evaluations],
+                      [[ep[absolute['metric']] for ep in e['episodes']] for e in evaluations],
+                      [ep[absolute['metric']] for ep in absolute['episodes']])
+    if any(r.label == label and r.preset == preset and r.seed == run.seed for r in results.runs):
+        raise ValueError(f'{name} is in two of the directories; report each run once')
+    results.runs.append(run)
+
+
+def _add_once(table: dict, key, value, name: str) -> None:
+    if key in table:
+        raise ValueError(f'{name} is in two of the directories; report each run once')
+    table[key] = value
+
+
+def _metric(experiment: Experiment) -> str:
+    from ..learn.evaluation import TEAM_METRIC
+
+    return TEAM_METRIC[experiment.team]
+
+
+# ============================================================================ statistics
+
+
+def _interval(point_low_high) -> dict:
+    point, low, high = point_low_high
+    return dict(point=point, low=low, high=high)
+
+
+def _reference_means(results: Results, preset: str, part: str) -> dict[str, float]:
+    return {agent: float(np.mean(values[part])) for (agent, p), values in results.references.items() if p == preset}
+
+
+def summarise(results: Results, reps: int = REPS) -> dict:
+    """The numbers of `results.md` (module docstring) as a JSON-ready dict."""
+    experiment = results.experiment
+    summary = dict(experiment=experiment.name, figure=experiment.figure, claim=experiment.claim,
+                   team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
+                   eval_every=experiment.eval_every, eval_episodes=experiment.eval_episodes,
+                   iterations=experiment.iterations,
+                   incomplete=sorted(results.incomplete), tasks={})
+    claims: list[dict] = []
+    for preset in experiment.presets:
+        task = dict(settings={}, references={}, improvement={})
+        scores: dict[str, np.ndarray] = {}
+        if experiment.population:
+            for label in results.settings(preset):
+                lasts = [state['iterations'][-1] for (lab, p, _), state in sorted(results.populations.items())
+                         if lab == label and p == preset]
+                entry = dict(runs=len(lasts))
+                for key in ('exploitability', 'exploitability_fresh'):
+                    if all(last.get(key) for last in lasts):
+                        finals = np.array([last[key]['mean'] for last in lasts])
+                        estimates = interval_estimates({label: finals}, reps=reps)[label]
+                        entry[f'final_{key}'] = {name: _interval(value) for name, value in estimates.items()}
+                        entry[f'final_{key}_values'] = finals.tolist()
+                task['settings'][label] = entry
+                key = 'exploitability_fresh' if f'final_exploitability_fresh_values' in entry else 'exploitability'
+                if f'final_{key}_values' in entry:       # lower is better: scored negated
+                    scores[label] = -np.array(entry[f'final_{key}_values'])
+            summary['tasks'][experiment.task(preset)] = task
+            claims += _judge(experiment, preset, scores, {}, reps)
+            continue
+        references = _reference_means(results, preset, 'absolute')
+        task['references'] = {agent: dict(absolute=value, episodes=len(results.references[(agent, preset)]['absolute']),
+                                          evaluation=float(np.mean(results.references[(agent, preset)]['evaluation'])))
+                              for agent, value in references.items()}
+        for label in results.settings(preset):
+            runs = results.runs_of(label, preset)
+            scores[label] = np.array([run.score for run in runs])
+            estimates = interval_estimates({label: scores[label]}, reps=reps)[label]
+            last = np.array([np.mean(run.evaluations[-1]) for run in runs if run.evaluations])
+            entry = dict(runs=len(runs), seeds=[run.seed for run in runs], values=scores[label].tolist(),
+                         absolute={name: _interval(value) for name, value in estimates.items()})
+            if len(last):
+                entry['last_evaluation'] = _interval(interval_estimates({label: last}, reps=reps)[label]['IQM'])
+            if 'random' in references:
+                for reference in ('greedy', 'upper-bound'):
+                    if reference in references and references[reference] != references['random']:
+                        scaled = normalised(scores[label], references['random'], references[reference])
+                        entry[f'normalised_{reference}'] = _interval(
+                            interval_estimates({label: scaled}, reps=reps)[label]['IQM'])
+            task['settings'][label] = entry
+        if len(scores) > 1:
+            for (x, y), value in improvement_intervals(scores, reps=reps).items():
+                task['improvement'][f'{x} > {y}'] = _interval(value)
+        summary['tasks'][experiment.task(preset)] = task
+        claims += _judge(experiment, preset, scores, references, reps)
+    summary['claims'] = claims
+    return summary
+
+
+def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, reps: int) -> list[dict]:
+    """The verdicts of the experiment's claims on `preset` (`mate.benchmark.experiments.Claim`): `scores` are the
+    settings' per-run scores, higher better (population experiments: the exploitability negated); `references` the
+    reference teams' scores."""
+    verdicts = []
+    for claim in experiment.claims:
+        if claim.preset not in (None, preset):
+            continue
+        verdict = dict(text=claim.text, better=claim.better, worse=claim.worse, task=experiment.task(preset))
+        sides = [claim.better, claim.worse]
+        if all(side in scores for side in sides):
+            point, low, high = improvement_intervals(scores, pairs=[tuple(sides)], reps=reps)[tuple(sides)]
+            verdict.update(statistic='probability of improvement', point=point, low=low, high=high,
+                           verdict='confirmed' if low > 0.5 else 'refuted' if high < 0.5 else 'unresolved')
+        elif any(side in scores for side in sides) and any(side in references for side in sides):
+            setting = next(side for side in sides if side in scores)
+            reference = next(side for side in sides if side in references)
+            point, low, high = interval_estimates({setting: scores[setting]}, reps=reps)[setting]['IQM']
+            above, below = low > references[reference], high < references[reference]
+            holds, fails = (above, below) if setting == claim.better else (below, above)
+            verdict.update(statistic=f'IQM of {setting} against {reference} {references[reference]:.3f}',
+                           point=point, low=low, high=high,
+                           verdict='confirmed' if holds else 'refuted' if fails else 'unresolved')
+        else:
+            verdict.update(verdict='no data')
+        verdicts.append(verdict)
+    return verdicts
+
+
+# ============================================================================ figures
+
+
+def plot_curves(results: Results, path, reps: int = REPS) -> Path | None:
+    """Periodic evaluations against decision steps: IQM with its 95 % CI band per setting, one panel per task, the
+    references' evaluation scores as dashed lines. None when no run has an evaluation."""
+    from ..plotting import pyplot, save_figure
+
+    experiment = results.experiment
+    presets = [p for p in experiment.presets if any(r.preset == p and r.evaluations for r in results.runs)]
+    if not presets:
+        return None
+    plt = pyplot()
+    figure, axes = plt.subplots(1, len(presets), figsize=(6.2 * len(presets), 4.2), squeeze=False)
+    for ax, preset in zip(axes[0], presets):
+        for label in results.settings(preset):
+            runs = [r for r in results.runs_of(label, preset) if r.evaluations]
+            length = min(len(r.evaluations) for r in runs)
+            scores = np.array([[np.mean(e) for e in r.evaluations[:length]] for r in runs])
+            steps = np.mean([r.steps[:length] for r in runs], axis=0)
+            points, lows, highs = curve_intervals({label: scores}, reps=reps)[label]['IQM']
+            line, = ax.plot(steps, points, marker='o', markersize=3, label=f'{label} ({len(runs)} runs)')
+            ax.fill_between(steps, lows, highs, alpha=0.2, color=line.get_color())
+        for agent, value in _reference_means(results, preset, 'evaluation').items():
+            ax.axhline(value, linestyle='--', linewidth=1, color='gray' if agent != 'upper-bound' else 'black')
+            ax.annotate(agent, (1.0, value), xycoords=('axes fraction', 'data'), fontsize=7, ha='right', va='bottom')
+        ax.set_title(experiment.task(preset))
+        ax.set_xlabel('decision steps')
+        ax.set_ylabel(f'{_metric(experiment).replace("_", " ")} (IQM, 95 % CI)')
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    return save_figure(figure, path)
+
+
+def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None:
+    """Population experiments: the exploitability (mean of both terms) per iteration, IQM with its 95 % CI band over
+    the runs of each setting."""
+    from ..plotting import pyplot, save_figure
+
+    experiment = results.experiment
+    if not results.populations:
+        return None
+    plt = pyplot()
+    figure, axes = plt.subplots(1, len(experiment.presets), figsize=(6.2 * len(experiment.presets), 4.2),
+                                squeeze=False)
+    for ax, preset in zip(axes[0], experiment.presets):
+        for label in results.settings(preset):
+            histories = [[r['exploitability']['mean'] for r in state['iterations'] if r.get('exploitability')]
+                         for (lab, p, _), state in sorted(results.populations.items()) if lab == label and p == preset]
+            length = min(len(h) for h in histories)
+            if length == 0:
+                continue
+            scores = np.array([h[:length] for h in histories])
+            points, lows, highs = curve_intervals({label: scores}, reps=reps)[label]['IQM']
+            x = np.arange(1, length + 1)
+            line, = ax.plot(x, points, marker='o', markersize=3, label=f'{label} ({len(histories)} runs)')
+            ax.fill_between(x, lows, highs, alpha=0.2, color=line.get_color())
+        ax.set_title(preset)
+        ax.set_xlabel('iteration')
+        ax.set_ylabel('exploitability (IQM, 95 % CI)')
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    return save_figure(figure, path)
+
+
+# ============================================================================ files
+
+
+def _format(interval: dict | None, digits: int = 3) -> str:
+    if interval is None:
+        return '-'
+    return f'{interval["point"]:.{digits}f} [{interval["low"]:.{digits}f}, {interval["high"]:.{digits}f}]'
+
+
+def markdown(summary: dict, figure: str | None) -> str:
+    """One experiment's section of `results.md`."""
+    lines = [f'## {summary["experiment"]}: {summary["figure"]}', '']
+    population = summary['team'] == 'both'
+    unit = 'per best response' if population else 'per run'
+    budget = f'{summary["steps"]:,} decision steps {unit}'
+    if summary['steps'] != summary['paper_steps']:
+        budget += f' (the experiment\'s budget: {summary["paper_steps"]:,})'
+    iterations = summary['iterations']
+    protocol = (f'{iterations} iteration{"s" * (iterations != 1)}; the exploitability of the last, from the payoff matrix and with '
+                'the best responses re-played on fresh seeds' if population else
+                f'evaluation every {summary["eval_every"]:,} decision steps on {summary["eval_episodes"]} held-out '
+                f'episodes; absolute metric on {10 * summary["eval_episodes"]} other held-out episodes')
+    lines += [f'Claim tested: {summary["claim"]}.', '', f'Budget: {budget}; {protocol}. Intervals: 95 % stratified '
+              'bootstrap over runs.', '']
+    if figure:
+        lines += [f'![{summary["experiment"]}]({figure})', '']
+    for task, data in summary['tasks'].items():
+        lines += [f'### {task}', '']
+        if population:
+            lines += ['| setting | runs | final exploitability IQM [95 % CI] | mean [95 % CI] | on fresh seeds: IQM '
+                      '[95 % CI] |', '|---|---|---|---|---|']
+            for label, entry in data['settings'].items():
+                values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
+                lines.append(f'| {label} | {entry["runs"]} | {_format(values and values["IQM"], 4)} | '
+                             f'{_format(values and values["mean"], 4)} | {_format(fresh and fresh["IQM"], 4)} |')
+            lines.append('')
+            continue
+        camera = summary['team'] == 'camera'
+        header = '| setting | runs | absolute IQM [95 % CI] | absolute mean [95 % CI] | last evaluation IQM | ' \
+                 'normalised, greedy = 1 |' + (' normalised, upper bound = 1 |' if camera else '')
+        lines += [header, '|' + '---|' * (header.count('|') - 1)]
+        for label, entry in data['settings'].items():
+            row = (f'| {label} | {entry["runs"]} | {_format(entry["absolute"]["IQM"])} | '
+                   f'{_format(entry["absolute"]["mean"])} | {_format(entry.get("last_evaluation"))} | '
+                   f'{_format(entry.get("normalised_greedy"), 2)} |')
+            if camera:
+                row += f' {_format(entry.get("normalised_upper-bound"), 2)} |'
+            lines.append(row)
+        for agent, reference in data['references'].items():
+            row = f'| *{agent}* (reference) | - | {reference["absolute"]:.3f} | | {reference["evaluation"]:.3f} | | '
+            lines.append(row + (' |' if camera else ''))
+        lines.append('')
+        if data['improvement']:
+            lines += ['Probability of improvement (absolute metric):', '', '| comparison | P [95 % CI] |', '|---|---|']
+            lines += [f'| {pair} | {_format(value, 2)} |' for pair, value in data['improvement'].items()]
+            lines.append('')
+    if summary.get('claims'):
+        lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, or of '
+                  "the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval holds both):",
+                  '', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
+        for claim in summary['claims']:
+            evidence = '-' if 'point' not in claim else \
+                f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
+            lines.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
+        lines.append('')
+    if summary['incomplete']:
+        lines += [f'Not complete (left out): {", ".join(summary["incomplete"])}.', '']
+    return '\n'.join(lines)
+
+
+def marl_eval_records(results: Results, environment: str) -> list:
+    """Every complete run's evaluations (per episode) and absolute metric as marl-eval records. marl-eval needs the
+    same runs for every (task, algorithm) and the same steps in every run: only the seeds complete for every setting
+    and task are written, each cut to the evaluations all of them have."""
+    metric = _metric(results.experiment)
+    groups = {(r.label, r.preset) for r in results.runs}
+    seeds = set.intersection(*({r.seed for r in results.runs if (r.label, r.preset) == g} for g in groups)) \
+        if groups else set()
+    runs = [r for r in results.runs if r.seed in seeds]
+    if not runs:
+        return []
+    length = min(len(r.evaluations) for r in runs)
+    records: list = []
+    for run in runs:
+        task = results.experiment.task(run.preset)
+        for index in range(length):
+            records.append(StepRecord(environment, task, run.label, run.seed, index, run.steps[index], metric,
+                                      run.evaluations[index]))
+        records.append(AbsoluteRecord(environment, task, run.label, run.seed, metric, run.absolute))
+    return records
+
+
+def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[str], None] = print) -> dict[str, Path]:
+    """Write the report of the benchmark directories to `out` (module docstring); returns the files written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    merged = collect(directories)
+    files: dict[str, Path] = {}
+    sections, summaries, records = ['# Benchmark results', '',
+                                    'Written by `mate benchmark report`; every number below is in `results.json`.',
+                                    ''], {}, []
+    for name, results in merged.items():
+        summary = summarise(results, reps)
+        summaries[name] = summary
+        figure = plot_exploitability(results, out / f'{name}-exploitability.png', reps) \
+            if results.experiment.population else plot_curves(results, out / f'{name}-curves.png', reps)
+        if figure is not None:
+            files[figure.name] = figure
+        sections.append(markdown(summary, None if figure is None else figure.name))
+        if not results.experiment.population:
+            records += marl_eval_records(results, name)
+        complete = len(results.runs) + len(results.populations)
+        say(f'{name}: {complete} complete run{"s" * (complete != 1)}, {len(results.incomplete)} not complete')
+    files['results.md'] = out / 'results.md'
+    files['results.md'].write_text('\n'.join(sections))
+    files['results.json'] = out / 'results.json'
+    files['results.json'].write_text(json.dumps(summaries, indent=1, default=_jsonable))
+    if records:
+        files['marl_eval.json'] = write_marl_eval(out / 'marl_eval.json', records)
+    return files
+
+
+def _jsonable(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    raise TypeError(f'not JSON: {type(value)}')

@@ -1,0 +1,309 @@
+"""`mate benchmark run`: an experiment's runs as independent jobs, resumable, one line per finished job.
+
+    from mate.benchmark.experiments import experiment
+    from mate.benchmark.runner import plan
+
+    jobs = plan(experiment('fig4a-cameras'), seeds=range(5), out='bench/fig4a')
+    print(len(jobs), jobs[-1].name)        # 38 MA-TD3 on MATE-4v8-9 seed 4
+    # run_jobs(jobs, mate.runners.LocalRunner(2), say=print) runs the missing ones
+
+A job is one command line of the package (`python -m mate ...`) whose output goes to a log file:
+
+* a training run (`mate train COMMAND ... --seed S --eval-every K --eval-episodes E --run-dir OUT/runs/...`) per
+  (setting, preset, seed), done when its `absolute.json` exists (the run completed and its best policy was
+  re-evaluated);
+* a population run (`mate psro ... --out OUT/runs/...`) per (setting, preset, seed), done when its `state.json`
+  holds every iteration;
+* a reference (`mate evaluate` of a rule team against the greedy rules) per (preset, reference): the evaluation
+  episodes (seeds `EVALUATION_SEEDS`, ..., E episodes) and the absolute ones (seeds `ABSOLUTE_SEEDS`, ..., 10 E),
+  each cut at the training horizon, the same episodes the learners are scored on; done when both JSON files exist.
+
+Every job resumes from what it left: a training run from its checkpoint, a population run from its state. The
+runner writes `OUT/benchmark.json` (the experiment, the budget, the seeds, every job's command line) and appends
+each line it says to `OUT/benchmark.log`.
+
+Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
+of a run are seeded `seed + row`) and every run stays below the evaluation seeds; a population run with `mate psro
+--seed k`, which spaces its best responses' seeds by 1,000 itself (`PSROSettings.best_response_seed`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+from ..learn.envs import PAPER_SETTINGS
+from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
+from .experiments import Experiment, Setting
+
+__all__ = ['BENCHMARK_FORMAT', 'Job', 'SEED_STRIDE', 'horizon_of', 'parse_seeds', 'plan', 'read_manifest',
+           'run_jobs', 'run_command', 'stop_children']
+
+BENCHMARK_FORMAT = 'mate.benchmark/1'
+SEED_STRIDE = 1000
+"""Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
+MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1
+"""The largest run seed: its training envs (up to SEED_STRIDE rows) stay below the evaluation seeds."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    """One command of an experiment.
+
+    Args:
+        kind: 'train', 'psro' or 'reference'.
+        label: the setting's label (training, population) or the reference's agent name.
+        preset: the game.
+        seed: the run seed (None for a reference).
+        dir: the job's directory (the run directory, or the reference's).
+        commands: the command lines after `python -m mate`, run in order.
+        outputs: the files whose existence marks the job done.
+        metric: the per-episode metric the job is scored by (the trained team's: `TEAM_METRIC`; '' for PSRO).
+    """
+
+    kind: str
+    label: str
+    preset: str
+    seed: int | None
+    dir: Path
+    commands: tuple[tuple[str, ...], ...]
+    outputs: tuple[Path, ...]
+    metric: str = ''
+
+    @property
+    def name(self) -> str:
+        seed = '' if self.seed is None else f' seed {self.seed}'
+        return f'{self.label} on {self.preset}{seed}'
+
+    def done(self) -> bool:
+        if self.kind == 'psro':
+            return _psro_complete(self.outputs[0])
+        return all(path.exists() for path in self.outputs)
+
+
+def _psro_complete(state_path: Path) -> bool:
+    if not state_path.exists():
+        return False
+    state = json.loads(state_path.read_text())
+    return len(state['iterations']) > int(state['settings']['iterations'])
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Run seeds from '0-4', '0,2,5' or '3' (ranges inclusive); ValueError naming the valid form otherwise."""
+    seeds: list[int] = []
+    try:
+        for part in str(text).split(','):
+            first, _, last = part.strip().partition('-')
+            seeds.extend(range(int(first), int(last or first) + 1))
+    except ValueError:
+        raise ValueError(f"--seeds: seeds as '0-4', '0,2,5' or '3', got {text!r}") from None
+    if not seeds:
+        raise ValueError(f'--seeds: no seeds in {text!r}')
+    bad = [s for s in seeds if not 0 <= s <= MAX_SEED]
+    if bad:
+        raise ValueError(f'--seeds: run seeds are 0..{MAX_SEED}, got {bad[0]}')
+    return sorted(set(seeds))
+
+
+def horizon_of(experiment: Experiment) -> int | None:
+    """Env steps per training (and evaluation) episode: the experiment's, or the trainer's default of 500 decisions
+    at the paper's frame skip of the team (None for a population experiment: `mate psro` sets its own)."""
+    if experiment.population:
+        return experiment.horizon
+    return experiment.horizon or 500 * PAPER_SETTINGS[experiment.team]['frame_skip']
+
+
+def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path,
+              threads: int) -> Job:
+    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    command = ('train', setting.command, *setting.options, '--team', experiment.team, '--config', preset,
+               '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
+               '--eval-every', str(experiment.eval_every), '--eval-episodes', str(experiment.eval_episodes),
+               '--threads', str(threads), '--run-dir', str(folder), '--no-progress')
+    return Job('train', setting.label, preset, seed, folder, (command,), (folder / 'absolute.json',),
+               TEAM_METRIC[experiment.team])
+
+
+def _population(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path) -> Job:
+    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    command = ('psro', *setting.options, '--config', preset, '--iterations', str(experiment.iterations),
+               '--br-steps', str(steps), '--seed', str(seed), '--workers', '1', '--out', str(folder))
+    return Job('psro', setting.label, preset, seed, folder, (command,), (folder / 'state.json',))
+
+
+def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Job:
+    folder = out / 'references' / f'{agent}-{preset}'
+    own, other = ('--camera-agent', '--target-agent') if experiment.team == 'camera' else \
+        ('--target-agent', '--camera-agent')
+    commands, outputs = [], []
+    for name, seed, episodes in (('evaluation', EVALUATION_SEEDS, experiment.eval_episodes),
+                                 ('absolute', ABSOLUTE_SEEDS, ABSOLUTE_FACTOR * experiment.eval_episodes)):
+        path = folder / f'{name}.json'
+        commands.append(('evaluate', '--config', preset, own, agent, other, 'greedy', '--episodes', str(episodes),
+                         '--seed', str(seed), '--max-episode-steps', str(horizon_of(experiment)), '--no-render',
+                         '--json', str(path)))
+        outputs.append(path)
+    return Job('reference', agent, preset, None, folder, tuple(commands), tuple(outputs), TEAM_METRIC[experiment.team])
+
+
+def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1) -> list[Job]:
+    """Every job of `experiment` for the run seeds `seeds` in the directory `out`: the references first, then each
+    (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
+    `threads`: torch threads per training run."""
+    out = Path(out)
+    steps = int(steps or experiment.steps)
+    jobs = [] if experiment.population else [
+        _reference(experiment, agent, preset, out) for preset in experiment.presets for agent in experiment.references]
+    for seed in seeds:
+        for preset in experiment.presets:
+            for setting in experiment.settings:
+                jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
+                            else _training(experiment, setting, preset, seed, steps, out, threads))
+    return jobs
+
+
+_CHILDREN: set[subprocess.Popen] = set()
+_CHILDREN_LOCK = threading.Lock()
+_STOPPING = threading.Event()
+INTERRUPTED = 130
+"""The exit status of a job stopped by a signal (`mate train` and `mate psro` checkpoint first)."""
+
+
+def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str] = ()) -> dict:
+    """Run the command lines `commands` (after `python -m mate`) one after the other with their output appended to
+    `log`, skipping a command whose output file (`outputs[i]`, when given) exists; stops at the first failure.
+    Returns {'returncode', 'seconds'}. A job of `run_jobs`, in a thread of this process or a Ray task.
+
+    Each command runs in its own session, so a Ctrl-C at the terminal does not reach it directly: `stop_children`
+    (the benchmark command, on Ctrl-C or SIGTERM) or a KeyboardInterrupt here (a cancelled Ray task) sends it one
+    SIGTERM, on which `mate train` finishes its iteration, writes its checkpoint and exits with status 130."""
+    start = time.perf_counter()
+    Path(log).parent.mkdir(parents=True, exist_ok=True)
+    returncode = 0
+    with open(log, 'a') as f:
+        for index, command in enumerate(commands):
+            if index < len(outputs) and outputs[index] and Path(outputs[index]).exists():
+                continue
+            if _STOPPING.is_set():
+                returncode = INTERRUPTED
+                break
+            f.write(f'$ mate {" ".join(command)}\n')
+            f.flush()
+            child = subprocess.Popen([sys.executable, '-m', 'mate', *command], stdout=f, stderr=subprocess.STDOUT,
+                                     start_new_session=True)
+            with _CHILDREN_LOCK:
+                _CHILDREN.add(child)
+            try:
+                returncode = _wait(child)
+            finally:
+                with _CHILDREN_LOCK:
+                    _CHILDREN.discard(child)
+            if returncode:
+                break
+    return dict(returncode=returncode, seconds=time.perf_counter() - start)
+
+
+def _wait(child: subprocess.Popen) -> int:
+    try:
+        return child.wait()
+    except KeyboardInterrupt:
+        child.send_signal(signal.SIGTERM)
+        return child.wait()
+
+
+def stop_children(kill: bool = False) -> int:
+    """Ask every running job of this process to stop (SIGTERM: checkpoint, then exit; `kill`: SIGKILL), and start
+    no other; returns how many were running."""
+    _STOPPING.set()
+    with _CHILDREN_LOCK:
+        children = [child for child in _CHILDREN if child.poll() is None]
+    for child in children:
+        child.send_signal(signal.SIGKILL if kill else signal.SIGTERM)
+    return len(children)
+
+
+def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, seeds: list[int]) -> Path:
+    """`OUT/benchmark.json`: what the directory holds (read by `mate benchmark report`). A directory of another
+    experiment or budget raises ValueError (use another --out)."""
+    out = Path(out)
+    path = out / 'benchmark.json'
+    manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
+                    eval_every=experiment.eval_every, eval_episodes=experiment.eval_episodes,
+                    horizon=horizon_of(experiment), seed_stride=SEED_STRIDE)
+    if path.exists():
+        old = read_manifest(out)
+        for key in ('experiment', 'steps', 'eval_every', 'eval_episodes', 'horizon'):
+            if old.get(key) != manifest[key]:
+                raise ValueError(f'{out} holds a benchmark with {key} {old.get(key)!r}, not {manifest[key]!r}; '
+                                 'use another --out')
+        seeds = sorted(set(old.get('seeds', [])) | set(seeds))
+    manifest['seeds'] = seeds
+    manifest['jobs'] = [dict(kind=job.kind, label=job.label, preset=job.preset, seed=job.seed,
+                             dir=os.path.relpath(job.dir, out), commands=[list(c) for c in job.commands])
+                        for job in jobs]
+    if path.exists():       # keep the jobs of seeds run before
+        known = {(j['kind'], j['label'], j['preset'], j['seed']) for j in manifest['jobs']}
+        manifest['jobs'] += [j for j in json.loads(path.read_text())['jobs']
+                             if (j['kind'], j['label'], j['preset'], j['seed']) not in known]
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(manifest, indent=1))
+    return path
+
+
+def read_manifest(out) -> dict:
+    """The `benchmark.json` of a benchmark directory; ValueError when it has none or another format."""
+    path = Path(out) / 'benchmark.json'
+    if not path.exists():
+        raise ValueError(f'{out}: no benchmark.json (not a directory of mate benchmark run)')
+    manifest = json.loads(path.read_text())
+    if manifest.get('format') != BENCHMARK_FORMAT:
+        raise ValueError(f'{path}: format {manifest.get("format")!r}, expected {BENCHMARK_FORMAT!r}')
+    return manifest
+
+
+def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:
+    """Run every job of `jobs` not yet done on `runner` (`mate.runners.ThreadRunner` or `RayRunner`), saying one
+    line when each finishes; returns the jobs that failed (their log names why)."""
+    todo = [job for job in jobs if not job.done()]
+    say(f'{len(jobs) - len(todo)} of {len(jobs)} jobs done before; running {len(todo)}')
+    failed: list[Job] = []
+    finished = 0
+
+    def done(index: int, result: dict) -> None:
+        nonlocal finished
+        finished += 1
+        job = todo[index]
+        minutes = result['seconds'] / 60
+        if result['returncode'] == 0 and job.done():
+            say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{_summary(job)}')
+            return
+        failed.append(job)
+        why = 'interrupted' if result['returncode'] in (INTERRUPTED, -signal.SIGTERM, -signal.SIGINT) else \
+            f'failed (exit status {result["returncode"]})'
+        say(f'[{finished}/{len(todo)}] {job.name}: {why} after {minutes:.1f} min; log: {job.dir / "job.log"}')
+
+    runner.run([(run_command, dict(commands=job.commands, log=str(job.dir / 'job.log'),
+                                   outputs=[str(p) for p in job.outputs] if job.kind == 'reference' else []))
+                for job in todo], done)
+    return failed
+
+
+def _summary(job: Job) -> str:
+    """What a finished job measured, for its line."""
+    if job.kind == 'train':
+        absolute = json.loads(job.outputs[0].read_text())
+        return f'; absolute {absolute["metric"]} {absolute["mean"]:.3f} ({len(absolute["episodes"])} episodes)'
+    if job.kind == 'psro':
+        state = json.loads(job.outputs[0].read_text())
+        gains = state['iterations'][-1].get('exploitability')
+        return '' if gains is None else f'; last exploitability {gains["mean"]:.4f}'
+    values = [episode[job.metric] for episode in json.loads(job.outputs[-1].read_text())['episodes']]
+    return f'; {job.metric} {sum(values) / len(values):.3f} ({len(values)} episodes)'

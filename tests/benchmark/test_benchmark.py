@@ -1,0 +1,262 @@
+"""`mate benchmark`: the experiments as data, the jobs' seeds, the smoke run and its report end to end."""
+
+from __future__ import annotations
+
+import json
+import shlex
+
+import numpy as np
+import pytest
+
+from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
+from mate.benchmark.runner import MAX_SEED, SEED_STRIDE, parse_seeds, plan
+from mate.benchmark.stats import iqm
+from mate.cli import build_parser, main
+from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
+from mate.learn.population.psro import PSROSettings
+
+from conftest import needs_extra
+
+from .test_marl_eval import marl_eval_problems
+
+
+def _option(command: tuple[str, ...], flag: str) -> str:
+    return command[command.index(flag) + 1]
+
+
+def test_every_setting_is_a_valid_command_line(tmp_path):
+    """Each planned job parses with the command it names (a typo in an experiment fails here, not after hours)."""
+    from mate.learn.command import trainer_parser
+
+    parser = build_parser()
+    for exp in EXPERIMENTS.values():
+        for job in plan(exp, [0], tmp_path):
+            for command in job.commands:
+                args = parser.parse_args(list(command))
+                if command[0] == 'train':
+                    trainer_parser(args.algo)[0].parse_args(args.options)
+
+
+def test_training_seeds_never_reach_the_evaluation_seeds(tmp_path):
+    """Every run of every experiment trains on env seeds below the evaluation seeds, and no two runs share one;
+    the references play exactly the evaluation and absolute seeds."""
+    for exp in EXPERIMENTS.values():
+        jobs = plan(exp, [0, 1, MAX_SEED], tmp_path)
+        used: list[tuple[int, range]] = []
+        for job in jobs:
+            command = job.commands[0]
+            if job.kind == 'reference':
+                seeds = [int(_option(c, '--seed')) for c in job.commands]
+                episodes = [int(_option(c, '--episodes')) for c in job.commands]
+                assert seeds == [EVALUATION_SEEDS, ABSOLUTE_SEEDS]
+                assert episodes == [exp.eval_episodes, ABSOLUTE_FACTOR * exp.eval_episodes]
+                continue
+            seed = int(_option(command, '--seed'))
+            if job.kind == 'psro':
+                settings = PSROSettings(iterations=exp.iterations, seed=seed).validate()
+                assert seed == job.seed
+                first, last = settings.best_response_seed(1, 'camera'), settings.best_response_seed(exp.iterations,
+                                                                                                    'target')
+                rows = range(first, last + settings.num_envs)
+            else:
+                num_envs = int(_option(command, '--num-envs')) if '--num-envs' in command else 64
+                assert seed == job.seed * SEED_STRIDE and num_envs <= SEED_STRIDE
+                rows = range(seed, seed + num_envs)
+            assert rows[-1] < EVALUATION_SEEDS
+            if job.kind == 'train':
+                assert int(_option(command, '--eval-every')) == exp.eval_every
+            used.append((job.seed, rows))
+        # runs of different seeds never share a game (the settings of one seed share theirs: common random numbers)
+        spans = {}
+        for seed, rows in used:
+            first, last = spans.get(seed, (rows.start, rows.stop))
+            spans[seed] = (min(first, rows.start), max(last, rows.stop))
+        ordered = sorted(spans.values())
+        assert all(a[1] <= b[0] for a, b in zip(ordered, ordered[1:]))
+
+
+def test_parse_seeds():
+    assert parse_seeds('0-4') == [0, 1, 2, 3, 4]
+    assert parse_seeds('0,2,5') == [0, 2, 5]
+    assert parse_seeds('3') == [3]
+    for bad, words in (('a', "'0-4'"), ('2-x', "'0-4'"), (str(MAX_SEED + 1), f'0..{MAX_SEED}')):
+        with pytest.raises(ValueError, match=words):
+            parse_seeds(bad)
+
+
+def test_slugs_and_tasks():
+    assert Setting('MAPPO+TarMAC', 'tarmac').slug == 'mappo-tarmac'
+    assert Setting('MAPPO full obs.', 'mappo').slug == 'mappo-full-obs'
+    assert experiment('fig6-observability').task('MATE-4v8-0') == 'MATE-4v8-0 targets'
+    with pytest.raises(ValueError, match='experiments: smoke'):
+        experiment('fig99')
+    for exp in EXPERIMENTS.values():      # file names and marl-eval keys differ
+        slugs = [s.slug for s in exp.settings]
+        assert len(set(slugs)) == len(slugs) and all(',' not in s.label for s in exp.settings)
+
+
+@pytest.fixture(scope='module')
+def smoke(tmp_path_factory):
+    """The acceptance commands: mate benchmark run smoke --out DIR && mate benchmark report DIR --out DIR2."""
+    needs_extra('torch')
+    root = tmp_path_factory.mktemp('smoke')
+    runs, report = root / 'runs', root / 'report'
+    assert main(['benchmark', 'run', 'smoke', '--out', str(runs)]) == 0
+    assert main(['benchmark', 'report', str(runs), '--out', str(report), '--reps', '2000']) == 0
+    return runs, report
+
+
+def test_smoke_run_writes_every_run_and_reference(smoke):
+    runs, _ = smoke
+    manifest = json.loads((runs / 'benchmark.json').read_text())
+    exp = experiment('smoke')
+    assert manifest['seeds'] == list(range(exp.seeds))
+    assert len(manifest['jobs']) == len(exp.references) + exp.seeds * len(exp.settings)
+    for job in manifest['jobs']:
+        folder = runs / job['dir']
+        if job['kind'] == 'reference':
+            absolute = json.loads((folder / 'absolute.json').read_text())
+            assert len(absolute['episodes']) == ABSOLUTE_FACTOR * exp.eval_episodes
+            continue
+        evaluations = [json.loads(line) for line in (folder / 'evaluations.jsonl').read_text().splitlines()]
+        assert [e['env_steps'] for e in evaluations] == sorted(e['env_steps'] for e in evaluations)
+        assert all(len(e['episodes']) == exp.eval_episodes for e in evaluations)
+        absolute = json.loads((folder / 'absolute.json').read_text())
+        assert absolute['seeds'] == [ABSOLUTE_SEEDS, ABSOLUTE_SEEDS + ABSOLUTE_FACTOR * exp.eval_episodes - 1]
+    log = (runs / 'benchmark.log').read_text().splitlines()
+    assert sum('done in' in line for line in log) == len(manifest['jobs'])
+
+
+def test_smoke_run_again_runs_nothing_and_recovers_a_missing_absolute_metric(smoke, capsys):
+    runs, _ = smoke
+    target = runs / 'runs' / 'mappo-MATE-2v4-0-seed1' / 'absolute.json'
+    before = json.loads(target.read_text())
+    target.unlink()        # as if the process died between its last checkpoint and the absolute metric
+    assert main(['benchmark', 'run', 'smoke', '--out', str(runs)]) == 0
+    out = capsys.readouterr().out
+    assert f'{len(json.loads((runs / "benchmark.json").read_text())["jobs"]) - 1} of' in out and 'running 1' in out
+    assert json.loads(target.read_text())['episodes'] == before['episodes']
+    assert main(['benchmark', 'run', 'smoke', '--out', str(runs)]) == 0
+    assert 'running 0' in capsys.readouterr().out
+
+
+def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
+    runs, report = smoke
+    exp = experiment('smoke')
+    results = json.loads((report / 'results.json').read_text())['smoke']
+    task = results['tasks']['MATE-2v4-0 cameras']
+    assert set(task['references']) == set(exp.references)
+    random, greedy = task['references']['random']['absolute'], task['references']['greedy']['absolute']
+    for setting in exp.settings:
+        entry = task['settings'][setting.label]
+        assert entry['runs'] == exp.seeds and entry['seeds'] == list(range(exp.seeds))
+        for statistic in ('IQM', 'mean'):
+            interval = entry['absolute'][statistic]
+            assert interval['low'] <= interval['point'] <= interval['high']
+        assert entry['absolute']['mean']['point'] == pytest.approx(np.mean(entry['values']))
+        scaled = (np.array(entry['values']) - random) / (greedy - random)
+        assert entry['normalised_greedy']['point'] == pytest.approx(iqm(scaled))
+    assert set(task['improvement']) == {'MAPPO > IPPO'}
+    claims = {claim['better'] + ' > ' + claim['worse']: claim for claim in results['claims']}
+    assert set(claims) == {'MAPPO > IPPO', 'MAPPO > random'}
+    pair = claims['MAPPO > IPPO']
+    assert (pair['point'], pair['low'], pair['high']) == pytest.approx(
+        tuple(task['improvement']['MAPPO > IPPO'][k] for k in ('point', 'low', 'high')))
+    for claim in claims.values():
+        expected = 'confirmed' if claim['low'] > (0.5 if claim is pair else random) else \
+            'refuted' if claim['high'] < (0.5 if claim is pair else random) else 'unresolved'
+        assert claim['verdict'] == expected
+    markdown = (report / 'results.md').read_text()
+    assert '| MAPPO | 3 |' in markdown and '*upper-bound* (reference)' in markdown
+    assert f'| (pipeline check) MAPPO beats IPPO | MATE-2v4-0 cameras | **{pair["verdict"]}** |' in markdown
+    assert (report / 'smoke-curves.png').stat().st_size > 10_000
+    data = json.loads((report / 'marl_eval.json').read_text())
+    assert marl_eval_problems(data) == []           # what marl-eval's loader needs (tests/benchmark/test_marl_eval.py)
+    runs_of = data['smoke']['MATE-2v4-0 cameras']
+    assert set(runs_of) == {'MAPPO', 'IPPO'}
+    for algorithm in runs_of.values():
+        assert set(algorithm) == {f'seed_{k}' for k in range(exp.seeds)}
+        for run in algorithm.values():
+            keys = list(run)
+            assert keys[-1] == 'absolute_metrics' and keys[0] == 'step_0'
+            assert len(run['absolute_metrics']['coverage_rate']) == ABSOLUTE_FACTOR * exp.eval_episodes
+            assert len(run['step_0']['coverage_rate']) == exp.eval_episodes
+
+
+def test_a_directory_of_another_budget_is_refused(smoke, capsys):
+    runs, _ = smoke
+    assert main(['benchmark', 'run', 'smoke', '--out', str(runs), '--steps', '400']) == 2
+    assert 'steps 200, not 400' in capsys.readouterr().err
+
+
+def test_report_of_a_directory_that_is_no_benchmark(tmp_path, capsys):
+    assert main(['benchmark', 'report', str(tmp_path), '--out', str(tmp_path / 'r')]) == 2
+    assert 'no benchmark.json' in capsys.readouterr().err
+
+
+def test_shell_quoting_of_the_recipe():
+    """The HRL recipe's schedule is one argument (a job's command line is not split again)."""
+    setting = next(s for s in experiment('fig4a-cameras').settings if s.label == 'HRL-MAPPO')
+    assert shlex.split(shlex.join(setting.options)) == list(setting.options)
+
+
+def test_population_smoke_run_and_report(tmp_path):
+    """A population experiment end to end: mate psro jobs, then the exploitability from the payoff matrix and on
+    fresh seeds, with intervals."""
+    needs_extra('torch')
+    runs, report = tmp_path / 'runs', tmp_path / 'report'
+    assert main(['benchmark', 'run', 'smoke-psro', '--out', str(runs)]) == 0
+    assert main(['benchmark', 'report', str(runs), '--out', str(report), '--reps', '2000']) == 0
+    exp = experiment('smoke-psro')
+    states = [json.loads(path.read_text()) for path in sorted((runs / 'runs').glob('*/state.json'))]
+    assert len(states) == exp.seeds
+    for state in states:
+        last = state['iterations'][-1]
+        fresh = last['exploitability_fresh']
+        assert fresh['seeds'] == EVALUATION_SEEDS
+        assert fresh['mean'] == pytest.approx(0.5 * (fresh['camera'] + fresh['target']))
+    entry = json.loads((report / 'results.json').read_text())['smoke-psro']['tasks']['MATE-2v4-0']['settings'][
+        'PSRO-Nash']
+    assert entry['runs'] == exp.seeds
+    assert entry['final_exploitability_values'] == [s['iterations'][-1]['exploitability']['mean'] for s in states]
+    assert entry['final_exploitability_fresh_values'] == [s['iterations'][-1]['exploitability_fresh']['mean']
+                                                          for s in states]
+    assert (report / 'smoke-psro-exploitability.png').exists() and not (report / 'marl_eval.json').exists()
+
+
+def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tmp_path):
+    """SIGTERM to `mate benchmark run` (a scheduler's stop) reaches each running training job once: it checkpoints
+    and exits; the benchmark exits with status 130 and says so; the same command continues the runs."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    needs_extra('torch')
+    out = tmp_path / 'runs'
+    command = [sys.executable, '-m', 'mate', 'benchmark', 'run', 'smoke', '--out', str(out), '--seeds', '0',
+               '--steps', '100000']
+    driver = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              env=dict(os.environ, MATE_DEBUG='1'))
+    progress = out / 'runs' / 'mappo-MATE-2v4-0-seed0' / 'progress.csv'
+    deadline = time.monotonic() + 600
+    while not (progress.exists() and len(progress.read_text().splitlines()) > 2):
+        assert driver.poll() is None and time.monotonic() < deadline, driver.stdout.read()
+        time.sleep(0.5)
+    driver.send_signal(signal.SIGTERM)
+    output = driver.communicate(timeout=600)[0]
+    assert driver.returncode == 130, output
+    assert 'interrupted: stopping 1 running job' in output
+    log = (progress.parent / 'job.log').read_text()
+    assert 'checkpoint written' in log and (progress.parent / 'checkpoint.pt').exists()
+    rows = len(progress.read_text().splitlines())
+    other = subprocess.run(command[:-1] + ['40'], capture_output=True, text=True, timeout=600)
+    assert other.returncode == 2 and 'not 40' in other.stderr     # another budget is refused in that directory
+    resumed = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    while len(progress.read_text().splitlines()) <= rows:
+        assert resumed.poll() is None, resumed.stdout.read()
+        time.sleep(0.5)
+    resumed.send_signal(signal.SIGTERM)
+    assert resumed.wait(timeout=600) == 130
+    assert 'resuming from' in (progress.parent / 'job.log').read_text()
