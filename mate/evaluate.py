@@ -230,20 +230,12 @@ def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: 
                  recorder: FrameRecorder | None = None) -> list[EpisodeResult]:
     """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
     (`batched_teams`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
-    game's frames. A team that reads the true state (`watch(vec, step)`: `UpperBoundTeam`) watches the vector env."""
+    game's frames (a team that reads the true state, `UpperBoundTeam`, watches the vector env: `play_batch`)."""
     from .teams import play_batch
     if max_steps < 1:
         raise ValueError(f'max_steps must be at least 1, got {max_steps}')
-    watchers = [team.watch for team in (cameras, targets) if hasattr(team, 'watch')]
-    if recorder is not None:
-        watchers.append(recorder.record_row)
-
-    def on_step(vec, step: int) -> None:
-        for watcher in watchers:
-            watcher(vec, step)
-
     batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress,
-                               on_step=on_step if watchers else None)
+                               on_step=None if recorder is None else recorder.record_row)
     return [EpisodeResult(**asdict(episode), steps_per_second=timing['env_steps_per_second']) for episode in batch]
 
 

@@ -244,10 +244,7 @@ class PolicyTeam:
         self.policy = (policy if isinstance(policy, LoadedPolicy) else load_policy(policy, self.team)).on(device)
         spec = self.spec = self.policy.spec
         spec.check_game(self.team, counts, f'policy {self.policy.source!r}')
-        if spec.full_observability:
-            raise SpecError(f'policy {self.policy.source!r} was trained with --full-observability: a batched team sees '
-                            'the raw, partial observations; evaluate it in the single env with --enhanced-observation '
-                            f'{spec.team}')
+        self.full_observability = spec.full_observability   # `play_batch` fills its observations in (every entity)
         self.counts = spec.counts
         self.num_envs, self.num_agents = int(num_envs), spec.num_agents
         self.deterministic = bool(spec.deterministic if deterministic is None else deterministic)

@@ -18,7 +18,7 @@ Teams here:
 * `UpperBoundTeam(num_envs, counts, horizon=40, discount=0.9)`: a reference camera team, centralised, that sees
   the true state (every target's position) and plans the cameras' poses ahead to cover the most targets;
   `mate.UpperBoundCameraAgent` runs the same compiled rule in one game. It reads the truth from the vector env
-  it watches (`play_batch(..., on_step=team.watch)`) or from fully observing observations.
+  it watches (`play_batch` calls its `watch`) or from fully observing observations.
 
 Seeds and streams (`streams`): row b of a team seeded with the integer s plays draw for draw as the
 Python agents `Cls(seed=s + b).spawn(N)` (a sequence gives each row its seed), so

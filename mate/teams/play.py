@@ -63,8 +63,10 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
                         for team in (camera_team, target_team))
     if cameras.team is not Team.CAMERA or targets.team is not Team.TARGET:
         raise ValueError('camera_team must play the cameras and target_team the targets')
+    see = _sight(vec, cameras, targets, counts)
     start = time.perf_counter()
     (camera_obs, target_obs), _ = vec.reset(seed=seeds)
+    see(camera_obs, target_obs, 0)
     everyone = np.ones(episodes, dtype=bool)
     cameras.reset(camera_obs, everyone)
     targets.reset(target_obs, everyone)
@@ -85,6 +87,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
     while live.any():
         actions = (cameras.act(camera_obs), targets.act(target_obs))
         (camera_obs, target_obs), rewards, terminated, truncated, infos = vec.step(actions)
+        see(camera_obs, target_obs, int(length.max()) + 1)
         coverage += np.where(live, infos['coverage_rate'], 0.0)
         real_coverage += np.where(live, infos['real_coverage_rate'], 0.0)
         returns += np.where(live, np.stack(rewards), 0.0)
@@ -101,6 +104,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
                 progress(int((~live).sum()), episodes)
         if finished.any() and live.any():   # finished rows restart (ignored) so that the batch keeps stepping
             (camera_obs, target_obs), _ = vec.reset(options={'reset_mask': finished})
+            see(camera_obs, target_obs, int(length.max()))
             if ended.any():
                 idle(cameras, ended)
                 idle(targets, ended)
@@ -115,3 +119,24 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
                for i in range(episodes)]
     steps = int(length.sum())
     return results, {'env_steps': steps, 'seconds': seconds, 'env_steps_per_second': steps / max(seconds, 1e-9)}
+
+
+def _sight(vec, cameras, targets, counts) -> Callable[[np.ndarray, np.ndarray, int], None]:
+    """What a team sees beyond its raw observations, applied after every reset and step: a team with
+    `full_observability` (a policy trained with it) gets its observations filled in place as the
+    `EnhancedObservation` wrapper fills them, and a team with `watch(vec, step)` (`UpperBoundTeam`, which reads
+    the true state) watches the vector env."""
+    enhanced = [getattr(team, 'full_observability', False) for team in (cameras, targets)]
+    watchers = [team.watch for team in (cameras, targets) if hasattr(team, 'watch')]
+    if not any(enhanced) and not watchers:
+        return lambda camera_obs, target_obs, step: None
+    from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
+
+    def see(camera_obs: np.ndarray, target_obs: np.ndarray, step: int) -> None:
+        if any(enhanced):
+            enhance_observations(camera_obs, target_obs, vec.obstacle_states, empty_warehouses(vec.remaining_cargoes),
+                                 *counts, camera=enhanced[0], target=enhanced[1])
+        for watch in watchers:
+            watch(vec, step)
+
+    return see

@@ -384,8 +384,8 @@ class UpperBoundTeam:
     What it reads beyond a camera's observation: every target's true position every step, and every
     obstacle. Two ways to give it the truth:
 
-    * watching the vector env it plays in: `play_batch(..., on_step=team.watch)` (`mate evaluate` does
-      it), and `act` reads the true positions with `vec.state()` and the obstacles with
+    * watching the vector env it plays in (`play_batch` calls `watch` for a team that has it), and `act`
+      reads the true positions with `vec.state()` and the obstacles with
       `vec.obstacle_states`; the observations passed to `act` may be the raw ones (only each camera's
       own state is read from them);
     * or fully observing observations: `act(observation)` with every target and camera flagged visible, as
@@ -427,8 +427,8 @@ class UpperBoundTeam:
         self.action = np.zeros((b, nc, 2))
 
     def watch(self, vec, step: int = 0) -> None:
-        """Read the true state from `vec` (the vector env of the games, row b = game b) from now on; the
-        signature of `play_batch`'s `on_step`, so `play_batch(..., on_step=team.watch)` wires it."""
+        """Read the true state from `vec` (the vector env of the games, row b = game b) from now on (`play_batch`
+        calls it after every reset and step)."""
         counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)
         if vec.num_envs != self.num_envs or counts != self.counts:
             raise ValueError(f'UpperBoundTeam for {self.num_envs} games of {self.counts} cannot watch a vector env of '

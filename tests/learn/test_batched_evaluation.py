@@ -20,11 +20,12 @@ COUNTS = (2, 4, 0)          # MATE-2v4-0
 
 
 def _policy(team: str, hrl=False, memory=0, velocity=False, lstm=0, frame_skip=3, seed=0, action=None,
-            network='mlp') -> LoadedPolicy:
+            network='mlp', full_observability=False) -> LoadedPolicy:
     """An untrained (randomly initialised) policy of the given kind: varied, deterministic decisions."""
     nc, nt, no = COUNTS
     spec = PolicySpec.for_game(team, 'MATE-2v4-0-v0', frame_skip=frame_skip, action=action or ('hrl' if hrl else 'grid'),
-                               memory=memory, velocity=velocity, network=network, hidden=(32,), lstm=lstm)
+                               memory=memory, velocity=velocity, network=network, hidden=(32,), lstm=lstm,
+                               full_observability=full_observability)
     raw_dim = camera_observation_dim(nc, nt, no) if team == 'camera' else target_observation_dim(nc, nt, no)
     assert spec.counts == COUNTS and spec.obs_dim == (raw_dim + MEMORY_FEATURES * nt * bool(memory)
                                                       + VELOCITY_FEATURES * nt * velocity)
@@ -134,6 +135,30 @@ def test_play_batch_rows_equal_single_env_episodes(opponent):
         assert result.seed == single.seed == 4 + i
         for field in ('coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                       'normalized_target_return', 'delivered_cargoes', 'episode_length'):
+            assert getattr(result, field) == pytest.approx(getattr(single, field), abs=1e-12), field
+
+
+def test_full_observability_policies_play_batched_as_in_the_enhanced_single_env():
+    """A policy trained with --full-observability (every entity in its observations) is played batched with its
+    observations filled in (`play_batch`) and plays exactly as its deployment agents in a single env under
+    `EnhancedObservation` for its team: the held-out evaluation of such a run sees what its training saw."""
+    from mate.wrappers import EnhancedObservation
+
+    policy = _policy('target', frame_skip=3, full_observability=True)
+    results, _ = play_batch('MATE-2v4-0', GreedyTeam('camera', 2, COUNTS, seed=7),
+                            PolicyTeam(policy, 'target', 2, COUNTS, deterministic=True),
+                            episodes=2, seed=7, max_episode_steps=60)
+    partial = LoadedPolicy(policy.actor, policy.spec.replace(full_observability=False), 'partial')
+    raw, _ = play_batch('MATE-2v4-0', GreedyTeam('camera', 2, COUNTS, seed=7),
+                        PolicyTeam(partial, 'target', 2, COUNTS, deterministic=True),
+                        episodes=2, seed=7, max_episode_steps=60)
+    assert [r.target_return for r in raw] != [r.target_return for r in results]     # what it sees matters
+    env = EnhancedObservation(mate.make('MATE-2v4-0-v0'), team='target')
+    for i, result in enumerate(results):
+        single = play_episode(env, mate.GreedyCameraAgent,
+                              lambda seed: AGENT_CLASSES[mate.Team.TARGET](policy, seed=seed, deterministic=True),
+                              seed=7 + i, max_steps=60)
+        for field in ('coverage_rate', 'target_return', 'delivered_cargoes', 'episode_length'):
             assert getattr(result, field) == pytest.approx(getattr(single, field), abs=1e-12), field
 
 

@@ -29,15 +29,10 @@ def test_importing_the_upper_bound_needs_no_torch():
 
 
 def _play_upper_bound(episodes: int, steps: int, seed: int = 0, **options):
-    """`play_batch` of the batched upper bound (watching the vector env) against greedy targets."""
-    teams = {}
-
-    def cameras(b, counts):
-        teams['cameras'] = UpperBoundTeam(b, counts, **options)
-        return teams['cameras']
-
-    return play_batch(PRESET, cameras, lambda b, counts: GreedyTeam('target', b, counts, seed=seed), episodes, seed,
-                      steps, on_step=lambda vec, step: teams['cameras'].watch(vec, step))[0]
+    """`play_batch` of the batched upper bound (watching the vector env: play_batch calls its `watch`) against greedy
+    targets."""
+    return play_batch(PRESET, lambda b, counts: UpperBoundTeam(b, counts, **options),
+                      lambda b, counts: GreedyTeam('target', b, counts, seed=seed), episodes, seed, steps)[0]
 
 
 def _enhanced(vec, camera_obs, target_obs):
