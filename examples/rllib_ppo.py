@@ -2,8 +2,9 @@
 
     python examples/rllib_ppo.py [--iterations 5]
 
-The same as `mate rllib-train`, written out: the env config, the PPO config (one policy shared
-by the cameras), a local Ray instance and the training loop.
+RLlib's own loop written out: the env config, the PPO config (one policy shared by the cameras), a
+local Ray instance and the training loop. `mate rllib-train` does the same as a `mate train` run
+(run directory, resumes, the evaluation protocol, policies exported to mate policy files).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def main() -> None:
         'opponent': 'greedy',      # mate.agents.GreedyTargetAgent plays the targets
     }
     config = mate_rllib.ppo_config(env_config, train_batch_size=2000, minibatch_size=250, num_epochs=5, seed=0)
-    ray.init(num_cpus=2, include_dashboard=False)
+    ray.init(address='local', num_cpus=2, include_dashboard=False)
     try:
         algo = config.build_algo()
         for _ in range(args.iterations):

@@ -435,7 +435,7 @@ def build_parser() -> argparse.ArgumentParser:
     presets.set_defaults(run=_presets)
 
     from .integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
-    rllib_train = command('rllib-train', help='train PPO cameras against rule-based targets (Ray RLlib)')
+    rllib_train = command('rllib-train', help="train a team with RLlib's PPO as a mate train run (the witness; Ray RLlib)")
     add_rllib_train_arguments(rllib_train)
     rllib_train.set_defaults(run=_rllib_train)
 

@@ -9,6 +9,8 @@
     fig7-psro            PSRO-Nash, fictitious self-play and self-play on MATE-2v4-0: exploitability
     fig8-psro-4v8-0      PSRO-Nash on MATE-4v8-0 (>= 10 iterations): exploitability and meta-strategies
     diag-targets-4v8-0   short diagnostic runs of MAPPO targets on MATE-4v8-0 (one change each)
+    witness-rllib-targets   RLlib's PPO beside mate's IPPO, MATE-2v4-0 targets (an independent implementation)
+    witness-rllib-cameras   the same for flat MATE-4v8-9 cameras
 
 A training setting is the command line of a `mate train` trainer (the experiment adds the team, the preset, the
 budget, the seed, the evaluation protocol and the run directory); a PSRO setting the command line of `mate psro`.
@@ -34,7 +36,8 @@ class Setting:
     Args:
         label: its name in figures and tables ('HRL-MAPPO', 'MAPPO+TarMAC', ...).
         command: the `mate train` trainer ('mappo', 'ippo', 'mappo-lstm', 'tarmac', 'i2c', 'iql', 'qmix', 'matd3'),
-            or 'psro' for a population run.
+            'rllib-ppo' for RLlib's PPO (`mate rllib-train`, the same run files and evaluation protocol), or 'psro'
+            for a population run.
         options: further command-line options of the trainer (or of `mate psro`).
     """
 
@@ -52,12 +55,14 @@ class Setting:
 @dataclasses.dataclass(frozen=True)
 class Claim:
     """One comparison the paper makes, which the report judges: `better` scores above `worse` (for population
-    experiments: a lower final exploitability).
+    experiments: a lower final exploitability); or, with `kind='agree'`, two settings that should score alike.
 
     Args:
         text: the claim in words.
         better, worse: setting labels of the experiment, or a reference ('random', 'greedy', 'upper-bound').
         preset: the game it is about (None: each of the experiment's).
+        kind: 'better', or 'agree' (two settings: *consistent* when the 95 % interval of P(better > worse) holds
+            1/2, *differ* otherwise; no difference found is not proof of equality: read the interval's width).
 
     The verdict (`mate.benchmark.report`): between two settings, from the probability of improvement P(better >
     worse) and its 95 % interval: *confirmed* when the interval lies above 1/2, *refuted* when below, *unresolved*
@@ -69,6 +74,11 @@ class Claim:
     better: str
     worse: str
     preset: str | None = None
+    kind: str = 'better'
+
+    def __post_init__(self) -> None:
+        if self.kind not in ('better', 'agree'):
+            raise ValueError(f"a claim's kind is 'better' or 'agree', got {self.kind!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,6 +128,15 @@ class Experiment:
 CAMERA_REFERENCES = ('random', 'greedy', 'upper-bound')
 RECIPE = ('--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]')
 """The HRL-MAPPO recipe of the shipped camera policy (a larger entropy bonus than the defaults)."""
+AS_IPPO = ('--epochs', '4', '--minibatch-size', '1600', '--gae-lambda', '0.95', '--kl-coeff', '0', '--max-grad-norm',
+           '10', '--lr-schedule', '[[0, 0.0005], [1499999, 0.0005], [1500000, 0.0002], [2999999, 0.0002], '
+           '[3000000, 0.0001]]', '--entropy-schedule', '[[0, 0.01], [1000000, 0.001], [3000000, 0]]',
+           '--num-cpus', '1')
+"""`mate rllib-train` options that give RLlib's PPO the hyper-parameters of `mate train ippo`'s defaults: 4 epochs,
+4 minibatches of the 64 x 25-decision batch of 4 agents (1,600 rows each), GAE lambda 0.95, no KL penalty, gradients
+clipped at norm 10, the same learning-rate steps (as near-vertical ramps: RLlib interpolates) and entropy ramps.
+What stays different: RLlib learns its values on raw returns (IPPO normalises them) and clips no value error."""
+WITNESS_CLAIM = 'RLlib\'s PPO (the engine of the paper\'s authors) and mate\'s IPPO score alike at equal decisions'
 
 EXPERIMENTS = {experiment.name: experiment for experiment in (
     Experiment(
@@ -127,7 +146,8 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
         steps=200, eval_every=80, eval_episodes=3, horizon=50, references=CAMERA_REFERENCES, seeds=3,
         claim='the pipeline runs end to end',
         claims=(Claim('(pipeline check) MAPPO beats IPPO', 'MAPPO', 'IPPO'),
-                Claim('(pipeline check) MAPPO beats the random cameras', 'MAPPO', 'random'))),
+                Claim('(pipeline check) MAPPO beats the random cameras', 'MAPPO', 'random'),
+                Claim('(pipeline check) MAPPO and IPPO agree', 'MAPPO', 'IPPO', kind='agree'))),
     Experiment(
         'smoke-psro', 'the population pipeline in seconds (CI)', 'both', ('MATE-2v4-0',),
         (Setting('PSRO-Nash', 'psro', ('--solver', 'nash', '--num-envs', '4', '--eval-episodes', '2',
@@ -187,6 +207,20 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
                 Claim('a 5-step hold helps', 'hold 5', 'MAPPO'),
                 Claim('a narrower network helps', 'hidden 64', 'MAPPO'),
                 Claim('a longer discount horizon helps', 'gamma 0.995', 'MAPPO'))),
+    Experiment(
+        'witness-rllib-targets', 'a witness: RLlib\'s PPO beside IPPO on MATE-2v4-0 targets', 'target',
+        ('MATE-2v4-0',),
+        (Setting('IPPO', 'ippo'), Setting('RLlib PPO', 'rllib-ppo', AS_IPPO),
+         Setting('RLlib PPO (paper settings)', 'rllib-ppo', ('--num-cpus', '1'))),
+        steps=2_000_000, eval_every=250_000, seeds=3, claim=WITNESS_CLAIM,
+        claims=(Claim('RLlib PPO with IPPO\'s settings scores as IPPO', 'RLlib PPO', 'IPPO', kind='agree'),)),
+    Experiment(
+        'witness-rllib-cameras', 'a witness: RLlib\'s PPO beside IPPO on flat MATE-4v8-9 cameras', 'camera',
+        ('MATE-4v8-9',),
+        (Setting('IPPO', 'ippo'), Setting('RLlib PPO', 'rllib-ppo', AS_IPPO),
+         Setting('RLlib PPO (paper settings)', 'rllib-ppo', ('--num-cpus', '1'))),
+        steps=2_000_000, eval_every=250_000, references=CAMERA_REFERENCES, seeds=3, claim=WITNESS_CLAIM,
+        claims=(Claim('RLlib PPO with IPPO\'s settings scores as IPPO', 'RLlib PPO', 'IPPO', kind='agree'),)),
     Experiment(
         'fig7-psro', 'Fig. 7: exploitability of PSRO-Nash, FSP and SP', 'both', ('MATE-2v4-0',),
         (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')), Setting('FSP', 'psro', ('--solver', 'uniform')),

@@ -229,8 +229,11 @@ def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, 
         sides = [claim.better, claim.worse]
         if all(side in scores for side in sides):
             point, low, high = improvement_intervals(scores, pairs=[tuple(sides)], reps=reps)[tuple(sides)]
-            verdict.update(statistic='probability of improvement', point=point, low=low, high=high,
-                           verdict='confirmed' if low > 0.5 else 'refuted' if high < 0.5 else 'unresolved')
+            if claim.kind == 'agree':
+                outcome = 'consistent' if low <= 0.5 <= high else 'differ'
+            else:
+                outcome = 'confirmed' if low > 0.5 else 'refuted' if high < 0.5 else 'unresolved'
+            verdict.update(statistic='probability of improvement', point=point, low=low, high=high, verdict=outcome)
         elif any(side in scores for side in sides) and any(side in references for side in sides):
             setting = next(side for side in sides if side in scores)
             reference = next(side for side in sides if side in references)
@@ -369,7 +372,8 @@ def markdown(summary: dict, figure: str | None) -> str:
             lines.append('')
     if summary.get('claims'):
         lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, or of '
-                  "the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval holds both):",
+                  "the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval holds both; "
+                  'for two settings that should agree, consistent: the interval of P holds 1/2, differ: it does not):',
                   '', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
         for claim in summary['claims']:
             evidence = '-' if 'point' not in claim else \

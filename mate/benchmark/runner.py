@@ -124,7 +124,8 @@ def horizon_of(experiment: Experiment) -> int | None:
 def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path,
               threads: int) -> Job:
     folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
-    command = ('train', setting.command, *setting.options, '--team', experiment.team, '--config', preset,
+    trainer = ('rllib-train',) if setting.command == 'rllib-ppo' else ('train', setting.command)
+    command = (*trainer, *setting.options, '--team', experiment.team, '--config', preset,
                '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
                '--eval-every', str(experiment.eval_every), '--eval-episodes', str(experiment.eval_episodes),
                '--threads', str(threads), '--run-dir', str(folder), '--no-progress')

@@ -1,67 +1,222 @@
-"""`mate rllib-train`: PPO cameras against a rule-based target team, with Ray RLlib.
+"""`mate rllib-train`: RLlib's PPO training a team of MATE as a `mate train` run (the witness beside mate's IPPO).
 
-This module imports nothing from Ray until the command runs, so `mate --help` works without
-the optional extra. The training itself is `mate.integrations.rllib.train`.
+    mate rllib-train --team camera --steps 10000000 --eval-every 500000 --eval-episodes 32 --seed 1000
+
+The run is `mate train`'s in everything but the learner: the same game and view (`TeamEnvConfig`: the paper's
+preset, frame skip and horizon of the team; the policy's observations are `PolicySpec.features`, its actions the
+25 grid moves), the same opponent (the greedy rules, batched), the same decision count (`--steps`: decisions summed
+over the games, which is what RLlib counts as env steps, one RLlib step being one decision of the team), the same
+run directory and files (`mate.learn.Run`: `progress.csv`, `best.pt`, `final.pt`, `checkpoint.pt`) and the same
+evaluation protocol (`mate.learn.evaluation`: `evaluations.jsonl`, `best-eval.pt`, `absolute.json`), the policies
+exported from the RLlib module to `mate` policy files (`mate.integrations.rllib_export`). The learner is RLlib's PPO
+(new API stack) with one policy shared by the team's agents, its value function per agent (of the agent's own
+observation, as IPPO's), and by default the paper's RLlib hyper-parameters (spec training.md §1.6).
+
+This module imports nothing from Ray or torch until the command runs, so `mate --help` works without the optional
+extra. The training itself is `mate.integrations.rllib.train_run`.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+from pathlib import Path
+from typing import Literal
 
-from ..arguments import CommandError, non_negative_int, number, positive_int, resolving_arguments
+from ..arguments import CommandError, resolving_arguments
+from ..learn.envs import TeamEnvConfig
+from ..learn.evaluation import EVALUATION_SEEDS
+from ..options import add_options, option
+
+__all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
+
+ALGO = 'rllib-ppo'
+"""The algorithm name of `mate rllib-train` runs (their spec's `algo`; their default directory runs/rllib-ppo-...)."""
+
+EXCLUDED = ('hrl', 'memory', 'velocity', 'full_observability', 'credit')
+"""`TeamEnvConfig` options that the RLlib run does not offer (flat grid moves of an MLP policy, team rewards)."""
+
+
+@dataclasses.dataclass
+class RLlibPPOConfig(TeamEnvConfig):
+    """Settings of a `mate rllib-train` run: the team env's options (as `mate train`'s), the run's (as `mate train`'s
+    `RunConfig`), Ray's, then RLlib PPO's hyper-parameters (defaults: the paper's RLlib settings, spec training.md
+    §1.6, with mate's MLP actor of 256 256)."""
+
+    # ---- the run (mate.learn.run.RunConfig's meaning)
+    steps: int = option(2_000_000, 'decision steps in total (summed over the envs), as RLlib counts', minimum=1)
+    minutes: float = option(0.0, 'also stop after this many minutes of training (resumed sessions included); '
+                                 '0: no time limit', minimum=0)
+    threads: int = option(0, 'torch threads of the driver (the learner, and the env runner when '
+                             '--num-env-runners is 0); 0: torch\'s default', minimum=0)
+    run_dir: str | None = option(None, 'output directory; None: runs/rllib-ppo-TEAM-seedN')
+    fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
+    progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
+    checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
+    eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
+                                '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
+                             minimum=0)
+    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1)
+    iterations: int | None = option(None, 'also stop after this many iterations in all (the run is then not '
+                                          'complete: no final.pt or absolute.json until it goes on)', minimum=1)
+    # ---- Ray
+    address: str | None = option(None, "an existing Ray cluster ('auto', 'ray://host:10001'); None: start a local Ray")
+    num_cpus: int | None = option(None, 'CPUs of the local Ray instance (None: all)', minimum=1)
+    num_env_runners: int = option(0, 'remote rollout workers, each playing num_envs / num_env_runners games '
+                                     '(0: sample on the driver)', minimum=0)
+    # ---- RLlib PPO
+    rollout_length: int = option(25, 'decisions per env per iteration (RLlib rollout_fragment_length; the batch is '
+                                     'num_envs x rollout_length decisions)', minimum=1)
+    epochs: int = option(16, 'passes over each batch (RLlib num_epochs; the paper: 16)', minimum=1)
+    minibatch_size: int = option(256, "agent steps per minibatch (RLlib's minibatch_size, counted in the shared "
+                                      "policy's rows: decisions x agents; the paper: 256)", minimum=1)
+    gamma: float = option(0.99, 'discount per decision', minimum=0)
+    gae_lambda: float = option(1.0, 'GAE lambda (RLlib and the paper: 1.0)', minimum=0)
+    clip: float = option(0.3, 'PPO clip range of the probability ratio', above=0)
+    value_coef: float = option(1.0, 'weight of the value loss (RLlib vf_loss_coeff)', minimum=0)
+    vf_clip: float = option(10_000.0, 'clip of the squared value error (RLlib vf_clip_param; the paper: 10000, '
+                                      'effectively off)', above=0)
+    kl_coeff: float = option(0.2, 'initial coefficient of the adaptive KL penalty (RLlib and the paper: 0.2); 0: off',
+                             minimum=0)
+    kl_target: float = option(0.01, 'KL the penalty adapts towards', above=0)
+    max_grad_norm: float = option(0.0, 'gradient clipping by global norm (RLlib grad_clip); 0: none (the paper)',
+                                  minimum=0)
+    hidden: tuple[int, ...] = option((256, 256), 'hidden layer widths of the policy (and of the value function)',
+                                     minimum=1)
+    activation: Literal['tanh', 'relu'] = option('tanh', 'hidden activation')
+    vf_share_layers: bool = option(False, "the value function shares the policy's layers (RLlib's default) instead "
+                                          "of its own MLP (mate's IPPO critic)")
+    lr_schedule: tuple[tuple[float, float], ...] = option(
+        ((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)), 'learning rate [[step, lr], ...] in decision steps, '
+        'RLlib interpolating linearly between the points (the paper\'s points)')
+    entropy_schedule: tuple[tuple[float, float], ...] = option(
+        ((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
+        'entropy coefficient [[step, coefficient], ...], piecewise linear in decision steps (the paper\'s)')
+
+    def __post_init__(self) -> None:
+        TeamEnvConfig.__post_init__(self)
+        if self.activation not in ('tanh', 'relu'):
+            raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
+        for name in ('lr_schedule', 'entropy_schedule'):
+            points = getattr(self, name)
+            if not points:
+                raise ValueError(f'--{name.replace("_", "-")} needs at least one [step, value] point')
+            if points[0][0] != 0:
+                raise ValueError(f'--{name.replace("_", "-")} must start at step 0 (RLlib schedules do), '
+                                 f'got {points[0][0]:g}')
+        if self.eval_every and self.seed + self.num_envs > EVALUATION_SEEDS:
+            raise ValueError(f'--seed {self.seed} with --num-envs {self.num_envs} would train on evaluation seeds: '
+                             f'with --eval-every, seed + num_envs must be at most {EVALUATION_SEEDS:,}')
+        if self.num_env_runners and self.num_envs % self.num_env_runners:
+            raise ValueError(f'--num-envs {self.num_envs} must be a multiple of --num-env-runners '
+                             f'{self.num_env_runners} (each runner plays the same number of games)')
+        if self.minibatch_size > self.num_envs * self.rollout_length:
+            raise ValueError(f'--minibatch-size {self.minibatch_size} must be at most the batch, num_envs x '
+                             f'rollout_length = {self.num_envs * self.rollout_length} (RLlib checks it against the '
+                             'decisions of the batch)')
+        object.__setattr__(self, 'hidden', tuple(self.hidden))
+
+    @property
+    def envs_per_runner(self) -> int:
+        """Games each env runner plays (RLlib num_envs_per_env_runner)."""
+        return self.num_envs // max(self.num_env_runners, 1)
+
+    @property
+    def device(self) -> str:
+        """Where the evaluations' forward passes run (the RLlib learner runs on the CPU)."""
+        return 'cpu'
+
+    @property
+    def time_limit(self) -> float:
+        return 60.0 * self.minutes
+
+    def to_dict(self) -> dict:
+        return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
+                for k, v in dataclasses.asdict(self).items() if k not in EXCLUDED}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The command's options (see docs/rllib.md)."""
-    parser.add_argument('--config', default='MATE-4v4-9', help='preset name or YAML/JSON path (default MATE-4v4-9)')
-    parser.add_argument('--opponent', default='greedy',
-                        help="target team: greedy (default), naive, random, uniform or 'package.module:name'")
-    parser.add_argument('--iterations', type=positive_int, default=20, help='PPO iterations (default 20)')
-    parser.add_argument('--max-episode-steps', type=positive_int, default=500,
-                        help='episode length cap (default 500; the presets allow 10000)')
-    parser.add_argument('--address', default=None,
-                        help="an existing Ray cluster ('auto', 'ray://host:10001'); default: start a local Ray")
-    parser.add_argument('--num-cpus', type=positive_int, default=None, help='CPUs of the local Ray instance (default: all)')
-    parser.add_argument('--num-env-runners', type=non_negative_int, default=0,
-                        help='remote rollout workers (default 0: sample on the driver)')
-    parser.add_argument('--train-batch-size', type=positive_int, default=4000, help='env steps per iteration (default 4000)')
-    parser.add_argument('--minibatch-size', type=positive_int, default=500)
-    parser.add_argument('--epochs', type=positive_int, default=5, help='SGD passes over each batch (default 5)')
-    parser.add_argument('--lr', type=number(float, above=0), default=3e-4)
-    parser.add_argument('--hidden', type=positive_int, nargs='+', default=[256, 256], help='MLP layer sizes (default 256 256)')
-    parser.add_argument('--policy-per-camera', action='store_true',
-                        help='one policy per camera instead of one shared camera policy')
-    parser.add_argument('--seed', type=non_negative_int, default=0)
-    parser.add_argument('--checkpoint-dir', default=None, help='save the final algorithm checkpoint here')
+    """The command's options, one per field of `RLlibPPOConfig` (see docs/rllib.md)."""
+    add_options(parser, RLlibPPOConfig, exclude=EXCLUDED)
+
+
+def config_of(args: argparse.Namespace) -> RLlibPPOConfig:
+    """The config of parsed arguments; CommandError (one line) for values that do not fit together."""
+    given = {f.name: getattr(args, f.name) for f in dataclasses.fields(RLlibPPOConfig)
+             if f.init and f.name not in EXCLUDED and hasattr(args, f.name)}
+    given = {name: tuple(value) if isinstance(value, list) else value for name, value in given.items()}
+    with resolving_arguments():
+        return RLlibPPOConfig(**given)
 
 
 def run(args: argparse.Namespace, console) -> int:
-    """Train as `args` says, printing one line per iteration; 0 on success (CommandError without Ray
-    or for a bad config or opponent, checked before Ray starts)."""
+    """Train as `args` say; 0 when done (or already done), 130 when stopped by a signal (resumable). The config,
+    the game and the run directory's checkpoint are checked before Ray starts; without Ray, CommandError says how
+    to install it."""
+    config = config_of(args)
+    with resolving_arguments():   # the game: a bad --config lists the presets
+        spec = config.policy_spec(action='grid', network='mlp', hidden=config.hidden, activation=config.activation,
+                                  algo=ALGO)
     try:
         from . import rllib
     except ImportError as exc:
         raise CommandError(f"needs Ray RLlib ({exc}); install the optional extra: pip install 'mate[rllib]' "
                            '(see docs/rllib.md for the versions)') from None
+    from ..learn.checkpoint import CheckpointError, load_checkpoint
+    from ..learn.command import already_done
 
-    def progress(summary: dict) -> None:
-        returns = ', '.join(f'{policy} {value:,.0f}' for policy, value in sorted(summary['returns'].items()))
-        console.print(f"iter {summary['iteration']:>3}  steps {summary['env_steps']:>9,}  return {returns or '-'}  "
-                      f"coverage {summary['coverage_rate']:.3f}  delivered {summary['delivered_cargoes']:.1f}  "
-                      f"{summary['seconds']:.1f}s", soft_wrap=True)
-
-    env_config = {'config': args.config, 'overrides': {'max_episode_steps': args.max_episode_steps},
-                  'team': 'camera', 'opponent': args.opponent}
-    with resolving_arguments():   # the config and the opponent, here rather than inside Ray's workers
-        rllib.MateMultiAgentEnv(env_config).close()
-    where = f'Ray cluster at {args.address}' if args.address else 'a local Ray instance'
-    console.print(f'PPO cameras vs {args.opponent} targets on {args.config} ({where}), {args.iterations} iterations',
-                  soft_wrap=True)
-    summaries = rllib.train(env_config, args.iterations, address=args.address, num_cpus=args.num_cpus,
-                            checkpoint_dir=args.checkpoint_dir, progress=progress,
-                            policy_per_agent=args.policy_per_camera, num_env_runners=args.num_env_runners,
-                            train_batch_size=args.train_batch_size, minibatch_size=args.minibatch_size,
-                            num_epochs=args.epochs, lr=args.lr, hidden=tuple(args.hidden), seed=args.seed)
-    if summaries and summaries[-1].get('checkpoint'):
-        console.print(f"checkpoint saved to {summaries[-1]['checkpoint']}")
+    if config.run_dir is None:
+        config.run_dir = f'runs/{ALGO}-{config.team}-seed{config.seed}'
+    checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
+    resuming = checkpoint_path.exists() and not config.fresh
+    if resuming:
+        try:
+            done = already_done(load_checkpoint(checkpoint_path), config)
+        except CheckpointError as exc:
+            raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
+        if done:
+            reason, flag = done
+            console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
+            _absolute_metric(config, console)
+            return 0
+    where = f'Ray cluster at {config.address}' if config.address else 'a local Ray instance'
+    console.print(f'training RLlib PPO {config.team}s on {spec.env_id} (MLP {" ".join(map(str, spec.hidden))}, '
+                  f'{spec.choices} grid moves, frame skip {spec.frame_skip}, {config.num_envs} envs, {config.steps:,} '
+                  f'decision steps, {where}) -> {config.run_dir}', soft_wrap=True, highlight=False)
+    if resuming:
+        console.print(f'resuming from {checkpoint_path}')
+    try:
+        result = rllib.train_run(config, console=console)
+    except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
+        raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
+    row = result.last_row
+    if result.interrupted:
+        console.print(f'stopped at iteration {result.iteration} ({result.env_steps:,} decision steps), checkpoint '
+                      f'written; run the same command again to continue from {checkpoint_path}', soft_wrap=True)
+        return 130
+    if not result.complete:
+        console.print(f'stopped after --iterations {config.iterations} ({result.env_steps:,} of {config.steps:,} '
+                      'decision steps); run the command again with more --iterations (or without) to continue',
+                      soft_wrap=True)
+        return 0
+    console.print(f"done: {result.env_steps:,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
+                  f"episode return {row.get('episode_return', float('nan')):.1f}; final policy "
+                  f"{Path(config.run_dir) / 'final.pt'}", soft_wrap=True)
     return 0
+
+
+def _absolute_metric(config: RLlibPPOConfig, console) -> None:
+    """A complete run with an evaluation protocol whose absolute metric is missing (the process stopped between its
+    last checkpoint and the end): play it now."""
+    run_dir = Path(config.run_dir)
+    if not config.eval_every or (run_dir / 'absolute.json').exists() or not (run_dir / 'best-eval.pt').exists():
+        return
+    from ..learn.checkpoint import load_checkpoint, read_spec
+    from ..learn.evaluation import Evaluator
+
+    path = run_dir / 'best-eval.pt'
+    evaluator = Evaluator(run_dir, read_spec(load_checkpoint(path), path), config.eval_every, config.eval_episodes,
+                          config.resolved_horizon)
+    record = evaluator.absolute()
+    console.print(f'absolute metric (best evaluated policy, {len(record["episodes"])} held-out episodes): '
+                  f'{record["metric"]} {record["mean"]:.3f} -> {run_dir / "absolute.json"}', soft_wrap=True)

@@ -35,6 +35,10 @@ def test_every_setting_is_a_valid_command_line(tmp_path):
                 args = parser.parse_args(list(command))
                 if command[0] == 'train':
                     trainer_parser(args.algo)[0].parse_args(args.options)
+                elif command[0] == 'rllib-train':        # its settings' own checks (no Ray needed)
+                    from mate.integrations.rllib_train import config_of
+
+                    config_of(args)
 
 
 def test_training_seeds_never_reach_the_evaluation_seeds(tmp_path):
@@ -157,7 +161,8 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
         scaled = (np.array(entry['values']) - random) / (greedy - random)
         assert entry['normalised_greedy']['point'] == pytest.approx(iqm(scaled))
     assert set(task['improvement']) == {'MAPPO > IPPO'}
-    claims = {claim['better'] + ' > ' + claim['worse']: claim for claim in results['claims']}
+    agree = results['claims'][-1]
+    claims = {claim['better'] + ' > ' + claim['worse']: claim for claim in results['claims'][:-1]}
     assert set(claims) == {'MAPPO > IPPO', 'MAPPO > random'}
     pair = claims['MAPPO > IPPO']
     assert (pair['point'], pair['low'], pair['high']) == pytest.approx(
@@ -166,6 +171,9 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
         expected = 'confirmed' if claim['low'] > (0.5 if claim is pair else random) else \
             'refuted' if claim['high'] < (0.5 if claim is pair else random) else 'unresolved'
         assert claim['verdict'] == expected
+    assert (agree['text'], agree['low'], agree['high']) == ('(pipeline check) MAPPO and IPPO agree', pair['low'],
+                                                            pair['high'])
+    assert agree['verdict'] == ('consistent' if pair['low'] <= 0.5 <= pair['high'] else 'differ')
     markdown = (report / 'results.md').read_text()
     assert '| MAPPO | 3 |' in markdown and '*upper-bound* (reference)' in markdown
     assert f'| (pipeline check) MAPPO beats IPPO | MATE-2v4-0 cameras | **{pair["verdict"]}** |' in markdown
