@@ -29,7 +29,6 @@ from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
 from ..env import MultiAgentTracking, agent_action
 from ..learn.spec import PolicySpec, SpecError
-from .rllib_train import ALGO
 
 __all__ = ['ENV_NAME', 'MateMultiAgentEnv', 'MateMetricsCallback', 'register', 'ppo_config', 'policy_mapping_fn',
            'train']
@@ -662,9 +661,8 @@ def train_run(config, console=None, callback=None):
     from ..learn.run import Run
     from .rllib_export import actor_state_of_module
 
-    spec = config.policy_spec(action='grid', network='mlp', hidden=config.hidden, activation=config.activation,
-                              algo=ALGO)
-    run = Run.of(config, ALGO, spec, callback=callback, console=console)
+    spec = config.witness_spec()
+    run = Run.of(config, spec.algo, spec, callback=callback, console=console)
     state = run.resume()
     if state is not None and 'rllib_state' not in state:
         raise CheckpointError(f'checkpoint {str(run.checkpoint_path)!r} holds no RLlib state (written by another '

@@ -26,6 +26,7 @@ from typing import Literal
 from ..arguments import CommandError, resolving_arguments
 from ..learn.envs import TeamEnvConfig
 from ..learn.evaluation import EVALUATION_SEEDS
+from ..learn.run_config import RunConfig
 from ..options import add_options, option
 
 __all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
@@ -33,30 +34,22 @@ __all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
 ALGO = 'rllib-ppo'
 """The algorithm name of `mate rllib-train` runs (their spec's `algo`; their default directory runs/rllib-ppo-...)."""
 
-EXCLUDED = ('hrl', 'memory', 'velocity', 'full_observability', 'credit')
-"""`TeamEnvConfig` options that the RLlib run does not offer (flat grid moves of an MLP policy, team rewards)."""
+EXCLUDED = ('hrl', 'memory', 'velocity', 'full_observability', 'credit', 'device')
+"""`TeamEnvConfig` and `RunConfig` options that the RLlib run does not offer (flat grid moves of an MLP policy, team
+rewards, the learner on the CPU)."""
 
 
 @dataclasses.dataclass
-class RLlibPPOConfig(TeamEnvConfig):
-    """Settings of a `mate rllib-train` run: the team env's options (as `mate train`'s), the run's (as `mate train`'s
+class RLlibPPOConfig(RunConfig, TeamEnvConfig):
+    """Settings of a `mate rllib-train` run: the team env's options and the run's (as `mate train`'s: `TeamEnvConfig`,
     `RunConfig`), Ray's, then RLlib PPO's hyper-parameters (defaults: the paper's RLlib settings, spec training.md
     §1.6, with mate's MLP actor of 256 256)."""
 
-    # ---- the run (mate.learn.run.RunConfig's meaning)
-    steps: int = option(2_000_000, 'decision steps in total (summed over the envs), as RLlib counts', minimum=1)
-    minutes: float = option(0.0, 'also stop after this many minutes of training (resumed sessions included); '
-                                 '0: no time limit', minimum=0)
+    # ---- the run (mate.learn.run.RunConfig), where it differs
     threads: int = option(0, 'torch threads of the driver (the learner, and the env runner when '
                              '--num-env-runners is 0); 0: torch\'s default', minimum=0)
+    device: str = option('cpu', 'where the evaluations\' forward passes run (the RLlib learner runs on the CPU)')
     run_dir: str | None = option(None, 'output directory; None: runs/rllib-ppo-TEAM-seedN')
-    fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
-    progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
-    checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
-    eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
-                                '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
-                             minimum=0)
-    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1)
     iterations: int | None = option(None, 'also stop after this many iterations in all (the run is then not '
                                           'complete: no final.pt or absolute.json until it goes on)', minimum=1)
     # ---- Ray
@@ -95,6 +88,7 @@ class RLlibPPOConfig(TeamEnvConfig):
 
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
+        RunConfig.__post_init__(self)
         if self.activation not in ('tanh', 'relu'):
             raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
         for name in ('lr_schedule', 'entropy_schedule'):
@@ -121,18 +115,12 @@ class RLlibPPOConfig(TeamEnvConfig):
         """Games each env runner plays (RLlib num_envs_per_env_runner)."""
         return self.num_envs // max(self.num_env_runners, 1)
 
-    @property
-    def device(self) -> str:
-        """Where the evaluations' forward passes run (the RLlib learner runs on the CPU)."""
-        return 'cpu'
-
-    @property
-    def time_limit(self) -> float:
-        return 60.0 * self.minutes
-
     def to_dict(self) -> dict:
-        return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
-                for k, v in dataclasses.asdict(self).items() if k not in EXCLUDED}
+        return {k: v for k, v in super().to_dict().items() if k not in EXCLUDED}
+
+    def witness_spec(self):
+        """The `PolicySpec` of the run's policies: the team's view, 25 grid moves, the MLP of `hidden`, algo ALGO."""
+        return self.policy_spec(action='grid', network='mlp', hidden=self.hidden, activation=self.activation, algo=ALGO)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -155,30 +143,21 @@ def run(args: argparse.Namespace, console) -> int:
     to install it."""
     config = config_of(args)
     with resolving_arguments():   # the game: a bad --config lists the presets
-        spec = config.policy_spec(action='grid', network='mlp', hidden=config.hidden, activation=config.activation,
-                                  algo=ALGO)
+        spec = config.witness_spec()
     try:
         from . import rllib
     except ImportError as exc:
         raise CommandError(f"needs Ray RLlib ({exc}); install the optional extra: pip install 'mate[rllib]' "
                            '(see docs/rllib.md for the versions)') from None
-    from ..learn.checkpoint import CheckpointError, load_checkpoint
-    from ..learn.command import already_done
+    from ..learn.checkpoint import CheckpointError
+    from ..learn.command import resumes
 
     if config.run_dir is None:
         config.run_dir = f'runs/{ALGO}-{config.team}-seed{config.seed}'
     checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
-    resuming = checkpoint_path.exists() and not config.fresh
-    if resuming:
-        try:
-            done = already_done(load_checkpoint(checkpoint_path), config)
-        except CheckpointError as exc:
-            raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
-        if done:
-            reason, flag = done
-            console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
-            _absolute_metric(config, console)
-            return 0
+    resuming = resumes(config, console)
+    if resuming is None:
+        return 0
     where = f'Ray cluster at {config.address}' if config.address else 'a local Ray instance'
     console.print(f'training RLlib PPO {config.team}s on {spec.env_id} (MLP {" ".join(map(str, spec.hidden))}, '
                   f'{spec.choices} grid moves, frame skip {spec.frame_skip}, {config.num_envs} envs, {config.steps:,} '
@@ -203,20 +182,3 @@ def run(args: argparse.Namespace, console) -> int:
                   f"episode return {row.get('episode_return', float('nan')):.1f}; final policy "
                   f"{Path(config.run_dir) / 'final.pt'}", soft_wrap=True)
     return 0
-
-
-def _absolute_metric(config: RLlibPPOConfig, console) -> None:
-    """A complete run with an evaluation protocol whose absolute metric is missing (the process stopped between its
-    last checkpoint and the end): play it now."""
-    run_dir = Path(config.run_dir)
-    if not config.eval_every or (run_dir / 'absolute.json').exists() or not (run_dir / 'best-eval.pt').exists():
-        return
-    from ..learn.checkpoint import load_checkpoint, read_spec
-    from ..learn.evaluation import Evaluator
-
-    path = run_dir / 'best-eval.pt'
-    evaluator = Evaluator(run_dir, read_spec(load_checkpoint(path), path), config.eval_every, config.eval_episodes,
-                          config.resolved_horizon)
-    record = evaluator.absolute()
-    console.print(f'absolute metric (best evaluated policy, {len(record["episodes"])} held-out episodes): '
-                  f'{record["metric"]} {record["mean"]:.3f} -> {run_dir / "absolute.json"}', soft_wrap=True)

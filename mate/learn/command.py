@@ -83,18 +83,10 @@ def run(args: argparse.Namespace, console) -> int:
     if config.run_dir is None:
         config.run_dir = f'runs/{name}-{config.team}-seed{config.seed}'
     checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
-    resuming = checkpoint_path.exists() and not config.fresh
-    if resuming:
-        try:
-            done = already_done(load_checkpoint(checkpoint_path), config)
-        except CheckpointError as exc:
-            raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
-        if done:
-            reason, flag = done
-            console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
-            _absolute_metric(config, console)
-            return 0
-    elif getattr(config, 'init_from', None):   # a bad file fails now, before the envs are built
+    resuming = resumes(config, console)
+    if resuming is None:
+        return 0
+    if not resuming and getattr(config, 'init_from', None):   # a bad file fails now, before the envs are built
         try:
             load_checkpoint(config.init_from)
         except CheckpointError as exc:
@@ -149,6 +141,27 @@ def already_done(saved: dict, config) -> tuple[str, str] | None:
         return f'{steps:,} decision steps >= --steps {config.steps:,}', '--steps'
     if config.minutes and seconds >= config.time_limit:
         return f'{seconds / 60:.3g} minutes of training >= --minutes {config.minutes:g}', '--minutes'
+    return None
+
+
+def resumes(config, console) -> bool | None:
+    """Whether the run of `config` (its `run_dir` set) goes on from its checkpoint; None when the checkpoint's run is
+    already done (said on `console`, and a missing absolute metric played). CommandError for an unreadable
+    checkpoint."""
+    from .checkpoint import CheckpointError, load_checkpoint
+
+    checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
+    if not checkpoint_path.exists() or config.fresh:
+        return False
+    try:
+        done = already_done(load_checkpoint(checkpoint_path), config)
+    except CheckpointError as exc:
+        raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
+    if done is None:
+        return True
+    reason, flag = done
+    console.print(f'run already done: {reason} (use --fresh to start over or raise {flag})', soft_wrap=True)
+    _absolute_metric(config, console)
     return None
 
 

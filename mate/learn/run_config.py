@@ -1,0 +1,44 @@
+"""`RunConfig`: a training run's budget, machine and files, the options every trainer takes (no torch here, so that
+command-line parsers and configs load without it)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..options import option
+
+__all__ = ['RunConfig']
+
+
+@dataclasses.dataclass
+class RunConfig:
+    """A training run's budget, machine and files: options every trainer takes."""
+
+    steps: int = option(2_000_000, 'decision steps in total (summed over the envs), as RLlib counts', minimum=1)
+    minutes: float = option(0.0, 'also stop after this many minutes of training (resumed sessions included); '
+                                 '0: no time limit', minimum=0)
+    threads: int = option(0, 'torch threads of the updates; 0: every core (collection always uses 1)', minimum=0)
+    device: str = option('auto', "where networks, rollouts and updates run: auto (a GPU when there is one), cpu, "
+                                 'cuda or cuda:N; the simulation always runs on the CPU')
+    run_dir: str | None = option(None, 'output directory; None: runs/NAME-TEAM-seedN')
+    fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
+    progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
+    checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
+    eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
+                                '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
+                             minimum=0)
+    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1)
+
+    def __post_init__(self) -> None:
+        from .device import parse_device
+
+        parse_device(self.device)          # a bad name is refused now, with the valid forms
+
+    @property
+    def time_limit(self) -> float:
+        """The time budget in seconds (0: none)."""
+        return 60.0 * self.minutes
+
+    def to_dict(self) -> dict:
+        return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
+                for k, v in dataclasses.asdict(self).items()}
