@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 from typing import Literal
 
 from ..arguments import CommandError, resolving_arguments
@@ -149,12 +148,10 @@ def run(args: argparse.Namespace, console) -> int:
     except ImportError as exc:
         raise CommandError(f"needs Ray RLlib ({exc}); install the optional extra: pip install 'mate[rllib]' "
                            '(see docs/rllib.md for the versions)') from None
-    from ..learn.checkpoint import CheckpointError
-    from ..learn.command import resumes
+    from ..learn.command import resumes, train_and_report
 
     if config.run_dir is None:
         config.run_dir = f'runs/{ALGO}-{config.team}-seed{config.seed}'
-    checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     resuming = resumes(config, console)
     if resuming is None:
         return 0
@@ -162,23 +159,4 @@ def run(args: argparse.Namespace, console) -> int:
     console.print(f'training RLlib PPO {config.team}s on {spec.env_id} (MLP {" ".join(map(str, spec.hidden))}, '
                   f'{spec.choices} grid moves, frame skip {spec.frame_skip}, {config.num_envs} envs, {config.steps:,} '
                   f'decision steps, {where}) -> {config.run_dir}', soft_wrap=True, highlight=False)
-    if resuming:
-        console.print(f'resuming from {checkpoint_path}')
-    try:
-        result = rllib.train_run(config, console=console)
-    except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
-        raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
-    row = result.last_row
-    if result.interrupted:
-        console.print(f'stopped at iteration {result.iteration} ({result.env_steps:,} decision steps), checkpoint '
-                      f'written; run the same command again to continue from {checkpoint_path}', soft_wrap=True)
-        return 130
-    if not result.complete:
-        console.print(f'stopped after --iterations {config.iterations} ({result.env_steps:,} of {config.steps:,} '
-                      'decision steps); run the command again with more --iterations (or without) to continue',
-                      soft_wrap=True)
-        return 0
-    console.print(f"done: {result.env_steps:,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
-                  f"episode return {row.get('episode_return', float('nan')):.1f}; final policy "
-                  f"{Path(config.run_dir) / 'final.pt'}", soft_wrap=True)
-    return 0
+    return train_and_report(rllib.train_run, config, console, resuming)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,7 +83,6 @@ def run(args: argparse.Namespace, console) -> int:
     name = run_name(args.algo, config)
     if config.run_dir is None:
         config.run_dir = f'runs/{name}-{config.team}-seed{config.seed}'
-    checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     resuming = resumes(config, console)
     if resuming is None:
         return 0
@@ -100,10 +100,19 @@ def run(args: argparse.Namespace, console) -> int:
                   f'{f", LSTM {spec.lstm}" if spec.lstm else ""}, {spec.action} actions, frame skip {spec.frame_skip}, '
                   f'{config.num_envs} envs, {config.steps:,} decision steps, {device}) -> {config.run_dir}',
                   soft_wrap=True, highlight=False)
+    return train_and_report(module.train, config, console, resuming)
+
+
+def train_and_report(train: Callable, config, console, resuming: bool) -> int:
+    """Run `train(config, console=console)` (a trainer's `train`, or RLlib's for `mate rllib-train`) and say how it
+    ended; the command's exit status: 0 when done (or stopped by `--iterations`), 130 when stopped by a signal."""
+    from .checkpoint import CheckpointError
+
+    checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     if resuming:
         console.print(f'resuming from {checkpoint_path}')
     try:
-        result = module.train(config, console=console)
+        result = train(config, console=console)
     except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment
         raise CommandError(f'{exc} (use --fresh or another --run-dir to start over)') from None
     row = result.last_row
@@ -111,6 +120,11 @@ def run(args: argparse.Namespace, console) -> int:
         console.print(f'stopped at iteration {result.iteration} ({result.env_steps:,} decision steps), checkpoint '
                       f'written; run the same command again to continue from {checkpoint_path}', soft_wrap=True)
         return 130
+    if not result.complete:         # `mate rllib-train --iterations`
+        console.print(f'stopped after --iterations {config.iterations} ({result.env_steps:,} of {config.steps:,} '
+                      'decision steps); run the command again with more --iterations (or without) to continue',
+                      soft_wrap=True)
+        return 0
     if config.minutes and result.env_steps < config.steps:
         console.print(f'stopped at the time limit of {config.minutes:g} minutes')
     console.print(f"done: {result.env_steps:,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
