@@ -2,7 +2,7 @@
 128 and 256 units, 3 seeds each, at equal decision budgets: learning per decision, then each final policy played
 on held-out seeds.
 
-    python scripts/width_study.py run [--steps 1000000] [--widths 64 128 256] [--seeds 0 1 2] [--out runs/width]
+    python scripts/width_study.py run [--steps N] [--widths 64 128 256] [--seeds 0 1 2] [--out runs/width]
     python scripts/width_study.py report [--out runs/width] [--json scripts/results/width-study.json]
 
 `run` trains every missing (setting, width, seed) one after the other with `mate train` (every core for the
@@ -27,11 +27,13 @@ from pathlib import Path
 import numpy as np
 
 SETTINGS = {
-    # name: (mate train arguments, the curve's column, the evaluation's metric, the evaluated team)
-    'hrl-mappo-camera-4v8-9': (['mappo', '--hrl'], 'episode_coverage', 'coverage_rate', 'camera'),
+    # name: (mate train arguments, the curve's column, the evaluation's metric, the evaluated team, decisions)
+    'hrl-mappo-camera-4v8-9': (['mappo', '--hrl'], 'episode_coverage', 'coverage_rate', 'camera', 1_000_000),
     'mappo-target-2v4-0': (['mappo', '--team', 'target'], 'episode_normalized_target_return',
-                           'normalized_target_return', 'target'),
+                           'normalized_target_return', 'target', 500_000),
 }
+"""The settings and their budgets: 1 M decisions of the HRL cameras, 500k of the targets (which learn most of what
+they learn at 1 M by then: docs/training.md), what the 2-core machine allowed in one session."""
 EVALUATION_SEEDS = 10_000
 """First seed of the held-out evaluation episodes (training seeds are the env seeds derived from 0, 1, 2)."""
 
@@ -40,15 +42,16 @@ def run_dir(out: Path, setting: str, width: int, seed: int) -> Path:
     return out / f'{setting}-w{width}-seed{seed}'
 
 
-def train(out: Path, steps: int, widths, seeds) -> None:
-    for setting, (arguments, *_) in SETTINGS.items():
+def train(out: Path, steps: int | None, widths, seeds) -> None:
+    for setting, (arguments, *_, budget) in SETTINGS.items():
         for width in widths:
             for seed in seeds:
                 folder = run_dir(out, setting, width, seed)
                 if (folder / 'final.pt').exists():
                     continue
                 command = [sys.executable, '-m', 'mate', 'train', *arguments, '--hidden', str(width), str(width),
-                           '--steps', str(steps), '--seed', str(seed), '--run-dir', str(folder), '--no-progress']
+                           '--steps', str(steps or budget), '--seed', str(seed), '--run-dir', str(folder),
+                           '--no-progress']
                 print(' '.join(command[2:]), flush=True)
                 subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
 
@@ -86,7 +89,7 @@ def evaluate(folder: Path, team: str, metric: str, episodes: int = 100) -> float
 
 def report(out: Path, widths, seeds, path: Path | None) -> dict:
     table = {}
-    for setting, (_, column, metric, team) in SETTINGS.items():
+    for setting, (_, column, metric, team, _) in SETTINGS.items():
         for width in widths:
             cells = dict(curve={25: [], 50: [], 100: []}, evaluation=[], decisions=None)
             for seed in seeds:
@@ -113,7 +116,7 @@ def report(out: Path, widths, seeds, path: Path | None) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('command', choices=('run', 'report'))
-    parser.add_argument('--steps', type=int, default=1_000_000)
+    parser.add_argument('--steps', type=int, default=None, help="decisions per run (default: the setting's budget)")
     parser.add_argument('--widths', type=int, nargs='+', default=[64, 128, 256])
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--out', type=Path, default=Path('runs/width'))
