@@ -45,7 +45,7 @@ from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from .experiments import Experiment, Setting
 
 __all__ = ['BENCHMARK_FORMAT', 'Job', 'SEED_STRIDE', 'horizon_of', 'parse_seeds', 'plan', 'read_manifest',
-           'run_jobs', 'run_command', 'stop_children']
+           'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -198,8 +198,8 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
                 break
             f.write(f'$ mate {" ".join(command)}\n')
             f.flush()
-            child = subprocess.Popen([sys.executable, '-m', 'mate', *command], stdout=f, stderr=subprocess.STDOUT,
-                                     start_new_session=True)
+            child = subprocess.Popen(tied_to_parent([sys.executable, '-m', 'mate', *command]), stdout=f,
+                                     stderr=subprocess.STDOUT, start_new_session=True)
             with _CHILDREN_LOCK:
                 _CHILDREN.add(child)
             try:
@@ -210,6 +210,27 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
             if returncode:
                 break
     return dict(returncode=returncode, seconds=time.perf_counter() - start)
+
+
+_TIE = ('import ctypes, os, sys\n'
+        'parent = int(sys.argv[1])\n'
+        'ctypes.CDLL(None, use_errno=True).prctl(1, 9)\n'        # PR_SET_PDEATHSIG: SIGKILL when the parent dies
+        'if os.getppid() != parent:\n'                           # (it died before the line above)
+        '    sys.exit(137)\n'
+        'os.execv(sys.argv[2], sys.argv[2:])\n')
+
+
+def tied_to_parent(argv: list[str]) -> list[str]:
+    """The command line `argv` made to die with this process (Linux; elsewhere `argv` as it is).
+
+    A job's command runs in its own session (so that a Ctrl-C reaches it only through `stop_children`); if the
+    process running the job dies without stopping it (a Ray worker killed, its raylet lost while the machine
+    lives on), the command would go on as an orphan while Ray runs the job again, two processes writing one run
+    directory. Tied, it is killed with its parent (SIGKILL: it resumes from its last checkpoint, like a lost
+    node's job), through a small launcher that asks the kernel for it and then replaces itself with `argv`."""
+    if not sys.platform.startswith('linux'):
+        return list(argv)
+    return [sys.executable, '-c', _TIE, str(os.getpid()), *argv]
 
 
 def _wait(child: subprocess.Popen) -> int:
@@ -293,7 +314,7 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
 
     runner.run([(run_command, dict(commands=job.commands, log=str(job.dir / 'job.log'),
                                    outputs=[str(p) for p in job.outputs] if job.kind == 'reference' else []))
-                for job in todo], done)
+                for job in todo], done, names=[job.name for job in todo])
     return failed
 
 

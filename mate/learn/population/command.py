@@ -40,7 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              'the jobs one after the other in this process (default: 2, or 1 on a one-core machine)')
     parser.add_argument('--device', default='auto',
                         help="where the best responses' networks train: auto (a GPU when there is one), cpu, cuda or "
-                             'cuda:N (the payoff entries play on the CPU); default auto')
+                             'cuda:N (the payoff entries play there too, on the CPU with auto); with --address, cuda '
+                             'makes every job ask Ray for one GPU; default auto')
     parser.add_argument('--address', default=None,
                         help="run the jobs as Ray tasks: 'local' (a local Ray instance), 'auto' or 'ray://HOST:PORT' "
                              '(an existing cluster)')
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace, console) -> int:
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
     from ...config import ConfigError
-    from ...runners import RunnerError
+    from ...runners import JobFailed, RunnerError
 
     settings = PSROSettings(solver=args.solver, config=args.config, iterations=args.iterations, br_steps=args.br_steps,
                             eval_episodes=args.eval_episodes, eval_steps=args.eval_steps, seed=args.seed,
@@ -76,18 +77,24 @@ def run(args: argparse.Namespace, console) -> int:
     workers = args.workers or min(2, os.cpu_count() or 1)
     from ..device import resolve_device
 
-    with resolving_arguments():
-        resolve_device(args.device)       # CUDA asked for and absent: one line, before any job starts
+    on_gpus = bool(args.address) and str(args.device).startswith('cuda')
+    if not on_gpus:     # (on a cluster the GPUs are the workers': the runner checks that the cluster has some)
+        with resolving_arguments():
+            resolve_device(args.device)       # CUDA asked for and absent: one line, before any job starts
     previous = signal.signal(signal.SIGTERM, _interrupt)   # a scheduler's SIGTERM stops like Ctrl-C (resumable)
     try:
         env_of(settings.config)   # a bad preset or file fails before any worker or Ray starts
-        runner = RayRunner(None if args.address == 'local' else args.address) if args.address else LocalRunner(workers)
+        runner = RayRunner(None if args.address == 'local' else args.address, task_gpus=1 if on_gpus else 0) \
+            if args.address else LocalRunner(workers)
         where = f'Ray ({args.address})' if args.address else f'{workers} local process{"es" if workers > 1 else ""}'
         console.print(f'population run: {settings.solver} on {settings.config}, {settings.iterations} iterations, '
                       f'{settings.br_steps:,} decision steps per best response, {settings.eval_episodes} episodes per '
                       f'payoff entry, on {where} -> {out}', soft_wrap=True)
         state = run_psro(settings, out, runner, say=lambda line: console.print(line, soft_wrap=True, highlight=False),
                          device=args.device)
+    except JobFailed as exc:
+        raise CommandError(f'{exc}; every finished job is saved in {out}: fix the cause and run the same command '
+                           'again to resume') from None
     except (PSROError, ConfigError, RunnerError) as exc:
         raise CommandError(str(exc)) from None
     except KeyboardInterrupt:

@@ -13,6 +13,7 @@ population members always sample their actions (spec training.md §5.1: they are
 
 from __future__ import annotations
 
+import csv
 import math
 import tempfile
 import time
@@ -96,12 +97,33 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
     envs = config.make_env(policy_spec(config), opponent=opponent, camera_reward='mixed' if camera else 'coverage')
     start = time.perf_counter()
     run = train(config, envs=envs)
-    row = run.last_row
+    row = run.last_row or _last_logged_row(run_dir)   # nothing trained now: a rerun of a finished job
     chosen = 'best' if (run_dir / 'best.pt').exists() else 'final'
     return dict(policy=(run_dir / f'{chosen}.pt').read_bytes() if not run.interrupted else b'', chosen=chosen,
                 steps=int(run.env_steps), seconds=time.perf_counter() - start, interrupted=run.interrupted,
                 **{key: float(row.get(key, math.nan)) for key in
                    ('episode_return', 'episode_coverage', 'episode_normalized_target_return')})
+
+
+def _last_logged_row(run_dir: Path) -> dict:
+    """The last row of a training run's `progress.csv` as numbers ({} when there is none): the summary of a run that
+    was already complete when its job ran again (a retry after its result was lost with a node, or a resumed
+    population run killed between a best response's end and its saving). The CSV holds each float's repr, so the
+    numbers are the ones the first run returned."""
+    path = run_dir / 'progress.csv'
+    if not path.exists():
+        return {}
+    with open(path, newline='') as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return {}
+    values = {}
+    for key, text in rows[-1].items():
+        try:
+            values[key] = float(text)
+        except (TypeError, ValueError):
+            continue
+    return values
 
 
 def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[int, int]], episodes: int,
@@ -110,7 +132,9 @@ def payoff_entries(env: dict, cameras: list, targets: list, pairs: list[tuple[in
     seeds seed .. seed + episodes - 1 (the same seeds for every pairing), all in one vector env (the policies'
     forward passes on `device`).
 
-    `cameras` / `targets` are the pools' payloads (only the members named in `pairs` are built).
+    `cameras` / `targets` are the pools' payloads (only the members named in `pairs` are built: the others may be
+    None). An entry depends only on its pairing, its episodes and `seed` (the members' teams are seeded by their pool
+    index, each pairing's rows by its env seeds) when `pairs` holds one pairing, as `mate psro` sends them.
     Returns one dict per pair, in order: k, l, `payoff` (mean normalised target-team return, the target's
     utility U_T), its standard error `payoff_sem`, `coverage`, `real_coverage`, `length` (means) and
     `env_steps_per_second`.

@@ -6,16 +6,20 @@
       best responses   camera BR (HRL-MAPPO, mixed reward) against the target mixture sigma_T and target BR
                        (MAPPO) against the camera mixture sigma_C, each warm-started from its side's newest
                        policy (from scratch at i = 1); two independent jobs (`jobs.best_response`)
-      payoff entries   only the missing (camera k, target l) pairs, E episodes each (`jobs.payoff_entries`)
-      exploitability   of the previous sigma over the extended pools (paper Eq. 2; both terms and the mean)
+      payoff entries   only the missing (camera k, target l) pairs, E episodes each, one job per entry
+                       (`jobs.payoff_entries`)
+      exploitability   of the previous sigma over the extended pools (paper Eq. 2; both terms and the mean), and
+                       with the best responses re-played on fresh seeds (one job per pairing)
       meta-game        sigma_C, sigma_T = solver(payoff) on the camera team's utility U_C = -U_T
 
-Everything lives in the run directory (`state.json`, rewritten atomically after every stage: settings,
-pools, the `MATRICES`, per iteration both meta-strategies, the camera value and the exploitability, and
-the best responses' training summaries; `players/`
-with each side's policies and their training runs), so a killed run started again with the same
-command resumes at the stage it was in (an interrupted best-response training resumes from its own
-last checkpoint). Spec: training.md §5.
+Everything lives in the run directory (`state.json`, rewritten atomically after every finished job and stage:
+settings, pools, the `MATRICES`, the fresh-seed entries of the iteration in progress, per iteration both
+meta-strategies, the camera value and the exploitability, and the best responses' training summaries; `players/`
+with each side's policies and their training runs; `jobs.jsonl`, the log of jobs), so a killed run started again
+with the same command resumes at the stage it was in without redoing a finished job (an interrupted best-response
+training resumes from its own last checkpoint). Jobs are seeded by what they are (a best response by its iteration
+and side, an entry by its episodes' env seeds), so the state does not depend on where they ran, in which order,
+or how often a lost one was run again. Spec: training.md §5.
 """
 
 from __future__ import annotations
@@ -33,8 +37,8 @@ from ...runners import LocalRunner, RayRunner
 from ..evaluation import EVALUATION_SEEDS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
-__all__ = ['LocalRunner', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT', 'env_of', 'load_state', 'member_payload',
-           'run_psro']
+__all__ = ['JOB_LOG', 'LocalRunner', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT', 'env_of', 'load_state',
+           'member_payload', 'run_psro']
 
 STATE_FORMAT = 'mate.psro/1'
 SIDES = ('camera', 'target')
@@ -73,11 +77,12 @@ class PSROSettings:
             if not isinstance(value, int) or value < minimum:
                 raise PSROError(f'{name} must be an integer >= {minimum}, got {value!r}')
         if self.eval_steps is not None and (not isinstance(self.eval_steps, int) or self.eval_steps < 1):
-            raise PSROError(f'eval_steps must be a positive integer (or None: the preset\'s limit), got {self.eval_steps!r}')
+            raise PSROError('eval_steps must be a positive integer (or None: the preset\'s limit), got '
+                            f'{self.eval_steps!r}')
         last_game = self.best_response_seed(self.iterations, 'target') + self.num_envs - 1
         if last_game >= FRESH_SEEDS:
-            raise PSROError(f'seed {self.seed} with {self.iterations} iterations and {self.num_envs} envs trains on env '
-                            f'seeds up to {last_game:,}, into the held-out seeds from {FRESH_SEEDS:,}; use seed <= '
+            raise PSROError(f'seed {self.seed} with {self.iterations} iterations and {self.num_envs} envs trains on '
+                            f'env seeds up to {last_game:,}, into the held-out seeds from {FRESH_SEEDS:,}; use seed <= '
                             f'{(FRESH_SEEDS - self.num_envs - 2 * self.iterations - 1) // 1000}')
         return self
 
@@ -144,9 +149,17 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
              device: str = 'auto') -> dict:
     """Run (or resume) the population run of `settings` in the directory `out`; returns the final state.
 
-    `runner`: `LocalRunner` (default: in this process) or `RayRunner`. `say(line)` receives one line per
-    stage. `device`: where the best responses train (`--device`). PSROError if `out` holds a run with other
-    settings. KeyboardInterrupt when a signal stopped it (every finished stage is saved: run it again).
+    `runner`: `LocalRunner` (default: in this process), `ThreadRunner` or `RayRunner` (`mate.runners`). `say(line)`
+    receives one line per stage. `device`: where the best responses train (`--device`). PSROError if `out` holds a
+    run with other settings. KeyboardInterrupt when a signal stopped it (every finished stage is saved: run it
+    again). `mate.runners.JobFailed` naming the jobs that raised (the other jobs of the stage finish and are saved
+    first; the same call resumes once the cause is fixed).
+
+    The result depends on the settings only, not on the runner: each job is one best response or one payoff
+    entry, seeded by what it is, so a process pool, a Ray cluster that loses nodes on the way, or a run resumed
+    after a kill all end with the same state. `DIR/jobs.jsonl` logs every finished or failed job (one JSON object
+    a line: `job` name, `iteration`, `status`, its own `seconds`, the `wall` seconds from submission to result,
+    the `fetch` seconds of its shared arguments, the Ray `node`).
     """
     from . import jobs
 
@@ -159,7 +172,7 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
         state = dict(format=STATE_FORMAT, settings=dataclasses.asdict(settings),
                      pools=dict(camera=[settings.initial_cameras], target=[settings.initial_targets]),
                      payoff=[[None]], payoff_sem=[[None]], coverage=[[None]], real_coverage=[[None]], iterations=[],
-                     best_responses=[])
+                     best_responses=[], fresh_entries={})
         _save_state(out, state)
     else:
         stored = PSROSettings(**state['settings'])
@@ -169,50 +182,140 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
             raise PSROError(f'{str(out)!r} holds a run with other settings ({details}); use another directory, '
                             'or the same settings to resume it')
         state['settings']['iterations'] = settings.iterations
+        state.setdefault('fresh_entries', {})
         done = len(state['iterations'])
         if done:
             say(f'resuming {out}: {done - 1} of {settings.iterations} iterations done')
-    runner = runner or LocalRunner(1)
+    loop = _Loop(state, settings, env, out, runner or LocalRunner(1), jobs, say, device)
     try:
         while len(state['iterations']) <= settings.iterations:
-            _iteration(state, settings, env, out, runner, jobs, say, device)
+            loop.iteration()
     finally:
-        runner.close()
+        loop.runner.close()
     return state
 
 
-def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, say, device: str) -> None:
-    i = len(state['iterations'])
-    started = time.perf_counter()
-    pools = state['pools']
-    record = dict(iteration=i)
+JOB_LOG = 'jobs.jsonl'
+"""The run directory's log of jobs, one JSON object a line (appended to by every session)."""
+ENTRY_GPU_SHARE = 0.125
+"""The share of a GPU a payoff entry asks a Ray cluster for when the jobs run on GPUs (`--device cuda`): its forward
+passes are small batches, so eight entries share a GPU while a best response has one to itself."""
 
-    # ---- 1. best responses (iteration i adds member i to each pool)
-    if i >= 1:
+
+@dataclasses.dataclass
+class _Loop:
+    """One session of a population run: the state, and how its jobs are sent and logged."""
+
+    state: dict
+    settings: PSROSettings
+    env: dict
+    out: Path
+    runner: object
+    jobs: object
+    say: Callable[[str], None]
+    device: str
+    shared: dict = dataclasses.field(default_factory=dict)
+
+    def payload(self, member: str):
+        """The job argument of a pool member: its payload, shared through the runner once per session (Ray: one
+        copy in the object store, fetched once per node)."""
+        if member not in self.shared:
+            value = member_payload(member, self.out)
+            self.shared[member] = self.runner.share(value) if isinstance(value, bytes) else value
+        return self.shared[member]
+
+    def members(self, side: str, wanted) -> list:
+        """The `side` pool as job arguments: the payloads of the members in `wanted`, None for the others (a job
+        builds only the members it plays)."""
+        wanted = set(int(j) for j in wanted)
+        return [self.payload(member) if j in wanted else None for j, member in enumerate(self.state['pools'][side])]
+
+    def run(self, job_list: list, names: list[str], done: Callable[[int, object], None], iteration: int,
+            gpu_share: float = 1.0) -> None:
+        """Run `job_list` on the runner, logging each job in `DIR/jobs.jsonl` once it is saved (`done`, which may
+        return another status than 'done') or failed."""
+
+        def finished(index, result):
+            status = done(index, result)
+            self.log(names[index], iteration, status or 'done', index)
+
+        def failed(name, reason):
+            self.log(name, iteration, 'failed', None, reason=reason)
+            self.say(f'{name} failed: {reason}; the run stops once the other jobs of this stage have finished')
+
+        self.runner.run(job_list, finished, names=names, failed=failed, gpu_share=gpu_share)
+
+    def log(self, name: str, iteration: int, status: str, index: int | None, **extra) -> None:
+        timings = getattr(self.runner, 'timings', None)
+        timing = timings[index] if index is not None and timings and index < len(timings) else None
+        record = dict(job=name, iteration=iteration, status=status, **(timing or {}), **extra,
+                      at=time.strftime('%Y-%m-%dT%H:%M:%S'))
+        with open(self.out / JOB_LOG, 'a') as f:
+            f.write(json.dumps(record) + '\n')
+
+    # ------------------------------------------------------------------ one iteration
+    def iteration(self) -> None:
+        state, settings, out, say = self.state, self.settings, self.out, self.say
+        i = len(state['iterations'])
+        started = time.perf_counter()
+        record = dict(iteration=i)
+        if i >= 1:
+            self.best_responses(i)
+        self.payoff_entries(i)
+
+        # ---- 3. exploitability of the previous meta-strategies; 4. the new meta-game
+        target_utility = np.array(state['payoff'], dtype=np.float64)
+        camera_utility = -target_utility
+        if i >= 1:
+            previous = state['iterations'][i - 1]
+            gains = exploitability(camera_utility, previous['camera_strategy'], previous['target_strategy'])
+            record['exploitability'] = dict(camera=gains['row'], target=gains['column'], mean=gains['mean'])
+            record['exploitability_fresh'] = self.fresh_exploitability(i, previous)
+        else:
+            record['exploitability'] = None
+        camera_strategy, target_strategy = meta_strategies(settings.solver, camera_utility)
+        record.update(camera_strategy=[float(x) for x in camera_strategy],
+                      target_strategy=[float(x) for x in target_strategy],
+                      camera_value=float(camera_strategy @ camera_utility @ target_strategy),
+                      seconds=time.perf_counter() - started)
+        state['iterations'].append(record)
+        state['fresh_entries'].pop(str(i), None)
+        _save_state(out, state)
+        gains, fresh = record['exploitability'], record.get('exploitability_fresh')
+        say(f'iteration {i}: exploitability '
+            + ('- (no best responses yet)' if gains is None else
+               f'{gains["mean"]:.4f} (cameras {gains["camera"]:.4f}, targets {gains["target"]:.4f}; on fresh seeds '
+               f'{fresh["mean"]:.4f})')
+            + f'; {settings.solver} meta-strategies: cameras {_fmt(camera_strategy)}, targets {_fmt(target_strategy)}')
+
+    def best_responses(self, i: int) -> None:
+        """1. The best responses of iteration i (member i of each pool), the missing ones."""
+        state, settings, out, say = self.state, self.settings, self.out, self.say
+        pools = state['pools']
         previous = state['iterations'][i - 1]
         strategies = dict(camera=previous['camera_strategy'], target=previous['target_strategy'])
         todo = [side for side in SIDES if len(pools[side]) <= i]
+        if not todo:
+            return
         job_list = []
         for side in todo:
             other = 'target' if side == 'camera' else 'camera'
-            init = member_payload(pools[side][i - 1], out) if i >= 2 and pools[side][i - 1].endswith('.pt') else None
-            job_list.append((jobs.best_response, dict(
-                team=side, env=env, opponents=[member_payload(m, out) for m in pools[other][:len(strategies[other])]],
-                weights=strategies[other], steps=settings.br_steps,
-                seed=settings.best_response_seed(i, side),
-                run_dir=str((out / 'players' / f'{side}-{i}').resolve()), init=init, num_envs=settings.num_envs,
-                device=device)))
-        if todo:
-            say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
-                f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
-
+            weights = strategies[other]
+            init = self.payload(pools[side][i - 1]) if i >= 2 and pools[side][i - 1].endswith('.pt') else None
+            opponents = self.members(other, [j for j, w in enumerate(weights) if w > 0])[:len(weights)]
+            job_list.append((self.jobs.best_response, dict(
+                team=side, env=self.env, opponents=opponents, weights=weights, steps=settings.br_steps,
+                seed=settings.best_response_seed(i, side), run_dir=str((out / 'players' / f'{side}-{i}').resolve()),
+                init=init, num_envs=settings.num_envs, device=self.device)))
+        say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
+            f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
         stopped = []
 
         def trained(index, result):
             side = todo[index]
             if result.pop('interrupted', False):   # a signal stopped it: its run directory holds its checkpoint
                 stopped.append(side)
-                return
+                return 'interrupted'
             path = Path('players') / f'{side}-{i}.pt'
             (out / path).write_bytes(result.pop('policy'))
             pools[side].append(str(path))
@@ -223,95 +326,80 @@ def _iteration(state: dict, settings: PSROSettings, env: dict, out: Path, runner
             say(f'iteration {i}: {side} best response done in {result["seconds"]:.0f} s ({result["chosen"]} '
                 f'checkpoint; {scores})')
 
-        runner.run(job_list, trained)
+        self.run(job_list, [f'the {side} best response of iteration {i}' for side in todo], trained, i)
         if stopped:
             raise KeyboardInterrupt(f'the {" and ".join(stopped)} best response of iteration {i} stopped by a signal')
 
-    # ---- 2. the missing payoff entries
-    m, n = len(pools['camera']), len(pools['target'])
-    for key in MATRICES:
-        state[key] = _grow(state.get(key, []), m, n)
-    missing = [(k, l) for k in range(m) for l in range(n) if state['payoff'][k][l] is None]
-    if missing:
+    def payoff_entries(self, i: int) -> None:
+        """2. The missing payoff entries, one job each (an entry is the same whatever else is played)."""
+        state, settings, say = self.state, self.settings, self.say
+        pools = state['pools']
+        m, n = len(pools['camera']), len(pools['target'])
+        for key in MATRICES:
+            state[key] = _grow(state.get(key, []), m, n)
+        missing = [(k, l) for k in range(m) for l in range(n) if state['payoff'][k][l] is None]
+        if not missing:
+            return
         say(f'iteration {i}: evaluating {len(missing)} payoff entr{"y" if len(missing) == 1 else "ies"} '
             f'({settings.eval_episodes} episodes each)')
-        payoff_device = 'cpu' if device == 'auto' else device    # (auto: the CPU; small forward passes)
-        chunks = [missing[c::runner.parallel] for c in range(min(runner.parallel, len(missing)))]
-        cameras = [member_payload(member, out) for member in pools['camera']]
-        targets = [member_payload(member, out) for member in pools['target']]
         evaluated = time.perf_counter()
 
-        def evaluated_chunk(_, entries):
+        def entered(_, entries):
             for entry in entries:
                 k, l = entry['k'], entry['l']
                 for key in MATRICES:
                     state[key][k][l] = entry[key]
-            _save_state(out, state)
+            _save_state(self.out, state)
 
-        runner.run([(jobs.payoff_entries, dict(env=env, cameras=cameras, targets=targets, pairs=chunk,
-                                               episodes=settings.eval_episodes, seed=0,
-                                               max_episode_steps=settings.eval_steps, device=payoff_device))
-                    for chunk in chunks], evaluated_chunk)
+        self.run([self.entry_job(k, l, 0) for k, l in missing],
+                 [f'payoff entry (camera {k}, target {l}) of iteration {i}' for k, l in missing], entered, i,
+                 gpu_share=ENTRY_GPU_SHARE)
         say(f'iteration {i}: payoff entries done in {time.perf_counter() - evaluated:.0f} s')
 
-    # ---- 3. exploitability of the previous meta-strategies; 4. the new meta-game
-    target_utility = np.array(state['payoff'], dtype=np.float64)
-    camera_utility = -target_utility
-    if i >= 1:
-        previous = state['iterations'][i - 1]
-        gains = exploitability(camera_utility, previous['camera_strategy'], previous['target_strategy'])
-        record['exploitability'] = dict(camera=gains['row'], target=gains['column'], mean=gains['mean'])
-        record['exploitability_fresh'] = _fresh_exploitability(state, settings, env, out, runner, jobs, previous,
-                                                               device)
-    else:
-        record['exploitability'] = None
-    camera_strategy, target_strategy = meta_strategies(settings.solver, camera_utility)
-    record.update(camera_strategy=[float(x) for x in camera_strategy], target_strategy=[float(x) for x in target_strategy],
-                  camera_value=float(camera_strategy @ camera_utility @ target_strategy),
-                  seconds=time.perf_counter() - started)
-    state['iterations'].append(record)
-    _save_state(out, state)
-    gains, fresh = record['exploitability'], record.get('exploitability_fresh')
-    say(f'iteration {i}: exploitability '
-        + ('- (no best responses yet)' if gains is None else
-           f'{gains["mean"]:.4f} (cameras {gains["camera"]:.4f}, targets {gains["target"]:.4f}; on fresh seeds '
-           f'{fresh["mean"]:.4f})')
-        + f'; {settings.solver} meta-strategies: cameras {_fmt(camera_strategy)}, targets {_fmt(target_strategy)}')
+    def entry_job(self, k: int, l: int, seed: int) -> tuple:
+        """The job playing camera member k against target member l for `eval_episodes` episodes from env seed
+        `seed` (the policies' forward passes on the CPU unless `--device` names one)."""
+        return (self.jobs.payoff_entries, dict(
+            env=self.env, cameras=self.members('camera', [k]), targets=self.members('target', [l]), pairs=[(k, l)],
+            episodes=self.settings.eval_episodes, seed=seed, max_episode_steps=self.settings.eval_steps,
+            device='cpu' if self.device == 'auto' else self.device))
 
+    def fresh_exploitability(self, i: int, previous: dict) -> dict:
+        """The exploitability with each side's best response re-played on fresh seeds (FRESH_SEEDS, ...).
 
-def _fresh_exploitability(state: dict, settings: PSROSettings, env: dict, out: Path, runner, jobs, previous: dict,
-                          device: str) -> dict:
-    """The exploitability with each side's best response re-played on fresh seeds (FRESH_SEEDS, ...).
+        The best response of Eq. 2 is the pool member with the highest entry against the other side's
+        meta-strategy; picking the maximum of noisy entries biases the estimate upwards. Here that member
+        (`camera_response`, `target_response`) plays again against every member of the other meta-strategy's
+        support, on `eval_episodes` episodes of seeds no best response trained on (one job per pairing, each saved
+        in the state as it finishes), and its gain is measured from those entries (the meta-game's value stays that
+        of the payoff matrix)."""
+        state = self.state
+        camera_utility = -np.array(state['payoff'], dtype=np.float64)
+        p, q = np.asarray(previous['camera_strategy']), np.asarray(previous['target_strategy'])
+        m, n = p.size, q.size
+        value = float(p @ camera_utility[:m, :n] @ q)
+        camera_response = int(np.argmax(camera_utility[:, :n] @ q))
+        target_response = int(np.argmax(-(p @ camera_utility[:m, :])))
+        pairs = [(camera_response, l) for l in np.flatnonzero(q > 0)] + \
+                [(k, target_response) for k in np.flatnonzero(p > 0)]
+        pairs = list(dict.fromkeys((int(k), int(l)) for k, l in pairs))
+        saved = state['fresh_entries'].setdefault(str(i), {})
+        todo = [(k, l) for k, l in pairs if f'{k},{l}' not in saved]
 
-    The best response of Eq. 2 is the pool member with the highest entry against the other side's meta-strategy;
-    picking the maximum of noisy entries biases the estimate upwards. Here that member (`camera_response`,
-    `target_response`) plays again against every member of the other meta-strategy's support, on `eval_episodes`
-    episodes of seeds no best response trained on, and its gain is measured from those entries (the meta-game's
-    value stays that of the payoff matrix)."""
-    camera_utility = -np.array(state['payoff'], dtype=np.float64)
-    p, q = np.asarray(previous['camera_strategy']), np.asarray(previous['target_strategy'])
-    m, n = p.size, q.size
-    value = float(p @ camera_utility[:m, :n] @ q)
-    camera_response = int(np.argmax(camera_utility[:, :n] @ q))
-    target_response = int(np.argmax(-(p @ camera_utility[:m, :])))
-    pairs = [(camera_response, l) for l in np.flatnonzero(q > 0)] + \
-            [(k, target_response) for k in np.flatnonzero(p > 0)]
-    pairs = list(dict.fromkeys((int(k), int(l)) for k, l in pairs))
-    fresh: dict[tuple[int, int], float] = {}
+        def played(_, entries):
+            for entry in entries:
+                saved[f'{entry["k"]},{entry["l"]}'] = entry['payoff']
+            _save_state(self.out, state)
 
-    def played(_, entries):
-        for entry in entries:
-            fresh[(entry['k'], entry['l'])] = entry['payoff']
-
-    runner.run([(jobs.payoff_entries, dict(env=env, cameras=[member_payload(x, out) for x in state['pools']['camera']],
-                                           targets=[member_payload(x, out) for x in state['pools']['target']],
-                                           pairs=pairs, episodes=settings.eval_episodes, seed=FRESH_SEEDS,
-                                           max_episode_steps=settings.eval_steps,
-                                           device='cpu' if device == 'auto' else device))], played)
-    camera_gain = float(sum(q[l] * -fresh[(camera_response, l)] for l in np.flatnonzero(q > 0))) - value
-    target_gain = float(sum(p[k] * fresh[(k, target_response)] for k in np.flatnonzero(p > 0))) + value
-    return dict(camera=camera_gain, target=target_gain, mean=0.5 * (camera_gain + target_gain),
-                camera_response=camera_response, target_response=target_response, seeds=FRESH_SEEDS)
+        if todo:
+            self.run([self.entry_job(k, l, FRESH_SEEDS) for k, l in todo],
+                     [f'fresh-seed entry (camera {k}, target {l}) of iteration {i}' for k, l in todo], played, i,
+                     gpu_share=ENTRY_GPU_SHARE)
+        fresh = {(k, l): saved[f'{k},{l}'] for k, l in pairs}
+        camera_gain = float(sum(q[l] * -fresh[(camera_response, l)] for l in np.flatnonzero(q > 0))) - value
+        target_gain = float(sum(p[k] * fresh[(k, target_response)] for k in np.flatnonzero(p > 0))) + value
+        return dict(camera=camera_gain, target=target_gain, mean=0.5 * (camera_gain + target_gain),
+                    camera_response=camera_response, target_response=target_response, seeds=FRESH_SEEDS)
 
 
 def _fmt(strategy) -> str:
