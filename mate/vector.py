@@ -323,6 +323,12 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return get_snapshot(self.params, self._world, int(index))
 
     @property
+    def world(self):
+        """The batched world state itself (`mate.core.world.World`: arrays with a leading batch axis, e.g.
+        `target_bounty` (B, Nt)); read it, never write it (the next step overwrites it in place)."""
+        return self._world
+
+    @property
     def observations(self) -> tuple[np.ndarray, np.ndarray]:
         """The observations of the last `reset` or `step` (camera (B, Nc, D_c), target (B, Nt, D_t)): the buffers
         themselves (copies with `copy=True`)."""

@@ -16,6 +16,8 @@ What a learner sees per decision (the paper's wrapper stack, done on arrays):
   paper's Fig. 6 ablation; the opponent keeps its partial view;
 * `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the coverage
   rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
+* `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (`own_rewards`: its
+  tracking penalty and its deliveries), which sum to the team reward; rewards are then (B, N);
 * `camera_reward='mixed'` (cameras): the population players' reward (spec training.md §5.1), per env step
   0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward;
 * `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of `mate.teams`
@@ -48,10 +50,11 @@ from .memory import SightingMemory, camera_sightings
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv', 'compress',
-           'difference_rewards', 'game_of', 'mixed_camera_reward']
+           'difference_rewards', 'game_of', 'mixed_camera_reward', 'own_rewards']
 
-CREDITS = ('team', 'difference')
-"""How a camera's reward is assigned: the team's coverage rate, or its own marginal contribution to it."""
+CREDITS = ('team', 'difference', 'own')
+"""How an agent's reward is assigned: the team's (both teams); a camera's own marginal contribution to the coverage
+rate ('difference'); a target's own part of the team's raw reward ('own')."""
 CAMERA_REWARDS = ('coverage', 'mixed')
 """What a camera team is rewarded with per env step: the coverage rate (the paper's cooperative runs), or
 0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, spec training.md §5.1)."""
@@ -95,15 +98,19 @@ class TeamEnvConfig:
     velocity: bool = option(False, "cameras: append each seen target's displacement over one held decision")
     full_observability: bool = option(False, "the trained team sees every entity (EnhancedObservation, the paper's "
                                               'Fig. 6); evaluate with mate evaluate --enhanced-observation TEAM')
-    credit: Literal['team', 'difference'] = option('team', "cameras: reward every camera with the team's coverage "
-                                                           "rate, or each with its own share of it ('difference')")
+    credit: Literal['team', 'difference', 'own'] = option(
+        'team', "reward every agent with the team's reward, or each with its own part: cameras their marginal share of "
+                "the coverage ('difference'), targets their own tracking penalty and deliveries ('own')")
     seed: int = option(0, 'seed of the run: networks, envs, opponents, sampling', minimum=0)
 
     def __post_init__(self) -> None:
         camera_only = [flag for flag, used in (('--hrl', self.hrl), ('--memory', self.memory), ('--velocity', self.velocity),
-                                               ("--credit difference", self.credit != 'team')) if used]
+                                               ("--credit difference", self.credit == 'difference')) if used]
         if camera_only and self.team != 'camera':
             raise ValueError(f'{camera_only[0]} exists for cameras only (--team camera)')
+        if self.credit == 'own' and self.team != 'target':
+            raise ValueError('--credit own (each target\'s own part of the team reward) exists for targets only '
+                             '(--team target)')
 
     @property
     def env_id(self) -> str:
@@ -135,6 +142,22 @@ class TeamEnvConfig:
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
     """The population players' camera reward (spec training.md §5.1) from one env step's (B,) arrays."""
     return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
+
+
+def own_rewards(bounty: np.ndarray, freight: np.ndarray, tracked: np.ndarray, delivered: np.ndarray) -> np.ndarray:
+    """Each target's own part of one env step's raw target-team reward (spec environment.md §4.6), (B, Nt).
+
+    Args:
+        bounty, freight: (B, Nt) each target's remaining bounty and freight before the step.
+        tracked: (B, Nt) whether some camera tracks the target at the step.
+        delivered: (B, Nt) whether the target delivered its cargo at the step (`target_done`).
+
+    A tracked target that still carries bounty costs 1; a delivery pays the freight plus the bounty left after
+    this step's decay. Summed over the targets: the team's dense reward of the step.
+    """
+    penalty = (tracked & (bounty > 0)).astype(np.float64)
+    paid = np.where(delivered, freight + np.maximum(bounty - tracked, 0), 0)
+    return paid - penalty
 
 
 def difference_rewards(sees: np.ndarray) -> np.ndarray:
@@ -199,6 +222,8 @@ class TeamVecEnv:
             raise ValueError(f"camera_reward {camera_reward!r} is a camera team reward (credit 'team' only)")
         if credit == 'difference' and team is not Team.CAMERA:
             raise ValueError("credit 'difference' (each camera's own share of the coverage) exists for cameras only")
+        if credit == 'own' and team is not Team.TARGET:
+            raise ValueError("credit 'own' (each target's own part of the team reward) exists for targets only")
         self.spec, self.team, self.credit, self.camera_reward = spec, team, credit, camera_reward
         self.frame_skip = spec.frame_skip
         self.horizon = int(horizon or 500 * spec.frame_skip)
@@ -249,7 +274,14 @@ class TeamVecEnv:
         """One env step of the vector env; keeps the trained team's previous raw observations (velocity), which
         for rows starting an episode at this step are their first ones (no motion yet)."""
         before = self._own_raw.copy() if self.spec.velocity else None
+        if self.credit == 'own':          # what a delivery pays is read before the step that changes it
+            world = self.vec.world
+            bounty, freight = world.target_bounty.copy(), world.target_freight.copy()
         result = self.vec.step(joint)
+        if self.credit == 'own':
+            world = self.vec.world
+            self._own_rewards = own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1),
+                                            world.target_done)
         if self.credit == 'difference':   # before full observability fills in every flag
             self._sees = camera_sightings(result[0][0], *self.counts)[1]
         observations = self._enhanced(result[0])
@@ -327,7 +359,7 @@ class TeamVecEnv:
         held = self._held(actions)
         if not self.spec.closed_loop:   # open loop: decoded once, at the decision (the limits are fixed in an episode)
             own_actions = self.spec.decode(held, self._raw)
-        reward = np.zeros((B, self.num_agents) if self.credit == 'difference' else B)
+        reward = np.zeros(B if self.credit == 'team' else (B, self.num_agents))
         coverage = np.zeros(B)
         counted = np.zeros(B)
         done = np.zeros(B, dtype=bool)
@@ -352,6 +384,8 @@ class TeamVecEnv:
                     mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
             if self.credit == 'difference':
                 reward += np.where(live[:, None], difference_rewards(self._sees), 0.0)
+            elif self.credit == 'own':
+                reward += np.where(live[:, None], self._own_rewards, 0.0)
             else:
                 reward += np.where(live, r, 0.0)
             coverage += np.where(live, infos['coverage_rate'], 0.0)

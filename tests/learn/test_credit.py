@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mate.learn import CheckpointError, load_checkpoint
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards, own_rewards
 from mate.learn.mappo import MAPPOConfig, train
 from mate.messages import Team
 from mate.spaces import observation_indices_of
@@ -73,6 +73,36 @@ def test_team_env_pays_each_camera_its_own_share():
     assert ended > 0 and reward.max() > 0
 
 
+def test_own_rewards_by_hand():
+    """Penalty 1 for a tracked target with bounty left; a delivery pays its freight and the bounty left after this
+    step's decay."""
+    bounty = np.array([[5, 0, 3, 1]])
+    freight = np.array([[100, 100, 200, 0]])
+    tracked = np.array([[True, True, False, True]])
+    delivered = np.array([[False, False, True, True]])
+    np.testing.assert_array_equal(own_rewards(bounty, freight, tracked, delivered), [[-1, 0, 203, -1 + 0]])
+
+
+def test_each_target_is_paid_its_own_part_of_the_team_reward():
+    """Same game as the team-reward env (MATE-4v8-0, greedy cameras); each target's reward summed over the targets
+    is the team's raw reward of every held decision, deliveries included."""
+    config = dict(team='target', config='MATE-4v8-0', num_envs=4, horizon=600, seed=2)
+    env = TeamEnvConfig(credit='own', **config).make_env(TeamEnvConfig(**config).policy_spec())
+    plain = TeamEnvConfig(**config).make_env(TeamEnvConfig(**config).policy_spec())
+    obs, _ = env.reset(seed=2)
+    base, _ = plain.reset(seed=2)
+    rng = np.random.default_rng(0)
+    paid = 0.0
+    for _ in range(150):
+        actions = rng.integers(0, 25, (4, env.num_agents))
+        obs, _, reward, done, _, _ = env.step(actions)
+        base, _, team_reward, *_ = plain.step(actions)
+        assert np.array_equal(obs, base) and reward.shape == (4, 8)
+        np.testing.assert_allclose(reward.sum(-1), team_reward, rtol=0, atol=1e-9)
+        paid = max(paid, reward.max())
+    assert paid >= 100                              # some target delivered (freight 100 per unit)
+
+
 def test_learner_with_per_agent_rewards_improves(tmp_path):
     rows = []
     config = MAPPOConfig(actor='mlp', steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4, hidden=(32,),
@@ -104,8 +134,12 @@ def test_difference_credit_checkpoint_and_validation(tmp_path):
     target_spec = TeamEnvConfig(team='target').policy_spec()
     with pytest.raises(ValueError, match='cameras only'):
         TeamVecEnv(target_spec, num_envs=2, credit='difference')
-    with pytest.raises(ValueError, match="credit must be one of"):
+    with pytest.raises(ValueError, match='targets only'):
         TeamVecEnv(TeamEnvConfig(team='camera').policy_spec(), num_envs=2, credit='own')
+    with pytest.raises(ValueError, match='targets only'):
+        TeamEnvConfig(team='camera', credit='own')
+    with pytest.raises(ValueError, match="credit must be one of"):
+        TeamVecEnv(target_spec, num_envs=2, credit='mine')
 
 
 def test_resuming_with_another_credit_is_refused(tmp_path):
