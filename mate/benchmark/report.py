@@ -217,6 +217,10 @@ def summarise(results: Results, reps: int = REPS) -> dict:
     return summary
 
 
+MIN_RUNS = 3
+"""Runs of each setting a claim needs for a verdict (with fewer, the bootstrap intervals say nothing)."""
+
+
 def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, reps: int) -> list[dict]:
     """The verdicts of the experiment's claims on `preset` (`mate.benchmark.experiments.Claim`): `scores` are the
     settings' per-run scores, higher better (population experiments: the exploitability negated); `references` the
@@ -227,7 +231,12 @@ def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, 
             continue
         verdict = dict(text=claim.text, better=claim.better, worse=claim.worse, task=experiment.task(preset))
         sides = [claim.better, claim.worse]
-        if all(side in scores for side in sides):
+        present = [side for side in sides if side in scores]
+        judged = len(present) == 2 or (len(present) == 1 and any(side in references for side in sides))
+        runs = min(len(scores[side]) for side in present) if judged else 0
+        if judged and runs < MIN_RUNS:   # a bootstrap over one or two runs gives intervals of no width
+            verdict.update(verdict=f'too few runs ({runs}; a verdict needs {MIN_RUNS})')
+        elif all(side in scores for side in sides):
             point, low, high = improvement_intervals(scores, pairs=[tuple(sides)], reps=reps)[tuple(sides)]
             if claim.kind == 'agree':
                 outcome = 'consistent' if low <= 0.5 <= high else 'differ'

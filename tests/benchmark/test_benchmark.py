@@ -268,3 +268,19 @@ def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tm
     resumed.send_signal(signal.SIGTERM)
     assert resumed.wait(timeout=600) == 130
     assert 'resuming from' in (progress.parent / 'job.log').read_text()
+
+
+def test_a_claim_needs_three_runs_per_setting_for_a_verdict():
+    """With one or two runs a bootstrap interval has no width: no verdict then (and none without data)."""
+    from mate.benchmark.report import MIN_RUNS, _judge
+
+    exp = experiment('smoke')
+    two = {'MAPPO': np.array([0.5, 0.6]), 'IPPO': np.array([0.1, 0.2])}
+    verdicts = {v['text']: v['verdict'] for v in _judge(exp, 'MATE-2v4-0', two, {'random': 0.0}, reps=200)}
+    assert MIN_RUNS == 3 and set(verdicts.values()) == {'too few runs (2; a verdict needs 3)'}
+    three = {'MAPPO': np.array([0.5, 0.6, 0.7]), 'IPPO': np.array([0.1, 0.2, 0.3])}
+    verdicts = {v['text']: v['verdict'] for v in _judge(exp, 'MATE-2v4-0', three, {'random': 0.0}, reps=200)}
+    assert verdicts == {'(pipeline check) MAPPO beats IPPO': 'confirmed',
+                        '(pipeline check) MAPPO beats the random cameras': 'confirmed',
+                        '(pipeline check) MAPPO and IPPO agree': 'differ'}
+    assert {v['verdict'] for v in _judge(exp, 'MATE-2v4-0', {}, {}, reps=200)} == {'no data'}
