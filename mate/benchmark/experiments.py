@@ -131,8 +131,8 @@ RECIPE = ('--entropy-schedule', '[[0, 0.03], [2000000, 0.01], [4000000, 0]]')
 OWN = ('--credit', 'own')
 """The target learners of the figures' experiments are rewarded with each target's own part of the team reward (its
 tracking penalty and deliveries, which sum to the team's): with the team reward alone, MAPPO targets on MATE-4v8-0
-stay on the floor over 1 M decisions (-0.07, random -0.09), with their own parts they reach 0.25 (greedy 0.33;
-`diag-targets-4v8-0`, docs/results.md). The paper's learners used the team reward."""
+score -0.075, -0.060 and 0.133 over 1 M decisions in three seeds (random -0.09), with their own parts 0.253, 0.249
+and 0.262 (greedy 0.33; `diag-targets-4v8-0`, docs/results.md). The paper's learners used the team reward."""
 PAPER_PPO = ('--paper', '--epochs', '16', '--gae-lambda', '1.0')
 """MAPPO with the paper's RLlib PPO hyper-parameters where ours differ (spec training.md §1.6): `--paper` (adaptive
 KL penalty from 0.2, its learning-rate steps and entropy ramps stretched over 10 M decisions), 16 epochs, GAE lambda
