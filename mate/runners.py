@@ -144,6 +144,24 @@ class _Runner:
         if self._failures:
             raise JobFailed(self._failures)
 
+    def _run_in_pool(self, jobs: list, names: list[str], done: Callable, failed: Callable | None) -> None:
+        """Submit every job to `self.pool` (a `concurrent.futures` executor of processes or threads) and report
+        each as it finishes; JobFailed at the end naming the jobs that raised (or whose process died)."""
+        from concurrent.futures import as_completed
+
+        submitted = time.perf_counter()
+        futures = {self.pool.submit(_timed_call, function, kwargs): index
+                   for index, (function, kwargs) in enumerate(jobs)}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                outcome = future.result()
+            except Exception as exc:  # noqa: BLE001  (the job raised, or its process died)
+                self._failed(index, names[index], describe_error(exc), failed)
+                continue
+            self._finished(index, outcome, time.perf_counter() - submitted, done)
+        self._end()
+
 
 class LocalRunner(_Runner):
     """Runs jobs in this process (workers = 1) or in a pool of `workers` processes (spawned: numba and
@@ -181,20 +199,7 @@ class LocalRunner(_Runner):
                 self._finished(index, outcome, time.perf_counter() - submitted, done)
             self._end()
             return
-        from concurrent.futures import as_completed
-
-        submitted = time.perf_counter()
-        futures = {self.pool.submit(_timed_call, function, kwargs): index
-                   for index, (function, kwargs) in enumerate(jobs)}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                outcome = future.result()
-            except Exception as exc:  # noqa: BLE001  (the job raised, or its process died)
-                self._failed(index, names[index], describe_error(exc), failed)
-                continue
-            self._finished(index, outcome, time.perf_counter() - submitted, done)
-        self._end()
+        self._run_in_pool(jobs, names, done, failed)
 
     def close(self) -> None:
         if self.pool is not None:
@@ -222,21 +227,7 @@ class ThreadRunner(_Runner):
             gpu_share: float = 1.0) -> None:
         """Run `jobs` [(function, kwargs)], calling `done(index, result)` (in this thread) as each finishes;
         JobFailed at the end naming the jobs that raised."""
-        from concurrent.futures import as_completed
-
-        names = self._start(jobs, names)
-        submitted = time.perf_counter()
-        futures = {self.pool.submit(_timed_call, function, kwargs): index
-                   for index, (function, kwargs) in enumerate(jobs)}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                outcome = future.result()
-            except Exception as exc:  # noqa: BLE001
-                self._failed(index, names[index], describe_error(exc), failed)
-                continue
-            self._finished(index, outcome, time.perf_counter() - submitted, done)
-        self._end()
+        self._run_in_pool(jobs, self._start(jobs, names), done, failed)
 
     def close(self) -> None:
         """Wait for the running jobs; drop the ones not started."""

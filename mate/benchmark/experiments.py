@@ -147,6 +147,18 @@ clipped at norm 10, the same learning-rate steps (as near-vertical ramps: RLlib 
 What stays different: RLlib learns its values on raw returns (IPPO normalises them) and clips no value error."""
 WITNESS_CLAIM = 'RLlib\'s PPO (the engine of the paper\'s authors) and mate\'s IPPO score alike at equal decisions'
 
+
+def _witness(team: str, preset: str, task: str, references: tuple[str, ...]) -> Experiment:
+    """The RLlib witness on one team's task: mate's IPPO, RLlib's PPO with IPPO's settings and with the paper's, at
+    equal decisions; the claim that the first two agree."""
+    return Experiment(
+        f'witness-rllib-{team}s', f"a witness: RLlib's PPO beside IPPO on {task}", team, (preset,),
+        (Setting('IPPO', 'ippo'), Setting('RLlib PPO', 'rllib-ppo', AS_IPPO),
+         Setting('RLlib PPO (paper settings)', 'rllib-ppo', ('--num-cpus', '1'))),
+        steps=2_000_000, eval_every=250_000, references=references, seeds=3, claim=WITNESS_CLAIM,
+        claims=(Claim("RLlib PPO with IPPO's settings scores as IPPO", 'RLlib PPO', 'IPPO', kind='agree'),))
+
+
 EXPERIMENTS = {experiment.name: experiment for experiment in (
     Experiment(
         'smoke', 'the whole pipeline in seconds (CI)', 'camera', ('MATE-2v4-0',),
@@ -222,20 +234,8 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
                 Claim('a longer discount horizon helps', 'gamma 0.995', 'MAPPO'),
                 Claim('fewer envs (more updates per decision) help', '16 envs', 'MAPPO'),
                 Claim('a narrower network helps', 'hidden 64', 'MAPPO'))),
-    Experiment(
-        'witness-rllib-targets', 'a witness: RLlib\'s PPO beside IPPO on MATE-2v4-0 targets', 'target',
-        ('MATE-2v4-0',),
-        (Setting('IPPO', 'ippo'), Setting('RLlib PPO', 'rllib-ppo', AS_IPPO),
-         Setting('RLlib PPO (paper settings)', 'rllib-ppo', ('--num-cpus', '1'))),
-        steps=2_000_000, eval_every=250_000, seeds=3, claim=WITNESS_CLAIM,
-        claims=(Claim('RLlib PPO with IPPO\'s settings scores as IPPO', 'RLlib PPO', 'IPPO', kind='agree'),)),
-    Experiment(
-        'witness-rllib-cameras', 'a witness: RLlib\'s PPO beside IPPO on flat MATE-4v8-9 cameras', 'camera',
-        ('MATE-4v8-9',),
-        (Setting('IPPO', 'ippo'), Setting('RLlib PPO', 'rllib-ppo', AS_IPPO),
-         Setting('RLlib PPO (paper settings)', 'rllib-ppo', ('--num-cpus', '1'))),
-        steps=2_000_000, eval_every=250_000, references=CAMERA_REFERENCES, seeds=3, claim=WITNESS_CLAIM,
-        claims=(Claim('RLlib PPO with IPPO\'s settings scores as IPPO', 'RLlib PPO', 'IPPO', kind='agree'),)),
+    _witness('target', 'MATE-2v4-0', 'MATE-2v4-0 targets', references=('random', 'greedy')),
+    _witness('camera', 'MATE-4v8-9', 'flat MATE-4v8-9 cameras', references=CAMERA_REFERENCES),
     Experiment(
         'fig7-psro', 'Fig. 7: exploitability of PSRO-Nash, FSP and SP', 'both', ('MATE-2v4-0',),
         (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')), Setting('FSP', 'psro', ('--solver', 'uniform')),

@@ -1,5 +1,5 @@
-"""Statistics right after reset compared with the original (spec §11.2, §11.4 protocol B;
-../shared/reference/groundtruth.md): construct, reset(seed=0), then 1999 more reset() calls."""
+"""Statistics right after reset compared with the original (spec §11.2, §11.4 protocol B; the original's
+ground-truth figures, copied into this file): construct, reset(seed=0), then 1999 more reset() calls."""
 
 from __future__ import annotations
 
