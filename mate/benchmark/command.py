@@ -1,4 +1,4 @@
-"""`mate benchmark list | run NAME | report DIR...`: the paper's experiments (argument parsing and the commands;
+"""`mate benchmark list | run NAME | report DIR... | quote FILE...`: the paper's experiments (argument parsing and the commands;
 torch is imported only by the jobs, which run `mate train` in their own processes)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ __all__ = ['add_arguments', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,report}', required=True)
+    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,report,quote}', required=True)
     commands.add_parser('list', help='the experiments: figure, settings, budget, seeds',
                         description='List the experiments: the figure of the paper each reproduces, its settings, '
                                     'the budget per run and the default number of seeds.')
@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                 'directories',
                                  description='Aggregate benchmark directories (of one or several experiments; an '
                                              "experiment's seeds may be split over directories): IQM and mean with "
-                                             '95 %% stratified-bootstrap confidence intervals, probability of '
+                                             '95 % stratified-bootstrap confidence intervals, probability of '
                                              'improvement, normalised scores against the references, curves with '
                                              'bands; writes results.md, results.json, the figures and '
                                              'marl_eval.json.')
@@ -52,6 +52,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='output directory (default runs/benchmark/report)')
     report.add_argument('--reps', type=positive_int, default=50_000,
                         help='bootstrap replications per interval (default 50,000)')
+    quote = commands.add_parser('quote', help="rewrite the tables of markdown files from committed reports",
+                                description='Rewrite every quote block of the markdown files (between the lines '
+                                            '"<!-- mate benchmark quote: RESULTS_JSON EXPERIMENT -->" and "<!-- end '
+                                            'of mate benchmark quote -->") with the headline table of that report: '
+                                            'IQM [95 % CI] per setting, the references, the claims\' verdicts. '
+                                            '--check only says which blocks differ (exit status 1).')
+    quote.add_argument('files', nargs='+', metavar='FILE', help='markdown files (README.md, docs/*.md)')
+    quote.add_argument('--root', default='.', help='the directory the markers\' paths are relative to (default .)')
+    quote.add_argument('--check', action='store_true', help='change nothing; exit status 1 if a block differs')
 
 
 def run(args: argparse.Namespace, console) -> int:
@@ -67,6 +76,14 @@ def run(args: argparse.Namespace, console) -> int:
             raise CommandError(str(exc)) from None
         say(f'report: {", ".join(str(path) for path in files.values())}')
         return 0
+    if args.benchmark_command == 'quote':
+        from .quote import quote_files
+
+        try:
+            changed = quote_files(args.files, args.root, check=args.check, say=say)
+        except (ValueError, OSError) as exc:
+            raise CommandError(str(exc)) from None
+        return 1 if args.check and changed else 0
     return _run(args, say)
 
 

@@ -92,7 +92,8 @@ class Experiment:
         presets: the games (tasks) every setting plays.
         settings: the algorithms and their options.
         steps: decision steps per training run (PSRO: per best response).
-        eval_every: decision steps between evaluations; eval_episodes: episodes per evaluation.
+        eval_every: decision steps between evaluations at the experiment's budget (`eval_interval`: at a smaller one);
+            eval_episodes: episodes per evaluation.
         horizon: env steps per training and evaluation episode (None: the trainer's, 500 decisions).
         references: rule-based teams played on the evaluation seeds ('random', 'greedy', 'upper-bound').
         iterations: PSRO iterations (population experiments only).
@@ -119,6 +120,14 @@ class Experiment:
     @property
     def population(self) -> bool:
         return any(setting.command == 'psro' for setting in self.settings)
+
+    def eval_interval(self, steps: int) -> int:
+        """Decision steps between evaluations in a run of `steps` decisions: `eval_every` at the experiment's budget
+        or above; a smaller budget (`mate benchmark run --steps`) evaluates at least 4 times (every steps // 4, when
+        that is sooner), so that its curves keep a shape."""
+        if steps >= self.steps:
+            return self.eval_every
+        return max(1, min(self.eval_every, steps // 4))
 
     def task(self, preset: str) -> str:
         """The task's name in tables and results files: the preset and the trained team ('MATE-4v8-9 cameras')."""

@@ -163,7 +163,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
     experiment = results.experiment
     summary = dict(experiment=experiment.name, figure=experiment.figure, claim=experiment.claim,
                    team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
-                   eval_every=experiment.eval_every, eval_episodes=experiment.eval_episodes,
+                   eval_every=experiment.eval_interval(results.steps), eval_episodes=experiment.eval_episodes,
                    iterations=experiment.iterations,
                    incomplete=sorted(results.incomplete), tasks={})
     claims: list[dict] = []

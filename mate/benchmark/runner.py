@@ -127,7 +127,7 @@ def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, 
     trainer = ('rllib-train',) if setting.command == 'rllib-ppo' else ('train', setting.command)
     command = (*trainer, *setting.options, '--team', experiment.team, '--config', preset,
                '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
-               '--eval-every', str(experiment.eval_every), '--eval-episodes', str(experiment.eval_episodes),
+               '--eval-every', str(experiment.eval_interval(steps)), '--eval-episodes', str(experiment.eval_episodes),
                '--threads', str(threads), '--run-dir', str(folder), '--no-progress')
     return Job('train', setting.label, preset, seed, folder, (command,), (folder / 'absolute.json',),
                TEAM_METRIC[experiment.team])
@@ -258,7 +258,7 @@ def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, see
     out = Path(out)
     path = out / 'benchmark.json'
     manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
-                    eval_every=experiment.eval_every, eval_episodes=experiment.eval_episodes,
+                    eval_every=experiment.eval_interval(steps), eval_episodes=experiment.eval_episodes,
                     horizon=horizon_of(experiment), seed_stride=SEED_STRIDE)
     if path.exists():
         old = read_manifest(out)

@@ -68,7 +68,7 @@ def test_training_seeds_never_reach_the_evaluation_seeds(tmp_path):
                 rows = range(seed, seed + num_envs)
             assert rows[-1] < EVALUATION_SEEDS
             if job.kind == 'train':
-                assert int(_option(command, '--eval-every')) == exp.eval_every
+                assert int(_option(command, '--eval-every')) == exp.eval_interval(exp.steps) == exp.eval_every
             used.append((job.seed, rows))
         # runs of different seeds never share a game (the settings of one seed share theirs: common random numbers)
         spans = {}
@@ -77,6 +77,22 @@ def test_training_seeds_never_reach_the_evaluation_seeds(tmp_path):
             spans[seed] = (min(first, rows.start), max(last, rows.stop))
         ordered = sorted(spans.values())
         assert all(a[1] <= b[0] for a, b in zip(ordered, ordered[1:]))
+
+
+def test_a_smaller_budget_evaluates_at_least_four_times(tmp_path):
+    """At the experiment's budget the runs evaluate every `eval_every`; `--steps` below it evaluates at least 4 times
+    (every steps // 4 when that is sooner), in every training command and in the manifest the report reads."""
+    from mate.benchmark.runner import read_manifest, write_manifest
+    exp = experiment('fig6-observability')
+    assert exp.eval_interval(exp.steps) == exp.eval_interval(2 * exp.steps) == exp.eval_every == 500_000
+    assert exp.eval_interval(500_000) == 125_000
+    assert exp.eval_interval(4_000_000) == 500_000          # 8 evaluations already
+    assert exp.eval_interval(3) == 1
+    jobs = plan(exp, [0], tmp_path, steps=500_000)
+    intervals = {int(_option(job.commands[0], '--eval-every')) for job in jobs if job.kind == 'train'}
+    assert intervals == {125_000}
+    write_manifest(exp, jobs, tmp_path, 500_000, [0])
+    assert read_manifest(tmp_path)['eval_every'] == 125_000
 
 
 def test_parse_seeds():

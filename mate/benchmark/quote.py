@@ -1,0 +1,115 @@
+"""`mate benchmark quote REPORT FILE...`: README and docs tables written from a committed report, never by hand.
+
+A markdown file quotes a report with a block between two marker lines that name the report's `results.json`
+(relative to the repository root, or to the current directory) and the experiment:
+
+    <!-- mate benchmark quote: docs/results/fig6-observability/results.json fig6-observability -->
+    ... the headline table, written by `mate benchmark quote` ...
+    <!-- end of mate benchmark quote -->
+
+`quote_blocks(text)` rewrites every such block from its report (`headline`); `mate benchmark quote --check`
+says which blocks differ from their report (exit status 1), which is what the test of the repository's own
+README and docs runs: a number in those tables that is not in a committed report fails it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ['headline', 'quote_blocks', 'quote_files']
+
+START = re.compile(r'^<!-- mate benchmark quote: (?P<path>\S+) (?P<experiment>\S+) -->$', re.MULTILINE)
+END = '<!-- end of mate benchmark quote -->'
+
+
+def _interval(interval: dict | None, digits: int = 3) -> str:
+    if not interval:
+        return '-'
+    return f'{interval["point"]:.{digits}f} [{interval["low"]:.{digits}f}, {interval["high"]:.{digits}f}]'
+
+
+def headline(summary: dict, link: str) -> str:
+    """The headline table of one experiment's report summary (an entry of `results.json`): per task and setting,
+    the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
+    on fresh seeds), the normalised score (greedy = 1), the references on the same episodes; then each claim's
+    verdict with its evidence. `link`: the report's `results.md`, which the table's caption links to."""
+    population = summary['team'] == 'both'
+    unit = 'per best response' if population else 'per run'
+    lines = [f'*{summary["experiment"]}* ({summary["figure"]}): {summary["steps"]:,} decision steps {unit}'
+             + (f' (the paper\'s budget: {summary["paper_steps"]:,})' if summary['steps'] != summary['paper_steps']
+                else '') + f'; quoted by `mate benchmark quote` from [its report]({link}).', '']
+    if population:
+        lines += ['| task | setting | runs | final exploitability, IQM [95 % CI] | on fresh seeds, IQM [95 % CI] |',
+                  '|---|---|---|---|---|']
+        for task, data in summary['tasks'].items():
+            for label, entry in data['settings'].items():
+                values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
+                lines.append(f'| {task} | {label} | {entry["runs"]} | {_interval(values and values["IQM"], 4)} | '
+                             f'{_interval(fresh and fresh["IQM"], 4)} |')
+    else:
+        lines += ['| task | setting | runs | absolute metric, IQM [95 % CI] | normalised, greedy = 1 |',
+                  '|---|---|---|---|---|']
+        for task, data in summary['tasks'].items():
+            for label, entry in data['settings'].items():
+                lines.append(f'| {task} | {label} | {entry["runs"]} | {_interval(entry["absolute"]["IQM"])} | '
+                             f'{_interval(entry.get("normalised_greedy"), 2)} |')
+            for agent, reference in data['references'].items():
+                lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - |')
+    if summary.get('claims'):
+        lines += ['', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
+        for claim in summary['claims']:
+            evidence = '-' if 'point' not in claim else \
+                f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
+            lines.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
+    return '\n'.join(lines)
+
+
+def _summary(path: str, experiment: str, root: Path) -> dict:
+    file = root / path
+    if not file.exists():
+        raise ValueError(f'a quote names {path}, which does not exist (paths are relative to {root})')
+    summaries = json.loads(file.read_text())
+    if experiment not in summaries:
+        raise ValueError(f'{path} holds no experiment {experiment!r}; it holds {", ".join(summaries) or "none"}')
+    return summaries[experiment]
+
+
+def quote_blocks(text: str, root: Path, here: Path) -> str:
+    """`text` with every quote block rewritten from the report its start marker names (module docstring); paths are
+    relative to `root`, and the captions' links to the reports' `results.md` relative to `here` (the directory of
+    the file the text is from). ValueError for a block without its end marker or a report that is not there."""
+    pieces, position = [], 0
+    root = Path(root).resolve()
+    for start in START.finditer(text):
+        if start.start() < position:
+            raise ValueError(f'a quote of {start["path"]} starts inside the block before it')
+        end = text.find(END, start.end())
+        if end < 0:
+            raise ValueError(f'the quote of {start["path"]} has no end marker ({END})')
+        link = os.path.relpath((root / start['path']).parent / 'results.md', here)
+        block = headline(_summary(start['path'], start['experiment'], root), Path(link).as_posix())
+        pieces += [text[position:start.end()], '\n', block, '\n']
+        position = end
+    pieces.append(text[position:])
+    return ''.join(pieces)
+
+
+def quote_files(files, root, check: bool = False, say: Callable[[str], None] = print) -> list[Path]:
+    """Rewrite the quote blocks of `files` (or, with `check`, only find those that differ from their reports);
+    returns the files that changed (or would)."""
+    changed = []
+    for file in map(Path, files):
+        text = file.read_text()
+        quoted = quote_blocks(text, Path(root), file.resolve().parent)
+        if quoted != text:
+            changed.append(file)
+            if not check:
+                file.write_text(quoted)
+        blocks = len(START.findall(text))
+        state = ('differs from its reports' if check else 'rewritten') if quoted != text else 'up to date'
+        say(f'{file}: {blocks} quote block{"s" * (blocks != 1)}, {state}')
+    return changed

@@ -1,0 +1,68 @@
+"""`mate benchmark quote`: the README's and the docs' benchmark tables are the committed reports' numbers."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from mate.benchmark.quote import END, START, quote_blocks, quote_files
+from mate.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+QUOTING = [ROOT / 'README.md', *sorted((ROOT / 'docs').rglob('*.md'))]
+
+
+def test_the_readme_and_docs_quote_their_reports_exactly():
+    """Every quote block of README.md and docs/ equals the headline table of the committed report it names: a
+    hand-edited number, or a report re-run without re-quoting, fails here (`mate benchmark quote FILE` fixes it)."""
+    blocks = {file.relative_to(ROOT).as_posix(): len(START.findall(file.read_text())) for file in QUOTING}
+    assert blocks['README.md'] >= 1 and blocks['docs/results.md'] >= 1
+    assert quote_files(QUOTING, ROOT, check=True, say=lambda line: None) == []
+
+
+@pytest.fixture()
+def report(tmp_path):
+    """A copy of a committed report and a markdown file quoting it, in a scratch repository root."""
+    source = ROOT / 'docs/results/diag-targets-4v8-0'
+    shutil.copytree(source, tmp_path / 'reports/diag')
+    page = tmp_path / 'docs/page.md'
+    page.parent.mkdir()
+    page.write_text('# Page\n\n<!-- mate benchmark quote: reports/diag/results.json diag-targets-4v8-0 -->\nstale\n'
+                    f'{END}\n\ntext after\n')
+    return tmp_path, page
+
+
+def test_quote_rewrites_a_stale_block_and_check_finds_a_changed_report(report, capsys):
+    root, page = report
+    assert main(['benchmark', 'quote', '--root', str(root), '--check', str(page)]) == 1
+    assert 'differs from its reports' in capsys.readouterr().out
+    assert main(['benchmark', 'quote', '--root', str(root), str(page)]) == 0
+    text = page.read_text()
+    assert 'stale' not in text and text.endswith(f'{END}\n\ntext after\n') and text.startswith('# Page\n')
+    summary = json.loads((root / 'reports/diag/results.json').read_text())['diag-targets-4v8-0']
+    own = summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['absolute']['IQM']
+    assert f'| MATE-4v8-0 targets | own credit | 3 | {own["point"]:.3f} [{own["low"]:.3f}, {own["high"]:.3f}] |' in text
+    assert '[its report](../reports/diag/results.md)' in text          # relative to the quoting file
+    assert '**confirmed**' in text and '**no data**' in text
+    assert main(['benchmark', 'quote', '--root', str(root), '--check', str(page)]) == 0
+    # the report changes (a re-run): the quoted table is stale again
+    summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['absolute']['IQM']['point'] = 0.5
+    (root / 'reports/diag/results.json').write_text(json.dumps({'diag-targets-4v8-0': summary}))
+    assert quote_files([page], root, check=True, say=lambda line: None) == [page]
+    assert quote_blocks(page.read_text(), root, page.parent) != page.read_text()
+
+
+def test_quote_errors_are_one_line(report, capsys):
+    root, page = report
+    page.write_text('<!-- mate benchmark quote: reports/diag/results.json diag-targets-4v8-0 -->\nno end\n')
+    assert main(['benchmark', 'quote', '--root', str(root), str(page)]) == 2
+    assert 'has no end marker' in capsys.readouterr().err
+    page.write_text(f'<!-- mate benchmark quote: reports/diag/results.json fig6-observability -->\n{END}\n')
+    assert main(['benchmark', 'quote', '--root', str(root), str(page)]) == 2
+    assert "holds no experiment 'fig6-observability'; it holds diag-targets-4v8-0" in capsys.readouterr().err
+    page.write_text(f'<!-- mate benchmark quote: reports/none/results.json diag-targets-4v8-0 -->\n{END}\n')
+    assert main(['benchmark', 'quote', '--root', str(root), str(page)]) == 2
+    assert 'which does not exist' in capsys.readouterr().err
