@@ -26,6 +26,7 @@ from ..arguments import CommandError, resolving_arguments
 from ..learn.envs import TeamEnvConfig
 from ..learn.evaluation import EVALUATION_SEEDS
 from ..learn.run_config import RunConfig
+from ..learn.schedules import check_network_options
 from ..options import add_options, option
 
 __all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
@@ -88,12 +89,9 @@ class RLlibPPOConfig(RunConfig, TeamEnvConfig):
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
-        if self.activation not in ('tanh', 'relu'):
-            raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
+        check_network_options(self, ('lr_schedule', 'entropy_schedule'))
         for name in ('lr_schedule', 'entropy_schedule'):
             points = getattr(self, name)
-            if not points:
-                raise ValueError(f'--{name.replace("_", "-")} needs at least one [step, value] point')
             if points[0][0] != 0:
                 raise ValueError(f'--{name.replace("_", "-")} must start at step 0 (RLlib schedules do), '
                                  f'got {points[0][0]:g}')

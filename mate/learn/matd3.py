@@ -50,6 +50,7 @@ from .networks import AgentwiseMLP
 from .policy import make_actor
 from .replay import TransitionRing
 from .run import Run, RunConfig, mean_or_nan
+from .schedules import check_network_options
 from .spec import PolicySpec
 
 __all__ = ['MATD3Config', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'critic_targets', 'policy_spec',
@@ -94,8 +95,7 @@ class MATD3Config(RunConfig, TeamEnvConfig):
         for name in ('num_envs', 'buffer_size', 'batch_size', 'update_every', 'policy_delay'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
-        if self.activation not in ('tanh', 'relu'):
-            raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
+        check_network_options(self)
         self.hidden = tuple(self.hidden)
 
 

@@ -24,7 +24,7 @@ from ..options import option
 from .checkpoint import CheckpointError, load_checkpoint, read_spec
 from .envs import TeamEnvConfig
 from .run import RunConfig
-from .schedules import piecewise
+from .schedules import check_network_options, piecewise
 
 __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'ValueNormalizer', 'action_distribution',
            'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'minibatch_rows', 'ppo_policy_loss', 'ppo_update',
@@ -65,11 +65,7 @@ class PPOConfig(RunConfig, TeamEnvConfig):
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
-        if self.activation not in ('tanh', 'relu'):
-            raise ValueError(f"activation must be 'tanh' or 'relu', got {self.activation!r}")
-        for name in ('lr_schedule', 'entropy_schedule'):
-            if not getattr(self, name):
-                raise ValueError(f'{name} needs at least one [step, value] point')
+        check_network_options(self, ('lr_schedule', 'entropy_schedule'))
         object.__setattr__(self, 'hidden', tuple(self.hidden))
 
 

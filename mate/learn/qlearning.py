@@ -23,6 +23,7 @@ import torch
 from ..options import option
 from .envs import TeamEnvConfig
 from .run import RunConfig
+from .schedules import check_network_options
 from .spec import PolicySpec
 
 __all__ = ['QLearningConfig', 'SELECTIONS', 'action_kind', 'allowed_choices', 'double_q_targets', 'double_q_values',
@@ -61,8 +62,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
         for name in ('num_envs', 'update_every', 'target_update', 'report_every'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
-        if not self.epsilon_schedule:
-            raise ValueError('epsilon_schedule needs at least one [step, value] point')
+        check_network_options(self, ('epsilon_schedule',))
 
 
 def action_kind(config: QLearningConfig) -> str:

@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import itertools
 
-__all__ = ['piecewise']
+__all__ = ['ACTIVATIONS', 'check_network_options', 'piecewise']
+
+ACTIVATIONS = ('tanh', 'relu')
+"""The hidden activations of the trainers' networks."""
 
 
 def piecewise(schedule, step: float, interpolate: bool) -> float:
@@ -21,3 +24,15 @@ def piecewise(schedule, step: float, interpolate: bool) -> float:
         if step < s1:
             return float(v0 + (v1 - v0) * (step - s0) / (s1 - s0)) if interpolate else float(v0)
     return float(points[-1][1])
+
+
+def check_network_options(config, schedules: tuple[str, ...] = ()) -> None:
+    """The checks every trainer's config shares (torch-free, also `mate rllib-train`'s): its `activation`, when it has
+    one, is one of `ACTIVATIONS`, and each schedule field named in `schedules` has at least one point. ValueError
+    naming the option as the command line spells it otherwise."""
+    activation = getattr(config, 'activation', None)
+    if activation is not None and activation not in ACTIVATIONS:
+        raise ValueError(f"--activation must be 'tanh' or 'relu', got {activation!r}")
+    for name in schedules:
+        if not getattr(config, name):
+            raise ValueError(f'--{name.replace("_", "-")} needs at least one [step, value] point')
