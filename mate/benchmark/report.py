@@ -341,8 +341,8 @@ def markdown(summary: dict, figure: str | None) -> str:
     if summary['steps'] != summary['paper_steps']:
         budget += f' (the experiment\'s budget: {summary["paper_steps"]:,})'
     iterations = summary['iterations']
-    protocol = (f'{iterations} iteration{"s" * (iterations != 1)}; the exploitability of the last, from the payoff matrix and with '
-                'the best responses re-played on fresh seeds' if population else
+    protocol = (f'{iterations} iteration{"s" * (iterations != 1)}; the exploitability of the last, from the payoff '
+                'matrix and with the best responses re-played on fresh seeds' if population else
                 f'evaluation every {summary["eval_every"]:,} decision steps on {summary["eval_episodes"]} held-out '
                 f'episodes; absolute metric on {10 * summary["eval_episodes"]} other held-out episodes')
     lines += [f'Claim tested: {summary["claim"]}.', '', f'Budget: {budget}; {protocol}. Intervals: 95 % stratified '
@@ -380,8 +380,9 @@ def markdown(summary: dict, figure: str | None) -> str:
             lines += [f'| {pair} | {_format(value, 2)} |' for pair, value in data['improvement'].items()]
             lines.append('')
     if summary.get('claims'):
-        lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, or of '
-                  "the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval holds both; "
+        lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, '
+                  "or of the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval "
+                  'holds both; '
                   'for two settings that should agree, consistent: the interval of P holds 1/2, differ: it does not):',
                   '', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
         for claim in summary['claims']:
