@@ -1,5 +1,5 @@
-"""`mate benchmark list | run NAME | report DIR... | quote FILE...`: the paper's experiments (argument parsing and the commands;
-torch is imported only by the jobs, which run `mate train` in their own processes)."""
+"""`mate benchmark list | run NAME | report DIR... | quote FILE...`: the paper's experiments (argument parsing and
+the commands; torch is imported only by the jobs, which run `mate train` in their own processes)."""
 
 from __future__ import annotations
 

@@ -1,13 +1,14 @@
 """`mate benchmark quote REPORT FILE...`: README and docs tables written from a committed report, never by hand.
 
 A markdown file quotes a report with a block between two marker lines that name the report's `results.json`
-(relative to the repository root, or to the current directory) and the experiment:
+(relative to the root directory given, `--root`: by default the current one, the repository's root for the
+README and docs) and the experiment:
 
     <!-- mate benchmark quote: docs/results/fig6-observability/results.json fig6-observability -->
     ... the headline table, written by `mate benchmark quote` ...
     <!-- end of mate benchmark quote -->
 
-`quote_blocks(text)` rewrites every such block from its report (`headline`); `mate benchmark quote --check`
+`quote_blocks` rewrites every such block from its report (`headline`); `mate benchmark quote --check`
 says which blocks differ from their report (exit status 1), which is what the test of the repository's own
 README and docs runs: a number in those tables that is not in a committed report fails it.
 """
@@ -40,7 +41,7 @@ def headline(summary: dict, link: str) -> str:
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
     lines = [f'*{summary["experiment"]}* ({summary["figure"]}): {summary["steps"]:,} decision steps {unit}'
-             + (f' (the paper\'s budget: {summary["paper_steps"]:,})' if summary['steps'] != summary['paper_steps']
+             + (f' (the experiment\'s budget: {summary["paper_steps"]:,})' if summary['steps'] != summary['paper_steps']
                 else '') + f'; quoted by `mate benchmark quote` from [its report]({link}).', '']
     if population:
         lines += ['| task | setting | runs | final exploitability, IQM [95 % CI] | on fresh seeds, IQM [95 % CI] |',
