@@ -21,16 +21,12 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
+from .report import claim_rows, format_interval
+
 __all__ = ['headline', 'quote_blocks', 'quote_files']
 
 START = re.compile(r'^<!-- mate benchmark quote: (?P<path>\S+) (?P<experiment>\S+) -->$', re.MULTILINE)
 END = '<!-- end of mate benchmark quote -->'
-
-
-def _interval(interval: dict | None, digits: int = 3) -> str:
-    if not interval:
-        return '-'
-    return f'{interval["point"]:.{digits}f} [{interval["low"]:.{digits}f}, {interval["high"]:.{digits}f}]'
 
 
 def headline(summary: dict, link: str) -> str:
@@ -49,23 +45,19 @@ def headline(summary: dict, link: str) -> str:
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
-                lines.append(f'| {task} | {label} | {entry["runs"]} | {_interval(values and values["IQM"], 4)} | '
-                             f'{_interval(fresh and fresh["IQM"], 4)} |')
+                lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
+                             f'{format_interval(fresh and fresh["IQM"], 4)} |')
     else:
         lines += ['| task | setting | runs | absolute metric, IQM [95 % CI] | normalised, greedy = 1 |',
                   '|---|---|---|---|---|']
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
-                lines.append(f'| {task} | {label} | {entry["runs"]} | {_interval(entry["absolute"]["IQM"])} | '
-                             f'{_interval(entry.get("normalised_greedy"), 2)} |')
+                lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(entry["absolute"]["IQM"])} | '
+                             f'{format_interval(entry.get("normalised_greedy"), 2)} |')
             for agent, reference in data['references'].items():
                 lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - |')
     if summary.get('claims'):
-        lines += ['', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
-        for claim in summary['claims']:
-            evidence = '-' if 'point' not in claim else \
-                f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
-            lines.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
+        lines += ['', *claim_rows(summary['claims'])]
     return '\n'.join(lines)
 
 

@@ -34,7 +34,7 @@ from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
 from .runner import read_manifest
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
-__all__ = ['Results', 'TrainingRun', 'collect', 'summarise', 'write_report']
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_interval', 'summarise', 'write_report']
 
 REPS = 50_000
 """Bootstrap replications of every interval."""
@@ -326,10 +326,21 @@ def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None
 # ============================================================================ files
 
 
-def _format(interval: dict | None, digits: int = 3) -> str:
-    if interval is None:
+def format_interval(interval: dict | None, digits: int = 3) -> str:
+    """'point [low, high]' of an interval of `results.json` ('-' for none)."""
+    if not interval:
         return '-'
     return f'{interval["point"]:.{digits}f} [{interval["low"]:.{digits}f}, {interval["high"]:.{digits}f}]'
+
+
+def claim_rows(claims: list[dict]) -> list[str]:
+    """The markdown table of the claims' verdicts (`summarise`'s 'claims'), header included."""
+    rows = ['| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
+    for claim in claims:
+        evidence = '-' if 'point' not in claim else \
+            f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
+        rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
+    return rows
 
 
 def markdown(summary: dict, figure: str | None) -> str:
@@ -356,8 +367,9 @@ def markdown(summary: dict, figure: str | None) -> str:
                       '[95 % CI] |', '|---|---|---|---|---|']
             for label, entry in data['settings'].items():
                 values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
-                lines.append(f'| {label} | {entry["runs"]} | {_format(values and values["IQM"], 4)} | '
-                             f'{_format(values and values["mean"], 4)} | {_format(fresh and fresh["IQM"], 4)} |')
+                lines.append(f'| {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
+                             f'{format_interval(values and values["mean"], 4)} | '
+                             f'{format_interval(fresh and fresh["IQM"], 4)} |')
             lines.append('')
             continue
         camera = summary['team'] == 'camera'
@@ -365,11 +377,11 @@ def markdown(summary: dict, figure: str | None) -> str:
                  'normalised, greedy = 1 |' + (' normalised, upper bound = 1 |' if camera else '')
         lines += [header, '|' + '---|' * (header.count('|') - 1)]
         for label, entry in data['settings'].items():
-            row = (f'| {label} | {entry["runs"]} | {_format(entry["absolute"]["IQM"])} | '
-                   f'{_format(entry["absolute"]["mean"])} | {_format(entry.get("last_evaluation"))} | '
-                   f'{_format(entry.get("normalised_greedy"), 2)} |')
+            row = (f'| {label} | {entry["runs"]} | {format_interval(entry["absolute"]["IQM"])} | '
+                   f'{format_interval(entry["absolute"]["mean"])} | {format_interval(entry.get("last_evaluation"))} | '
+                   f'{format_interval(entry.get("normalised_greedy"), 2)} |')
             if camera:
-                row += f' {_format(entry.get("normalised_upper-bound"), 2)} |'
+                row += f' {format_interval(entry.get("normalised_upper-bound"), 2)} |'
             lines.append(row)
         for agent, reference in data['references'].items():
             row = f'| *{agent}* (reference) | - | {reference["absolute"]:.3f} | | {reference["evaluation"]:.3f} | | '
@@ -377,19 +389,14 @@ def markdown(summary: dict, figure: str | None) -> str:
         lines.append('')
         if data['improvement']:
             lines += ['Probability of improvement (absolute metric):', '', '| comparison | P [95 % CI] |', '|---|---|']
-            lines += [f'| {pair} | {_format(value, 2)} |' for pair, value in data['improvement'].items()]
+            lines += [f'| {pair} | {format_interval(value, 2)} |' for pair, value in data['improvement'].items()]
             lines.append('')
     if summary.get('claims'):
         lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, '
                   "or of the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval "
                   'holds both; '
                   'for two settings that should agree, consistent: the interval of P holds 1/2, differ: it does not):',
-                  '', '| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
-        for claim in summary['claims']:
-            evidence = '-' if 'point' not in claim else \
-                f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
-            lines.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
-        lines.append('')
+                  '', *claim_rows(summary['claims']), '']
     if summary['incomplete']:
         lines += [f'Not complete (left out): {", ".join(summary["incomplete"])}.', '']
     return '\n'.join(lines)
