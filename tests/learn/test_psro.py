@@ -21,7 +21,8 @@ from mate.learn.envs import TeamEnvConfig, mixed_camera_reward
 from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.policy import PolicyTeam, pretrained_path
 from mate.learn.population.jobs import best_response, payoff_entries, policy_from_bytes, rescaled_schedules
-from mate.learn.population.psro import LocalRunner, PSROError, PSROSettings, RayRunner, load_state, run_psro
+from mate.learn.population.psro import (LocalRunner, PSROError, PSROSettings, RayRunner, TrainingWatch, load_state,
+                                      run_psro, trained_steps)
 from mate.learn.population.solvers import exploitability
 from mate.learn.spec import discrete_to_continuous
 from mate.teams import MixtureTeam, RandomTeam, play_batch
@@ -337,3 +338,49 @@ def test_exploitability_plot_of_one_iteration_has_integer_ticks(tmp_path, monkey
     plots.plot_exploitability([state], tmp_path / 'exploitability.png')
     ticks = [tick for ax in figures[0].axes for tick in ax.get_xticks() if ax.get_xlim()[0] <= tick <= ax.get_xlim()[1]]
     assert ticks and all(float(tick).is_integer() for tick in ticks), ticks
+
+
+# ---------------------------------------------------------------- progress lines while best responses train
+
+def _write_rows(run_dir: Path, steps: list[int], partial: str = '') -> None:
+    run_dir.mkdir(parents=True, exist_ok=True)
+    rows = ''.join(f'{k + 1},{n},{10 * n},0.5\n' for k, n in enumerate(steps))
+    (run_dir / 'progress.csv').write_text('iteration,env_steps,raw_steps,wall_seconds\n' + rows + partial)
+
+
+def test_trained_steps_reads_the_last_complete_row(tmp_path):
+    run_dir = tmp_path / 'camera-1'
+    assert trained_steps(run_dir) is None                       # no file yet
+    _write_rows(run_dir, [])
+    assert trained_steps(run_dir) is None                       # the header only
+    _write_rows(run_dir, [1600, 3200], partial='3,48')          # a row being written is not read
+    assert trained_steps(run_dir) == 3200
+    _write_rows(run_dir, list(range(1600, 1600 * 2000, 1600)))  # a long log: read from its end
+    assert trained_steps(run_dir) == 1600 * 1999
+
+
+def test_training_watch_says_a_line_when_a_best_response_advanced(tmp_path):
+    runs = {'camera': tmp_path / 'camera-3', 'target': tmp_path / 'target-3'}
+    watch = TrainingWatch(3, runs, 10_000, say=print, every=3600)
+    assert watch.line() is None                                 # nothing logged yet
+    _write_rows(runs['camera'], [1600, 3200])
+    assert watch.line() == 'iteration 3: training camera 3,200, target 0 of 10,000 decision steps each (16 %)'
+    assert watch.line() is None                                 # no change, no line
+    _write_rows(runs['target'], [1600])
+    assert watch.line() == 'iteration 3: training camera 3,200, target 1,600 of 10,000 decision steps each (24 %)'
+    alone = TrainingWatch(4, {'target': runs['target']}, 1_000, say=print, every=3600)
+    assert alone.line() == 'iteration 4: training target 1,600 of 1,000 decision steps (100 %)'
+
+
+def test_training_watch_speaks_from_its_thread_until_closed(tmp_path):
+    lines = []
+    run_dir = tmp_path / 'target-1'
+    with TrainingWatch(1, {'target': run_dir}, 5_000, say=lines.append, every=0.01):
+        _write_rows(run_dir, [1000])
+        deadline = time.monotonic() + 30
+        while not lines and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert lines == ['iteration 1: training target 1,000 of 5,000 decision steps (20 %)']
+    _write_rows(run_dir, [1000, 2000])
+    time.sleep(0.05)
+    assert len(lines) == 1                                       # closed: silent
