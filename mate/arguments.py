@@ -43,7 +43,8 @@ def number(kind: type = int, minimum: float | None = None, above: float | None =
             value = kind(text)
         except ValueError:
             value = _whole(text) if kind is int else math.nan
-        if not math.isfinite(value) or (minimum is not None and value < minimum) or (above is not None and value <= above):
+        below = (minimum is not None and value < minimum) or (above is not None and value <= above)
+        if not math.isfinite(value) or below:
             raise argparse.ArgumentTypeError(f'expected {expected}, got {text!r}')
         return value
 

@@ -63,8 +63,8 @@ def _bench(args: argparse.Namespace) -> int:
                       f"{r['env_steps_per_second']:,.0f}", *median, f"{r['speedup_vs_single_env']:,.1f}x", speedup)
     console.print(table)
     facts = bench.machine_facts()
-    console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}. The ratios hold across "
-                  "machines; the absolute numbers differ between CPU families by 2x and more", soft_wrap=True)
+    console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}. The ratios hold "
+                  "across machines; the absolute numbers differ between CPU families by 2x and more", soft_wrap=True)
     if args.json:
         console.print(f'results written to {bench.write_json(results, args.json)}')
     return 0
@@ -95,7 +95,8 @@ def _evaluate(args: argparse.Namespace) -> int:
     with resolving_arguments():          # agents that refuse this game (a policy trained for another preset) say so now
         ev.check_agents_fit(env, camera_factory, target_factory, args.seed)
     console.print(f'environment: {env} (single env, one episode after the other: {reason})', soft_wrap=True)
-    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  '
+                  f'targets: {args.target_agent} {target_kwargs or ""}')
     _say_true_state(args)
 
     recorder = _recorder(args)
@@ -153,7 +154,8 @@ def _policy_device(args: argparse.Namespace):
     from .learn.device import parse_device, resolve_device
 
     parse_device(args.device)
-    if not any(agent.partition(':')[0] in ('checkpoint', 'pretrained') for agent in (args.camera_agent, args.target_agent)):
+    agents = (args.camera_agent, args.target_agent)
+    if not any(agent.partition(':')[0] in ('checkpoint', 'pretrained') for agent in agents):
         return 'cpu'
     return resolve_device(args.device)
 
@@ -212,7 +214,8 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
             raise CommandError(f'{flag}: {exc}' if kwargs else str(exc)) from exc
     cameras, targets = teams
     console.print(f'environment: {env} (batched: {args.episodes} games at once in one vector env)', soft_wrap=True)
-    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  targets: {args.target_agent} {target_kwargs or ""}')
+    console.print(f'cameras: {args.camera_agent} {camera_kwargs or ""}  '
+                  f'targets: {args.target_agent} {target_kwargs or ""}')
     _say_true_state(args)
     recorder = _recorder(args)
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
@@ -368,7 +371,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--batch-sizes', nargs='+', type=positive_int, default=[1, 64, 1024, 4096, 16384])
     bench.add_argument('--seconds', type=number(float, above=0), default=2.0, help='time per measurement (default 2)')
     bench.add_argument('--repeat', type=positive_int, default=1,
-                       help='rounds of the whole plan; report each measurement\'s best round and the median (default 1)')
+                       help="rounds of the whole plan; report each measurement's best round and the median "
+                            '(default 1)')
     bench.add_argument('--quick', action='store_true', help='small batches, 0.5 s each, no float32 runs')
     bench.add_argument('--json', default=None, help='also write the results to this JSON file')
     bench.set_defaults(run=_bench)
@@ -378,7 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
         description='Play episodes (episode i: a fresh env reset with seed + i, agents seeded alike) and print '
                     'mean and std of coverage, transport and returns per team. By default greedy cameras play '
                     'greedy targets on MATE-4v8-9 and the first episode is saved as a GIF.')
-    evaluate.add_argument('--config', '--cfg', default='MATE-4v8-9', help='preset name or YAML/JSON path (default MATE-4v8-9)')
+    evaluate.add_argument('--config', '--cfg', default='MATE-4v8-9',
+                          help='preset name or YAML/JSON path (default MATE-4v8-9)')
     evaluate.add_argument('--camera-agent', default='greedy',
                           help='random|naive|greedy|heuristic|mixture|upper-bound, module:Class, checkpoint:PATH or '
                                'pretrained:NAME (upper-bound: a centralised reference that sees the true state)')
@@ -387,13 +392,16 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument('--target-kwargs', default='{}', help='JSON keyword arguments of the target agent')
     evaluate.add_argument('--episodes', type=positive_int, default=20, help='episodes to play (default 20)')
     evaluate.add_argument('--seed', type=non_negative_int, default=0, help='episode i uses seed + i (agents too)')
-    evaluate.add_argument('--max-episode-steps', type=positive_int, default=2000, help='step cap per episode (default 2000)')
+    evaluate.add_argument('--max-episode-steps', type=positive_int, default=2000,
+                          help='step cap per episode (default 2000)')
     for flag in ('enhanced-observation', 'shared-field-of-view', 'no-communication'):
         evaluate.add_argument(f'--{flag}', nargs='?', const='both', default='none', choices=TEAM_CHOICES,
-                              metavar='TEAM', help=f'add the {flag.replace("-", " ")} wrapper for TEAM (bare flag: both)')
+                              metavar='TEAM',
+                              help=f'add the {flag.replace("-", " ")} wrapper for TEAM (bare flag: both)')
     evaluate.add_argument('--render-communication', nargs='?', type=positive_int, const=20, default=None,
-                          metavar='DURATION', help='draw message arrows in the recorded frames, each for DURATION steps '
-                                                   'after it was sent (bare flag: 20)')
+                          metavar='DURATION',
+                          help='draw message arrows in the recorded frames, each for DURATION steps after it was sent '
+                               '(bare flag: 20)')
     evaluate.add_argument('--message-kinds', action='store_true',
                           help='with --render-communication: draw requests orange dashed, replies purple solid and '
                                'broadcasts dashed in the team colour (default: blue camera / red target arrows)')
@@ -425,7 +433,8 @@ def build_parser() -> argparse.ArgumentParser:
     generate.add_argument('--num-cameras', type=non_negative_int, default=4, help='default 4')
     generate.add_argument('--num-targets', type=positive_int, default=8, help='default 8')
     generate.add_argument('--num-obstacles', type=non_negative_int, default=0, help='default 0')
-    generate.add_argument('--num-cargoes-per-target', type=number(int, minimum=4), default=8, help='at least 4 (default 8)')
+    generate.add_argument('--num-cargoes-per-target', type=number(int, minimum=4), default=8,
+                          help='at least 4 (default 8)')
     generate.add_argument('--obstacle-transmittance', type=number(float), default=0.1, help='clipped to [0, 1]')
     generate.add_argument('--seed', type=non_negative_int, default=0)
     generate.add_argument('--plot', default=None, metavar='PNG', help='also save a picture of the placement')
@@ -435,17 +444,20 @@ def build_parser() -> argparse.ArgumentParser:
     presets.set_defaults(run=_presets)
 
     from .integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
-    rllib_train = command('rllib-train', help="train a team with RLlib's PPO as a mate train run (the witness; Ray RLlib)")
+    rllib_train = command('rllib-train',
+                          help="train a team with RLlib's PPO as a mate train run (the witness; Ray RLlib)")
     add_rllib_train_arguments(rllib_train)
     rllib_train.set_defaults(run=_rllib_train)
 
     from .learn.command import add_arguments as add_train_arguments  # imports no torch
-    train = command('train', help='train MAPPO/IPPO/IQL/QMIX/MADDPG cameras or targets against greedy opponents (PyTorch)')
+    train = command('train',
+                    help='train MAPPO/IPPO/IQL/QMIX/MADDPG cameras or targets against greedy opponents (PyTorch)')
     add_train_arguments(train)
     train.set_defaults(run=_train)
 
     from .learn.population.command import add_arguments as add_psro_arguments  # imports no torch
-    psro = command('psro', help='population training: PSRO-Nash, fictitious self-play or self-play, with exploitability',
+    psro = command('psro',
+                   help='population training: PSRO-Nash, fictitious self-play or self-play, with exploitability',
                    description='Grow a camera pool and a target pool by best responses to the other pool\'s '
                                'meta-strategy (spec training.md §5): HRL-MAPPO cameras, MAPPO targets, payoff '
                                'entries played in batches, exploitability (paper Eq. 2) per iteration. Everything is '

@@ -169,7 +169,8 @@ def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
     return EpisodeResult(
         seed=seed, coverage_rate=float(np.mean(coverage)), real_coverage_rate=float(np.mean(real_coverage)),
         transport_rate=float(info['mean_transport_rate']), camera_return=float(returns[0]),
-        target_return=float(returns[1]), normalized_target_return=float(returns[1] / env.max_target_team_episode_reward),
+        target_return=float(returns[1]),
+        normalized_target_return=float(returns[1] / env.max_target_team_episode_reward),
         delivered_cargoes=int(info['num_delivered_cargoes']), episode_length=step,
         steps_per_second=step / max(elapsed, 1e-9))
 

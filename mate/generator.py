@@ -127,7 +127,8 @@ def generate_config(num_cameras: int = 4, num_targets: int = 8, num_obstacles: i
     """A validated configuration dict built from the default preset (see module docstring); `progress`: as
     `place_cameras`'s (the placement takes GENERATION_SECONDS seconds)."""
     for name, value, low in (('num_cameras', num_cameras, 0), ('num_targets', num_targets, 1),
-                             ('num_obstacles', num_obstacles, 0), ('num_cargoes_per_target', num_cargoes_per_target, 4)):
+                             ('num_obstacles', num_obstacles, 0),
+                             ('num_cargoes_per_target', num_cargoes_per_target, 4)):
         if not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f'{name} must be an integer >= {low}, got {value!r}')
     config = read_config('MATE-4v8-9')

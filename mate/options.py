@@ -100,7 +100,8 @@ def add_options(parser: argparse.ArgumentParser, config_class, group: str | None
         if annotation is bool:
             if default is True:
                 target.add_argument(f'--no-{field.name.replace("_", "-")}', action='store_false',
-                                    help=f'turn off (on by default): {field.metadata.get("help", field.name)}', **kwargs)
+                                    help=f'turn off (on by default): {field.metadata.get("help", field.name)}',
+                                    **kwargs)
             else:
                 target.add_argument(flag, action='store_true', help=_help(field, ''), **kwargs)
             continue

@@ -131,7 +131,8 @@ def perceive(p, w, b):
                 tx, ty, w.camera_pos[b, c, 0], w.camera_pos[b, c, 1], p.target_sight_range + p.camera_radius)
         for o in range(p.num_obstacles):
             w.target_obstacle_view_mask[b, t, o] = _within(
-                tx, ty, w.obstacle_pos[b, o, 0], w.obstacle_pos[b, o, 1], p.target_sight_range + w.obstacle_radius[b, o])
+                tx, ty, w.obstacle_pos[b, o, 0], w.obstacle_pos[b, o, 1],
+                p.target_sight_range + w.obstacle_radius[b, o])
         w.target_target_view_mask[b, t, t] = True
         for s in range(t):  # every target has the same sight range: the mask is symmetric
             seen = _within(tx, ty, w.target_pos[b, s, 0], w.target_pos[b, s, 1], p.target_sight_range)

@@ -310,7 +310,8 @@ class MateMultiAgentEnv(MultiAgentEnv):
                 raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}')
             team, index = agent.rsplit('_', 1)
             if self.policy_spec is None:
-                joint_actions[team == 'target'][int(index)] = agent_action(agent, action, self.action_spaces[agent].shape)
+                joint_actions[team == 'target'][int(index)] = agent_action(agent, action,
+                                                                           self.action_spaces[agent].shape)
             else:
                 chosen[int(index)] = _grid_choice(agent, action, self.policy_spec.choices)
         if chosen:      # grid moves scaled by each agent's own step limits, as mate.learn decodes them
@@ -639,7 +640,9 @@ def _iteration_summary(result: dict, module_id: str) -> tuple[int, list, list[di
     episodes = runners.get('mate/episodes', [])
     if isinstance(episodes, dict):     # RLlib's results give a series of one item as the item itself
         episodes = [episodes]
-    episodes = [dict(episode) for episode in episodes if isinstance(episode, dict)] if isinstance(episodes, list) else []
+    if not isinstance(episodes, list):
+        episodes = []
+    episodes = [dict(episode) for episode in episodes if isinstance(episode, dict)]
     learner = result.get('learners', {}).get(module_id, {})
     columns = {name: float(learner[key]) for key, name in LEARNER_COLUMNS.items() if key in learner}
     return steps, coverage, episodes, columns

@@ -58,8 +58,8 @@ def _linears(state: dict, prefix: str, what: str) -> list[tuple[torch.Tensor, to
     for index in sorted(layers):
         parts = layers[index]
         if set(parts) != {'weight', 'bias'} or parts['weight'].dim() != 2:
-            raise SpecError(f'the RLlib module\'s {what} layer {index} is not a Linear layer with a bias (a layer norm? '
-                            'mate\'s MLP actor has Linear layers and activations only: fcnet_use_layernorm=False)')
+            raise SpecError(f"the RLlib module's {what} layer {index} is not a Linear layer with a bias (a layer "
+                            "norm? mate's MLP actor has Linear layers and activations only: fcnet_use_layernorm=False)")
         pairs.append((parts['weight'], parts['bias']))
     return pairs
 

@@ -163,10 +163,12 @@ class TarMACActor(nn.Module):
             return logits, (h, c, message, queue)
         return logits, (h, c, message)
 
-    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor, delivered: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor,
+                delivered: torch.Tensor | None = None) -> torch.Tensor:
         logits = []
         for t in range(obs.shape[0]):
-            step_logits, state = self.step(obs[t], restarted(state, starts[t]), None if delivered is None else delivered[t])
+            step_logits, state = self.step(obs[t], restarted(state, starts[t]),
+                                           None if delivered is None else delivered[t])
             logits.append(step_logits)
         return torch.stack(logits)
 
@@ -283,7 +285,8 @@ class I2CActor(nn.Module):
         h, c = self.cell(features, state, agents)
         return self.head(torch.cat([features, h], dim=-1), agents), (h, c)
 
-    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor, delivered: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, obs: torch.Tensor, state, starts: torch.Tensor,
+                delivered: torch.Tensor | None = None) -> torch.Tensor:
         features = self.features(obs, delivered=delivered)   # no recurrence before the LSTM: all decisions at once
         gates, hidden = self.cell.input_gates(features), []
         for t in range(obs.shape[0]):

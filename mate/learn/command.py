@@ -39,7 +39,8 @@ TRAINERS = {
                                                           'decision later (MAPPO or IPPO base)'),
     'i2c': Trainer('mate.learn.i2c', 'I2CConfig', "I2C: each agent asks the teammates its prior selects for their "
                                                   'current observations (MAPPO base)'),
-    'iql': Trainer('mate.learn.iql', 'IQLConfig', 'independent Q-learning: a dueling double-Q network shared by the team'),
+    'iql': Trainer('mate.learn.iql', 'IQLConfig',
+                   'independent Q-learning: a dueling double-Q network shared by the team'),
     'qmix': Trainer('mate.learn.qmix', 'QMIXConfig', 'QMIX: recurrent agent network, monotonic mixer on the state'),
     'matd3': Trainer('mate.learn.matd3', 'MATD3Config', 'MADDPG as MA-TD3: one actor and twin centralised critics per '
                                                         'agent, continuous actions'),
@@ -127,7 +128,8 @@ def train_and_report(train: Callable, config, console, resuming: bool) -> int:
         return 0
     if config.minutes and result.env_steps < config.steps:
         console.print(f'stopped at the time limit of {config.minutes:g} minutes')
-    console.print(f"done: {result.env_steps:,} decision steps, coverage {row.get('rollout_coverage', float('nan')):.3f}, "
+    console.print(f"done: {result.env_steps:,} decision steps, "
+                  f"coverage {row.get('rollout_coverage', float('nan')):.3f}, "
                   f"episode return {row.get('episode_return', float('nan')):.1f}; final policy "
                   f"{Path(config.run_dir) / 'final.pt'}", soft_wrap=True)
     return 0
@@ -139,7 +141,8 @@ def run_name(algo: str, config) -> str:
     perturbations after."""
     algo = getattr(config, 'algo', algo)
     name = ('hrl-' if config.hrl else '') + algo + ('-full-obs' if config.full_observability else '')
-    for attribute, tag in (('message_dropout', 'dropout'), ('communication_range', 'range'), ('message_delay', 'delay')):
+    tags = (('message_dropout', 'dropout'), ('communication_range', 'range'), ('message_delay', 'delay'))
+    for attribute, tag in tags:
         value = getattr(config, attribute, None)
         if value:
             name += f'-{tag}{value:g}'

@@ -104,7 +104,8 @@ class TeamEnvConfig:
     seed: int = option(0, 'seed of the run: networks, envs, opponents, sampling', minimum=0)
 
     def __post_init__(self) -> None:
-        camera_only = [flag for flag, used in (('--hrl', self.hrl), ('--memory', self.memory), ('--velocity', self.velocity),
+        camera_only = [flag for flag, used in (('--hrl', self.hrl), ('--memory', self.memory),
+                                               ('--velocity', self.velocity),
                                                ("--credit difference", self.credit == 'difference')) if used]
         if camera_only and self.team != 'camera':
             raise ValueError(f'{camera_only[0]} exists for cameras only (--team camera)')

@@ -60,7 +60,8 @@ def _aim(observation, keep, begin, num_targets, out):
     for r in range(observation.shape[0]):
         row = observation[r]
         x, y = float(row[_OWN]), float(row[_OWN + 1])
-        rx, ry, theta, max_range = float(row[_OWN + 3]), float(row[_OWN + 4]), float(row[_OWN + 5]), float(row[_OWN + 6])
+        rx, ry = float(row[_OWN + 3]), float(row[_OWN + 4])
+        theta, max_range = float(row[_OWN + 5]), float(row[_OWN + 6])
         high_rotation, high_zoom = float(row[_OWN + 7]), float(row[_OWN + 8])
         count, cx, cy = 0, 0.0, 0.0
         for t in range(num_targets):

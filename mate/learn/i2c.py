@@ -234,8 +234,8 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
                 if truncated.any():   # horizon cut: bootstrap from the critic's value of the last state
                     with torch.no_grad():
                         final = values_of(torch.from_numpy(info['final_state']).to(device))
-                    reward = bootstrapped(reward, truncated, final if per_agent_rewards else final.mean(-1, keepdim=True),
-                                          config.gamma)
+                    final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # (B, N) or (B, 1)
+                    reward = bootstrapped(reward, truncated, final, config.gamma)
                 done = torch.from_numpy(done).to(device)
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
@@ -250,7 +250,8 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
             with torch.no_grad():
                 last_values = values_of(state)
             dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma, config.gae_lambda)
+            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
+                                              config.gae_lambda)
             value_norm.update(returns)
 
             # ---- learn: the prior's labels and the regulariser's targets, once; then K epochs over minibatches of
@@ -280,7 +281,8 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
                     dist = action_distribution(logits, 1, A)
                     predicted = critic(b_state[idx])
                     predicted = predicted if per_agent_rewards else predicted.unsqueeze(-1).expand(*predicted.shape, N)
-                    # I2C's own terms: the joint action-value regression, the prior's labels, the correlation regulariser
+                    # I2C's own terms: the joint action-value regression, the prior's labels, the correlation
+                    # regulariser
                     q_loss, regulariser = signals.losses(logits, b_state[idx], b_action[idx][..., 0], b_ret[idx],
                                                          own_values[idx])
                     prior_loss = signals.prior_loss(actor, label_obs, labels)

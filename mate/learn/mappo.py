@@ -180,7 +180,8 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
 
     def run_state() -> dict:   # everything the run's future depends on (exact resume)
         return dict(networks=networks(), optimizer=optimizer.state_dict(), kl_coeff=kl_coeff,
-                    generator=generator.get_state(), **({'envs': envs.state_dict()} if hasattr(envs, 'state_dict') else {}))
+                    generator=generator.get_state(),
+                    **({'envs': envs.state_dict()} if hasattr(envs, 'state_dict') else {}))
 
     # ---- rollout storage: T decisions x B envs x N agents
     T = config.rollout_length
@@ -214,8 +215,8 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
                     with torch.no_grad():
                         final = values_of(torch.from_numpy(info['final_obs']).to(device),
                                           torch.from_numpy(info['final_state']).to(device))
-                    reward = bootstrapped(reward, truncated, final if per_agent_rewards else final.mean(-1, keepdim=True),
-                                          config.gamma)
+                    final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # (B, N) or (B, 1)
+                    reward = bootstrapped(reward, truncated, final, config.gamma)
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
                 reward_buf[t], done_buf[t] = reward, torch.from_numpy(done).float().to(device)
@@ -228,7 +229,8 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
             with torch.no_grad():
                 last_values = values_of(obs, state)
             dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma, config.gae_lambda)
+            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
+                                              config.gae_lambda)
             value_norm.update(returns)
 
             # ---- learn: K epochs over shuffled minibatches of (decision, env) rows, all agents of a row together

@@ -132,7 +132,8 @@ class PerTargetActor(nn.Module):
         self.num_cameras, self.num_targets = nc, nt
         space = observation_space_of(Team.CAMERA, nc, nt, no)
         # rescaled viewing angles v in [-1, 1] -> degrees: low + (v + 1) (high - low) / 2 (own state: index 5)
-        self.angle_low, self.angle_span = float(space.low[self.own + 5]), float(space.high[self.own + 5] - space.low[self.own + 5])
+        self.angle_low = float(space.low[self.own + 5])
+        self.angle_span = float(space.high[self.own + 5] - space.low[self.own + 5])
         # rescaled maximum sight range (own state index 6) -> the rescaled offsets' units (divided by the offset scale)
         scale = float(space.high[self.begin])
         self.reach_low = float(space.low[self.own + 6]) / scale
@@ -456,7 +457,8 @@ class IndependentActors(nn.Module):
 
     continuous = True
 
-    def __init__(self, agents: int, obs_dim: int, action_dim: int = 2, hidden=(512, 256), activation: str = 'tanh') -> None:
+    def __init__(self, agents: int, obs_dim: int, action_dim: int = 2, hidden=(512, 256),
+                 activation: str = 'tanh') -> None:
         super().__init__()
         self.agents = int(agents)
         self.body = AgentwiseMLP(agents, obs_dim, hidden, action_dim, activation, out_scale=0.01)

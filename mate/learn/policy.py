@@ -53,8 +53,9 @@ from .memory import SightingMemory, camera_sightings
 from .networks import Actor, DuelingQNetwork, IndependentActors, PerTargetActor, RecurrentActor, RecurrentQNetwork
 from .spec import PolicySpec, SpecError
 
-__all__ = ['AGENT_CLASSES', 'BATCHED_AGENTS', 'PRETRAINED_DIR', 'LoadedPolicy', 'PolicyCameraAgent', 'PolicyTargetAgent',
-           'PolicyTeam', 'export_policy', 'load_agent', 'load_policy', 'make_actor', 'make_team', 'pretrained_path']
+__all__ = ['AGENT_CLASSES', 'BATCHED_AGENTS', 'PRETRAINED_DIR', 'LoadedPolicy', 'PolicyCameraAgent',
+           'PolicyTargetAgent', 'PolicyTeam', 'export_policy', 'load_agent', 'load_policy', 'make_actor', 'make_team',
+           'pretrained_path']
 
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / 'pretrained'
 BATCHED_AGENTS = ('random', 'greedy', 'upper-bound', 'checkpoint:PATH', 'pretrained:NAME')
@@ -324,7 +325,8 @@ class PolicyTeam:
             for part, value in zip(self.memory, state['memory']):
                 part.copy_(value)
         if self.sightings is not None:
-            self.sightings.location[...], self.sightings.age[...] = state['sightings']['location'], state['sightings']['age']
+            self.sightings.location[...] = state['sightings']['location']
+            self.sightings.age[...] = state['sightings']['age']
 
 
 def make_team(name: str, team, num_envs: int, counts, seed: int | None = None, device='cpu', **kwargs):

@@ -263,7 +263,8 @@ def warm_start(path, spec, actor: nn.Module, critics: dict[str, nn.Module], algo
     try:
         actor.load_state_dict(networks['actor'])
     except RuntimeError as exc:
-        raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: {str(exc).splitlines()[0]}') from None
+        raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: '
+                              f'{str(exc).splitlines()[0]}') from None
     saved_algo = data.get('algo') or data.get('meta', {}).get('algo')
     if saved_algo == algo and data['config'].get('credit', 'team') == credit:   # the critic's inputs and outputs
         for name, module in critics.items():

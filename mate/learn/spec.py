@@ -181,9 +181,11 @@ class PolicySpec:
         vec = make_vec(env_id, num_envs=1, config=config)
         counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)
         raw_dim = vec.single_observation_space[0 if team == 'camera' else 1].shape[-1]
-        obs_dim = raw_dim + (MEMORY_FEATURES * counts[1] if memory else 0) + (VELOCITY_FEATURES * counts[1] if velocity else 0)
+        obs_dim = (raw_dim + (MEMORY_FEATURES * counts[1] if memory else 0)
+                   + (VELOCITY_FEATURES * counts[1] if velocity else 0))
         return cls(team=team, env_id=env_id, config=config, counts=counts, frame_skip=int(frame_skip), action=action,
-                   levels=int(levels) if action in ('grid', 'discrete') else 0, memory=int(memory), velocity=bool(velocity),
+                   levels=int(levels) if action in ('grid', 'discrete') else 0, memory=int(memory),
+                   velocity=bool(velocity),
                    full_observability=bool(full_observability), network=network, hidden=tuple(hidden),
                    activation=activation, lstm=int(lstm), obs_dim=obs_dim, state_dim=vec.single_state_space.shape[0],
                    num_agents=counts[0] if team == 'camera' else counts[1], algo=algo, deterministic=deterministic)
@@ -208,8 +210,9 @@ class PolicySpec:
             raise SpecError(f'policy spec version {version!r}; this mate reads version {SPEC_VERSION} (and version-1 '
                             'checkpoints through their meta)')
         fields = {f.name for f in dataclasses.fields(cls)}
-        unknown, missing = sorted(set(data) - fields), sorted(f.name for f in dataclasses.fields(cls)
-                                                               if f.name not in data and f.default is dataclasses.MISSING)
+        unknown = sorted(set(data) - fields)
+        missing = sorted(f.name for f in dataclasses.fields(cls)
+                         if f.name not in data and f.default is dataclasses.MISSING)
         if unknown or missing:
             raise SpecError(f'policy spec: unknown fields {unknown}, missing fields {missing}')
         return cls(**data)
@@ -296,7 +299,8 @@ class PolicySpec:
         return self.config or self.env_id.removesuffix('-v0')
 
     # ------------------------------------------------------------------ the pipeline
-    def features(self, raw: np.ndarray, memory: np.ndarray | None = None, previous: np.ndarray | None = None) -> np.ndarray:
+    def features(self, raw: np.ndarray, memory: np.ndarray | None = None,
+                 previous: np.ndarray | None = None) -> np.ndarray:
         """The network input (..., D) float32 from raw observations (..., D_raw) of the team: preprocessed, then
         the sighting-memory columns `memory` (..., 4 Nt) of a policy with `memory`, then (velocity) each seen
         target's displacement since the raw observations `previous` (..., D_raw) of the env step before."""

@@ -240,8 +240,8 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
                     with torch.no_grad():
                         final = values_of(torch.from_numpy(info['final_obs']).to(device),
                                           torch.from_numpy(info['final_state']).to(device), memory[2])
-                    reward = bootstrapped(reward, truncated, final if per_agent_rewards else final.mean(-1, keepdim=True),
-                                          config.gamma)
+                    final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # (B, N) or (B, 1)
+                    reward = bootstrapped(reward, truncated, final, config.gamma)
                 done = torch.from_numpy(done).to(device)
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
@@ -257,7 +257,8 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
             with torch.no_grad():
                 last_values = values_of(obs, state, restarted(memory, starting)[2])
             dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma, config.gae_lambda)
+            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
+                                              config.gae_lambda)
             value_norm.update(returns)
 
             # ---- learn: K epochs over minibatches of whole env sequences, each unrolled from its first memory

@@ -31,8 +31,9 @@ from numba import njit
 from ..constants import NUM_WAREHOUSES, PRESERVED_DIM, TARGET_STATE_DIM_PUBLIC, WAREHOUSES
 
 __all__ = [
-    'INITIAL_NOISE_SCALE', 'MAX_VIEWING_ANGLE', 'NOISE_REFRESH_MOVING', 'NOISE_REFRESH_STUCK', 'RANDOM_ACTION_PROBABILITY',
-    'RANGE_FACTOR', 'ZOOM_ITERATIONS', 'desired_viewing_angle', 'communication_delay', 'remember', 'camera_reset', 'camera_observe', 'camera_outbox',
+    'INITIAL_NOISE_SCALE', 'MAX_VIEWING_ANGLE', 'NOISE_REFRESH_MOVING', 'NOISE_REFRESH_STUCK',
+    'RANDOM_ACTION_PROBABILITY', 'RANGE_FACTOR', 'ZOOM_ITERATIONS', 'desired_viewing_angle', 'communication_delay',
+    'remember', 'camera_reset', 'camera_observe', 'camera_outbox',
     'camera_inbox', 'camera_act', 'target_reset', 'target_observe', 'target_share', 'target_act', 'walk_start',
     'walk_towards', 'random_act',
 ]

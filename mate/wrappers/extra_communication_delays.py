@@ -40,7 +40,9 @@ class ExtraCommunicationDelays(MateWrapper):
         self._order = itertools.count()
 
     def _arguments(self) -> str:
-        return f'delay={self.delay!r}' if not callable(self.delay) else f'delay={getattr(self.delay, "__name__", "<callable>")}'
+        if callable(self.delay):
+            return f'delay={getattr(self.delay, "__name__", "<callable>")}'
+        return f'delay={self.delay!r}'
 
     @property
     def pending_messages(self) -> list[tuple[int, Message]]:

@@ -74,7 +74,8 @@ class MoreTrainingInformation(MateWrapper):
         observation, reward, terminated, truncated, infos = self.env.step(action)
         return observation, reward, terminated, truncated, self.add_information(observation, infos)
 
-    def add_information(self, observation: tuple[np.ndarray, np.ndarray], infos: tuple[list, list]) -> tuple[list, list]:
+    def add_information(self, observation: tuple[np.ndarray, np.ndarray],
+                        infos: tuple[list, list]) -> tuple[list, list]:
         """Update the info dicts in place with the facts of the current world; returns them."""
         base = self.env.unwrapped
         camera_obs, target_obs = observation

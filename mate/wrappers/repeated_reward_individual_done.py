@@ -39,7 +39,9 @@ class RepeatedRewardIndividualDone(MateWrapper):
         self._own_team = helper.team if helper is not None else None
 
     def _arguments(self) -> str:
-        return f'target_done_at_destination={self.target_done_at_destination}' if self.target_done_at_destination else ''
+        if not self.target_done_at_destination:
+            return ''
+        return f'target_done_at_destination={self.target_done_at_destination}'
 
     def _target_terminated(self, terminated: bool) -> list:
         if self.target_done_at_destination:

@@ -181,8 +181,8 @@ def soft_coverage_matrix(centers: np.ndarray, orientations: np.ndarray, viewing_
 
     centers (Nc, 2); orientations, viewing_angles, sight_ranges, max_sight_ranges (Nc,) (degrees, world
     units); sample_phis (Nc, S) outer-boundary sample angles in [-180, 180), padded, with sample_valid (Nc, S)
-    marking the real ones; sample_points (Nc, S, 2) the same samples relative to the camera; discs (No, 3) with disc_mask (Nc, No) the opaque discs each camera
-    considers; targets (Nt, 2) positions; view_mask (Nc, Nt).
+    marking the real ones; sample_points (Nc, S, 2) the same samples relative to the camera; discs (No, 3) with
+    disc_mask (Nc, No) the opaque discs each camera considers; targets (Nt, 2) positions; view_mask (Nc, Nt).
     """
     left = _wrap(orientations - viewing_angles / 2.0)                                   # (Nc,)
     offset = sample_phis - left[:, None]                  # in (-360, 360): both angles lie in [-180, 180)

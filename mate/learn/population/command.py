@@ -19,7 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--solver', choices=('nash', 'uniform', 'last'), default='nash',
                         help='meta-solver: nash (PSRO-Nash, zero-sum LP), uniform (fictitious self-play, the initial '
                              'policy included) or last (self-play: the newest policies); default nash')
-    parser.add_argument('--config', '--cfg', default='MATE-2v4-0', help='preset name or YAML/JSON path (default MATE-2v4-0)')
+    parser.add_argument('--config', '--cfg', default='MATE-2v4-0',
+                        help='preset name or YAML/JSON path (default MATE-2v4-0)')
     parser.add_argument('--iterations', type=non_negative_int, default=10,
                         help='iterations after iteration 0 (random vs random); default 10, the paper 40')
     parser.add_argument('--br-steps', type=positive_int, default=100_000,
@@ -29,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--eval-steps', type=positive_int, default=None,
                         help="step cap of an evaluation episode (default: the preset's, 10,000 for MATE-2v4-0)")
     parser.add_argument('--seed', type=non_negative_int, default=0, help='seed of the trainings (default 0)')
-    parser.add_argument('--num-envs', type=positive_int, default=16, help='envs per best-response training (default 16)')
+    parser.add_argument('--num-envs', type=positive_int, default=16,
+                        help='envs per best-response training (default 16)')
     parser.add_argument('--initial-cameras', default='random', metavar='AGENT',
                         help='first member of the camera pool: random, greedy or pretrained:NAME (default random)')
     parser.add_argument('--initial-targets', default='random', metavar='AGENT', help='as --initial-cameras')
