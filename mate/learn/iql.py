@@ -47,7 +47,7 @@ from .policy import make_actor
 from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_targets, epsilon_greedy
 from .replay import ReplayBuffer
 from .run import Run, mean_or_nan
-from .schedules import check_network_options, piecewise
+from .schedules import piecewise
 from .spec import PolicySpec
 
 __all__ = ['IQLConfig', 'iql_loss', 'policy_spec', 'train']
@@ -70,7 +70,6 @@ class IQLConfig(QLearningConfig):
         for name in ('buffer_size', 'batch_size'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
-        check_network_options(self, ('lr_schedule',))
         self.hidden = tuple(self.hidden)
 
 

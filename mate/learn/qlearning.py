@@ -62,7 +62,8 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
         for name in ('num_envs', 'update_every', 'target_update', 'report_every'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
-        check_network_options(self, ('epsilon_schedule',))
+        # the subclasses' learning-rate schedule too: one check of the shared options per config
+        check_network_options(self, tuple(name for name in ('epsilon_schedule', 'lr_schedule') if hasattr(self, name)))
 
 
 def action_kind(config: QLearningConfig) -> str:

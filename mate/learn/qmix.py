@@ -51,7 +51,7 @@ from .policy import make_actor
 from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_values, epsilon_greedy
 from .replay import SequenceReplay
 from .run import Run, mean_or_nan
-from .schedules import check_network_options, piecewise
+from .schedules import piecewise
 from .spec import PolicySpec
 
 __all__ = ['QMIXConfig', 'QMixer', 'policy_spec', 'qmix_loss', 'train']
@@ -79,7 +79,6 @@ class QMIXConfig(QLearningConfig):
             raise ValueError(f"QMIX learns from the team reward: credit must be 'team', not {self.credit!r}")
         if len(self.hidden) != 1:
             raise ValueError(f"QMIX's agent network has one width (--hidden N), got {tuple(self.hidden)}")
-        check_network_options(self, ('lr_schedule',))
         self.hidden = tuple(self.hidden)
 
 
