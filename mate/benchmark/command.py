@@ -39,6 +39,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument('--address', default=None,
                      help="run the jobs as Ray tasks: 'local', 'auto' or 'ray://HOST:PORT' (OUT must be on storage "
                           'every node sees)')
+    run.add_argument('--reuse', action='append', default=[], metavar='DIR',
+                     help="copy a missing job from the benchmark directory DIR of another experiment when that "
+                          'directory holds it complete, run with the very same command lines (e.g. fig5\'s MAPPO '
+                          "runs from fig6's); repeatable")
     report = commands.add_parser('report', help='figures, a markdown table and marl_eval.json from benchmark '
                                                 'directories',
                                  description='Aggregate benchmark directories (of one or several experiments; an '
@@ -108,7 +112,7 @@ def _list(say) -> int:
 def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
     from .experiments import experiment as experiment_named
-    from .runner import parse_seeds, plan, run_jobs, stop_children, write_manifest
+    from .runner import parse_seeds, plan, reuse_jobs, run_jobs, stop_children, write_manifest
 
     try:
         experiment = experiment_named(args.name)
@@ -117,6 +121,9 @@ def _run(args: argparse.Namespace, say) -> int:
         raise CommandError(str(exc)) from None
     if args.address and args.jobs is not None:
         raise CommandError('--jobs is for this machine; with --address Ray places the jobs')
+    missing = [folder for folder in args.reuse if not Path(folder).is_dir()]
+    if missing:
+        raise CommandError(f'--reuse: {missing[0]!r} is not a directory (a benchmark directory of mate benchmark run)')
     cores = os.cpu_count() or 1
     jobs = args.jobs or max(1, cores // (args.threads or 2))
     threads = args.threads or max(1, cores // jobs)
@@ -135,6 +142,7 @@ def _run(args: argparse.Namespace, say) -> int:
     where = f'Ray ({args.address})' if args.address else f'{jobs} job{"s" * (jobs > 1)} at a time on this machine'
     say_and_log(f'benchmark {experiment.name}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps per run, '
                 f'{threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
+    reuse_jobs(planned, out, args.reuse, say=say_and_log)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     runner = None
     try:

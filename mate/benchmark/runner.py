@@ -32,6 +32,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -44,8 +46,8 @@ from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .experiments import Experiment, Setting
 
-__all__ = ['BENCHMARK_FORMAT', 'Job', 'SEED_STRIDE', 'horizon_of', 'parse_seeds', 'plan', 'read_manifest',
-           'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
+__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'parse_seeds', 'plan',
+           'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -289,6 +291,79 @@ def read_manifest(out) -> dict:
     if manifest.get('format') != BENCHMARK_FORMAT:
         raise ValueError(f'{path}: format {manifest.get("format")!r}, expected {BENCHMARK_FORMAT!r}')
     return manifest
+
+
+PATH_OPTIONS = ('--run-dir', '--json', '--out')
+"""The options of a job's command lines whose values are paths inside the benchmark directory."""
+REUSED_NOTE = 'reused.txt'
+"""The file a reused job's directory gets: where it was copied from, and why that is the same job."""
+
+
+def _logged_commands(log: Path) -> tuple[set[str], set[Path]]:
+    """The distinct command lines a job's log ran ('$ mate ...' lines; a resumed run logs its line once per
+    session), each with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths, resolved from the
+    current directory (as the benchmark command that wrote them ran: reuse from the same working directory)."""
+    lines, paths = set(), set()
+    pattern = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
+    for line in log.read_text(errors='replace').splitlines():
+        if line.startswith('$ mate '):
+            paths.update(Path(match.group(2)).resolve() for match in pattern.finditer(line))
+            lines.add(pattern.sub(lambda match: f'{match.group(1)} <PATH>', line[len('$ mate '):]))
+    return lines, paths
+
+
+def _command_line(command: Sequence[str]) -> tuple[str, set[Path]]:
+    """A command line as a job's log writes it, with the `PATH_OPTIONS` values replaced as `_logged_commands` does;
+    and those paths."""
+    words, paths = list(command), set()
+    for index, word in enumerate(words[:-1]):
+        if word in PATH_OPTIONS:
+            paths.add(Path(words[index + 1]).resolve())
+            words[index + 1] = '<PATH>'
+    return ' '.join(words), paths
+
+
+def reusable(job: Job, out, source) -> Path | None:
+    """The directory of the same job in the benchmark directory `source`, when it can stand for `job` of `out`:
+    it is complete there and its log ran exactly `job`'s command lines (every option, seed, budget, evaluation
+    and thread count), with `source` where `out` is; None otherwise. Experiments that share a setting (fig5's
+    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command."""
+    out, source = Path(out).resolve(), Path(source).resolve()
+    folder = source / job.dir.resolve().relative_to(out)
+    twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
+                                                               for p in job.outputs))
+    log = folder / 'job.log'
+    if not twin.done() or not log.exists():
+        return None
+    expected, wanted_paths = set(), set()
+    for command in job.commands:
+        line, paths = _command_line(command)
+        expected.add(line)
+        wanted_paths |= {source / path.relative_to(out) for path in paths}
+    logged, logged_paths = _logged_commands(log)
+    return folder if logged == expected and logged_paths == wanted_paths else None
+
+
+def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
+    """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
+    is `reusable` (the first found), unless the job's directory already holds something (a run in progress is
+    never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
+    copied = []
+    for job in jobs:
+        if job.done() or (job.dir.exists() and any(job.dir.iterdir())):
+            continue
+        for source in sources:
+            folder = reusable(job, out, source)
+            if folder is None:
+                continue
+            shutil.copytree(folder, job.dir, dirs_exist_ok=True)
+            (job.dir / REUSED_NOTE).write_text(
+                f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
+                f'(its directory in place of this one)\n')
+            say(f'{job.name}: reused from {folder} (the same command lines)')
+            copied.append(job)
+            break
+    return copied
 
 
 def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:

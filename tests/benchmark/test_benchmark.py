@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.runner import MAX_SEED, SEED_STRIDE, parse_seeds, plan
+from mate.benchmark.runner import MAX_SEED, REUSED_NOTE, SEED_STRIDE, parse_seeds, plan, reusable
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -158,6 +158,33 @@ def test_smoke_run_again_runs_nothing_and_recovers_a_missing_absolute_metric(smo
     assert json.loads(target.read_text())['episodes'] == before['episodes']
     assert main(['benchmark', 'run', 'smoke', '--out', str(runs)]) == 0
     assert 'running 0' in capsys.readouterr().out
+
+
+def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_path, capsys):
+    runs, _ = smoke
+    jobs = plan(experiment('smoke'), range(experiment('smoke').seeds), runs)
+    other = tmp_path / 'other'
+    busy = other / 'runs' / 'ippo-MATE-2v4-0-seed1'          # a run in progress there is never replaced
+    busy.mkdir(parents=True)
+    (busy / 'progress.csv').write_text('iteration,env_steps\n')
+    assert main(['benchmark', 'run', 'smoke', '--out', str(other), '--reuse', str(runs)]) == 0
+    out = capsys.readouterr().out
+    assert out.count('reused from') == len(jobs) - 1 and 'running 1' in out
+    for job in jobs:
+        copy = other / job.dir.relative_to(runs)
+        if copy == busy:
+            assert not (copy / REUSED_NOTE).exists() and (copy / 'absolute.json').exists()   # trained here
+            continue
+        assert (copy / REUSED_NOTE).read_text().startswith(f'copied from {job.dir.resolve()}')
+        for output in job.outputs:
+            assert (copy / output.name).read_bytes() == output.read_bytes()
+    # another budget: the references are the same jobs, the training runs are not
+    other_budget = tmp_path / 'budget'
+    for job in plan(experiment('smoke'), [0], other_budget, steps=experiment('smoke').steps // 2):
+        twin = reusable(job, other_budget, runs)
+        assert (twin is not None) == (job.kind == 'reference'), job.name
+    assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'x'), '--reuse', str(tmp_path / 'none')]) == 2
+    assert "--reuse: '" in capsys.readouterr().err
 
 
 def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
