@@ -14,11 +14,16 @@ end; `ProgressLine` prints instead one plain line at the start, one every `inter
 at the end, with the same fields:
 
     training: 12,800/20,000 (64%) elapsed 0:00:09 eta 0:00:05  2,345 steps/s  coverage 0.61
+
+`logged_steps(run_dir)` reads how far a training run has come from its `progress.csv`, for the commands that
+watch runs in other processes (`mate psro`, `mate benchmark status`).
 """
 
 from __future__ import annotations
 
+import os
 import time
+from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, ProgressColumn, Task, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -26,7 +31,7 @@ from rich.table import Column
 from rich.text import Text
 
 __all__ = ['PLAIN_INTERVAL', 'ProgressLine', 'StatusColumn', 'StepCountColumn', 'TimesColumn', 'clock',
-           'displayed_count', 'progress_bar']
+           'displayed_count', 'logged_steps', 'progress_bar']
 
 PLAIN_INTERVAL = 30.0
 """Seconds between two plain progress lines when the output is not a terminal."""
@@ -165,3 +170,27 @@ class ProgressLine:
         file = self.console.file
         if hasattr(file, 'flush'):
             file.flush()
+
+
+def logged_steps(run_dir) -> int | None:
+    """Decision steps a training run (`mate train`, `mate rllib-train`) in the directory `run_dir` has logged:
+    `env_steps` of the last complete row of its `progress.csv`, read from the file's end (cheap on long logs, safe
+    while the run writes); None before its first row."""
+    path = Path(run_dir) / 'progress.csv'
+    try:
+        with open(path, 'rb') as f:
+            header = f.readline().decode('utf-8', 'replace').rstrip('\r\n').split(',')
+            f.seek(0, os.SEEK_END)
+            f.seek(max(f.tell() - 8192, 0))
+            tail = f.read().decode('utf-8', 'replace')
+    except FileNotFoundError:
+        return None
+    if 'env_steps' not in header:
+        return None
+    rows = tail.split('\n')[:-1]          # complete lines only: the last one may be half written
+    column = header.index('env_steps')
+    for line in reversed(rows):
+        fields = line.split(',')
+        if len(fields) == len(header) and fields[column].isdigit():
+            return int(fields[column])
+    return None

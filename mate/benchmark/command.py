@@ -14,7 +14,7 @@ __all__ = ['add_arguments', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,report,quote}', required=True)
+    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,status,report,quote}', required=True)
     commands.add_parser('list', help='the experiments: figure, settings, budget, seeds',
                         description='List the experiments: the figure of the paper each reproduces, its settings, '
                                     'the budget per run and the default number of seeds.')
@@ -43,6 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="copy a missing job from the benchmark directory DIR of another experiment when that "
                           'directory holds it complete, run with the very same command lines (e.g. fig5\'s MAPPO '
                           "runs from fig6's); repeatable")
+    status = commands.add_parser('status', help='what each job of benchmark directories has done',
+                                 description='One line per job of each benchmark directory (mate benchmark run '
+                                             '--out): done with what it measured, started with how far it is '
+                                             '(decision steps, PSRO iterations), or waiting; then the counts. Reads '
+                                             'the files only: safe while the benchmark runs.')
+    status.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
     report = commands.add_parser('report', help='figures, a markdown table and marl_eval.json from benchmark '
                                                 'directories',
                                  description='Aggregate benchmark directories (of one or several experiments; an '
@@ -80,6 +86,8 @@ def run(args: argparse.Namespace, console) -> int:
             raise CommandError(str(exc)) from None
         say(f'report: {", ".join(str(path) for path in files.values())}')
         return 0
+    if args.benchmark_command == 'status':
+        return _status(args.dirs, say)
     if args.benchmark_command == 'quote':
         from .quote import quote_files
 
@@ -95,6 +103,29 @@ def _say(console):
     def say(line: str) -> None:
         console.print(line, soft_wrap=True, highlight=False, markup=False)
     return say
+
+
+def _status(dirs: list[str], say) -> int:
+    from .experiments import experiment as experiment_named
+    from .runner import JOB_STATES, job_status, plan, read_manifest
+
+    for folder in dirs:
+        try:
+            manifest = read_manifest(folder)
+            experiment = experiment_named(manifest['experiment'])
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'])
+        counts = dict.fromkeys(JOB_STATES, 0)
+        say(f'{folder}: {experiment.name}, seeds {",".join(map(str, manifest["seeds"]))}, '
+            f'{manifest["steps"]:,} decision steps per run')
+        for job in jobs:
+            state, line = job_status(job, manifest['steps'])
+            counts[state] += 1
+            say(f'  {state:<8} {line}')
+        say(f'{experiment.name}: ' + ', '.join(f'{counts[state]} {state}' for state in JOB_STATES)
+            + f' of {len(jobs)} jobs')
+    return 0
 
 
 def _list(say) -> int:

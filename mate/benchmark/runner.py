@@ -44,10 +44,11 @@ from pathlib import Path
 
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
+from ..progress import logged_steps
 from .experiments import Experiment, Setting
 
-__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'parse_seeds', 'plan',
-           'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
+__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'job_status', 'parse_seeds',
+           'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -404,3 +405,28 @@ def _summary(job: Job) -> str:
         return '' if gains is None else f'; last exploitability {gains["mean"]:.4f}'
     values = [episode[job.metric] for episode in json.loads(job.outputs[-1].read_text())['episodes']]
     return f'; {job.metric} {sum(values) / len(values):.3f} ({len(values)} episodes)'
+
+
+JOB_STATES = ('done', 'started', 'waiting')
+"""What `job_status` says of a job."""
+
+
+def job_status(job: Job, steps: int) -> tuple[str, str]:
+    """(state, line) of a job of a benchmark directory whose runs train `steps` decision steps: 'done' with what
+    it measured ('reused' when copied by --reuse), 'started' with how far it is (a training run's logged decision
+    steps, a population run's iterations, a reference's evaluations), or 'waiting'."""
+    if job.done():
+        reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else ''
+        return 'done', f'{job.name}: done{_summary(job)}{reused}'
+    if job.kind == 'psro' and job.outputs[0].exists():
+        state = json.loads(job.outputs[0].read_text())
+        done, total = max(len(state['iterations']) - 1, 0), int(state['settings']['iterations'])
+        return 'started', f'{job.name}: {done} of {total} iterations'
+    if job.kind == 'reference' and any(path.exists() for path in job.outputs):
+        done = sum(path.exists() for path in job.outputs)
+        return 'started', f'{job.name}: {done} of {len(job.outputs)} evaluations'
+    logged = logged_steps(job.dir) if job.kind == 'train' else None
+    if logged is not None:
+        return 'started', (f'{job.name}: {logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} '
+                           f'%){"; its absolute metric is missing: run again" if logged >= steps else ""}')
+    return 'waiting', f'{job.name}: waiting'

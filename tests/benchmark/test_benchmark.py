@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.runner import MAX_SEED, REUSED_NOTE, SEED_STRIDE, parse_seeds, plan, reusable
+from mate.benchmark.runner import (MAX_SEED, REUSED_NOTE, SEED_STRIDE, job_status, parse_seeds, plan, reusable,
+                                   write_manifest)
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -185,6 +186,32 @@ def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_p
         assert (twin is not None) == (job.kind == 'reference'), job.name
     assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'x'), '--reuse', str(tmp_path / 'none')]) == 2
     assert "--reuse: '" in capsys.readouterr().err
+
+
+def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
+    runs, _ = smoke
+    exp = experiment('smoke')
+    assert main(['benchmark', 'status', str(runs)]) == 0
+    n = len(plan(exp, range(exp.seeds), runs))
+    assert f'smoke: {n} done, 0 started, 0 waiting of {n} jobs' in capsys.readouterr().out
+    # a fresh directory: one training run part-way, one reference half evaluated, the rest waiting
+    fresh = tmp_path / 'fresh'
+    jobs = plan(exp, [0], fresh)
+    write_manifest(exp, jobs, fresh, exp.steps, [0])
+    reference, run = jobs[0], next(job for job in jobs if job.kind == 'train')
+    reference.dir.mkdir(parents=True)
+    reference.outputs[0].write_text('{}')
+    run.dir.mkdir(parents=True)
+    (run.dir / 'progress.csv').write_text('iteration,env_steps\n1,40\n2,80\n')
+    assert job_status(reference, exp.steps) == ('started', f'{reference.name}: 1 of 2 evaluations')
+    assert job_status(run, exp.steps) == ('started', f'{run.name}: 80 of {exp.steps} decision steps (40 %)')
+    assert job_status(jobs[1], exp.steps) == ('waiting', f'{jobs[1].name}: waiting')
+    (run.dir / 'progress.csv').write_text(f'iteration,env_steps\n1,{exp.steps}\n')
+    assert job_status(run, exp.steps)[1].endswith('its absolute metric is missing: run again')
+    assert main(['benchmark', 'status', str(fresh)]) == 0
+    assert f'smoke: 0 done, 2 started, {len(jobs) - 2} waiting of {len(jobs)} jobs' in capsys.readouterr().out
+    assert main(['benchmark', 'status', str(tmp_path)]) == 2
+    assert 'no benchmark.json' in capsys.readouterr().err
 
 
 def test_smoke_report_has_intervals_references_and_marl_eval(smoke):

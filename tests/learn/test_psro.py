@@ -22,7 +22,8 @@ from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.policy import PolicyTeam, pretrained_path
 from mate.learn.population.jobs import best_response, payoff_entries, policy_from_bytes, rescaled_schedules
 from mate.learn.population.psro import (LocalRunner, PSROError, PSROSettings, RayRunner, TrainingWatch, load_state,
-                                      run_psro, trained_steps)
+                                      run_psro)
+from mate.progress import logged_steps
 from mate.learn.population.solvers import exploitability
 from mate.learn.spec import discrete_to_continuous
 from mate.teams import MixtureTeam, RandomTeam, play_batch
@@ -348,15 +349,15 @@ def _write_rows(run_dir: Path, steps: list[int], partial: str = '') -> None:
     (run_dir / 'progress.csv').write_text('iteration,env_steps,raw_steps,wall_seconds\n' + rows + partial)
 
 
-def test_trained_steps_reads_the_last_complete_row(tmp_path):
+def test_logged_steps_reads_the_last_complete_row(tmp_path):
     run_dir = tmp_path / 'camera-1'
-    assert trained_steps(run_dir) is None                       # no file yet
+    assert logged_steps(run_dir) is None                       # no file yet
     _write_rows(run_dir, [])
-    assert trained_steps(run_dir) is None                       # the header only
+    assert logged_steps(run_dir) is None                       # the header only
     _write_rows(run_dir, [1600, 3200], partial='3,48')          # a row being written is not read
-    assert trained_steps(run_dir) == 3200
+    assert logged_steps(run_dir) == 3200
     _write_rows(run_dir, list(range(1600, 1600 * 2000, 1600)))  # a long log: read from its end
-    assert trained_steps(run_dir) == 1600 * 1999
+    assert logged_steps(run_dir) == 1600 * 1999
 
 
 def test_training_watch_says_a_line_when_a_best_response_advanced(tmp_path):

@@ -34,12 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ...progress import logged_steps
 from ...runners import LocalRunner, RayRunner
 from ..evaluation import EVALUATION_SEEDS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
 __all__ = ['JOB_LOG', 'LocalRunner', 'PROGRESS_EVERY', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT',
-           'TrainingWatch', 'env_of', 'load_state', 'member_payload', 'run_psro', 'trained_steps']
+           'TrainingWatch', 'env_of', 'load_state', 'member_payload', 'run_psro']
 
 STATE_FORMAT = 'mate.psro/1'
 SIDES = ('camera', 'target')
@@ -147,29 +148,6 @@ def member_payload(member: str, out: Path):
     return (out / member).read_bytes() if member.endswith('.pt') else member
 
 
-def trained_steps(run_dir: Path) -> int | None:
-    """Decision steps a training run in `run_dir` has logged (`env_steps` of the last complete row of its
-    `progress.csv`, read from the file's end), or None before its first row."""
-    path = Path(run_dir) / 'progress.csv'
-    try:
-        with open(path, 'rb') as f:
-            header = f.readline().decode('utf-8', 'replace').rstrip('\r\n').split(',')
-            f.seek(0, os.SEEK_END)
-            f.seek(max(f.tell() - 8192, 0))
-            tail = f.read().decode('utf-8', 'replace')
-    except FileNotFoundError:
-        return None
-    if 'env_steps' not in header:
-        return None
-    rows = tail.split('\n')[:-1]          # complete lines only: the last one may be half written
-    column = header.index('env_steps')
-    for line in reversed(rows):
-        fields = line.split(',')
-        if len(fields) == len(header) and fields[column].isdigit():
-            return int(fields[column])
-    return None
-
-
 class TrainingWatch:
     """Says how far best responses have trained, every `every` seconds while open (a thread of the driver), when
     it changed: 'iteration 3: training camera 40,000, target 38,400 of 100,000 decision steps each (39 %)'. It reads
@@ -186,7 +164,7 @@ class TrainingWatch:
 
     def line(self) -> str | None:
         """The progress line of now, or None when no run logged a row since the last line."""
-        now = {side: trained_steps(run_dir) for side, run_dir in self.runs.items()}
+        now = {side: logged_steps(run_dir) for side, run_dir in self.runs.items()}
         if now == self.last or all(steps is None for steps in now.values()):
             return None
         self.last = now
