@@ -47,8 +47,9 @@ from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from ..progress import logged_steps
 from .experiments import Experiment, Setting
 
-__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'job_status', 'parse_seeds',
-           'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command', 'stop_children', 'tied_to_parent']
+__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'job_status',
+           'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command',
+           'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -300,28 +301,27 @@ REUSED_NOTE = 'reused.txt'
 """The file a reused job's directory gets: where it was copied from, and why that is the same job."""
 
 
+_PATH_VALUE = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
+
+
+def _masked(line: str) -> tuple[str, set[Path]]:
+    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths,
+    resolved from the current directory (as the benchmark command that wrote them ran: reuse from the same working
+    directory)."""
+    paths = {Path(match.group(2)).resolve() for match in _PATH_VALUE.finditer(line)}
+    return _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line), paths
+
+
 def _logged_commands(log: Path) -> tuple[set[str], set[Path]]:
-    """The distinct command lines a job's log ran ('$ mate ...' lines; a resumed run logs its line once per
-    session), each with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths, resolved from the
-    current directory (as the benchmark command that wrote them ran: reuse from the same working directory)."""
+    """The distinct command lines a job's log ran ('$ mate ...' lines, written by `run_command`; a resumed run logs
+    its line once per session), `_masked`; and all their paths."""
     lines, paths = set(), set()
-    pattern = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
     for line in log.read_text(errors='replace').splitlines():
         if line.startswith('$ mate '):
-            paths.update(Path(match.group(2)).resolve() for match in pattern.finditer(line))
-            lines.add(pattern.sub(lambda match: f'{match.group(1)} <PATH>', line[len('$ mate '):]))
+            masked, found = _masked(line[len('$ mate '):])
+            lines.add(masked)
+            paths |= found
     return lines, paths
-
-
-def _command_line(command: Sequence[str]) -> tuple[str, set[Path]]:
-    """A command line as a job's log writes it, with the `PATH_OPTIONS` values replaced as `_logged_commands` does;
-    and those paths."""
-    words, paths = list(command), set()
-    for index, word in enumerate(words[:-1]):
-        if word in PATH_OPTIONS:
-            paths.add(Path(words[index + 1]).resolve())
-            words[index + 1] = '<PATH>'
-    return ' '.join(words), paths
 
 
 def reusable(job: Job, out, source) -> Path | None:
@@ -338,7 +338,7 @@ def reusable(job: Job, out, source) -> Path | None:
         return None
     expected, wanted_paths = set(), set()
     for command in job.commands:
-        line, paths = _command_line(command)
+        line, paths = _masked(' '.join(command))      # as `run_command` logs it
         expected.add(line)
         wanted_paths |= {source / path.relative_to(out) for path in paths}
     logged, logged_paths = _logged_commands(log)
