@@ -29,6 +29,7 @@ of a run are seeded `seed + row`) and every run stays below the evaluation seeds
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -258,8 +259,34 @@ def stop_children(kill: bool = False) -> int:
 
 def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, seeds: list[int]) -> Path:
     """`OUT/benchmark.json`: what the directory holds (read by `mate benchmark report`). A directory of another
-    experiment or budget raises ValueError (use another --out)."""
+    experiment or budget raises ValueError (use another --out).
+
+    Runners started side by side on one directory (`--seeds 0,2,4` and `--seeds 1,3`) each merge their jobs
+    into it: the read, merge and write hold a lock on `OUT/.benchmark.lock`, and the file is replaced whole
+    (a reader never sees it half written)."""
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with _locked(out / '.benchmark.lock'):
+        return _merge_manifest(experiment, jobs, out, steps, seeds)
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """Hold an exclusive lock on `path` (POSIX flock; where there is none, as on Windows, no lock)."""
+    try:
+        import fcntl
+    except ImportError:         # pragma: no cover - Windows
+        yield
+        return
+    with open(path, 'a') as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: int, seeds: list[int]) -> Path:
     path = out / 'benchmark.json'
     manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
                     eval_every=experiment.eval_interval(steps), eval_episodes=experiment.eval_episodes,
@@ -279,8 +306,9 @@ def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, see
         known = {(j['kind'], j['label'], j['preset'], j['seed']) for j in manifest['jobs']}
         manifest['jobs'] += [j for j in json.loads(path.read_text())['jobs']
                              if (j['kind'], j['label'], j['preset'], j['seed']) not in known]
-    out.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(manifest, indent=1))
+    tmp = path.with_name(f'benchmark.json.{os.getpid()}.tmp')
+    tmp.write_text(json.dumps(manifest, indent=1))
+    os.replace(tmp, path)
     return path
 
 

@@ -96,6 +96,33 @@ def test_a_smaller_budget_evaluates_at_least_four_times(tmp_path):
     assert read_manifest(tmp_path)['eval_every'] == 125_000
 
 
+def _write_seed_manifest(out: str, seed: int) -> None:
+    exp = experiment('fig6-observability')
+    for _ in range(20):
+        write_manifest(exp, plan(exp, [seed], out, steps=500_000), out, 500_000, [seed])
+
+
+def test_runners_side_by_side_merge_their_seeds_into_one_manifest(tmp_path):
+    """Two runners on one directory (`--seeds 0,2` and `--seeds 1,3`) write the manifest at the same moments:
+    neither reads it half written and neither loses the other's seeds or jobs."""
+    import multiprocessing
+
+    from mate.benchmark.runner import read_manifest
+    context = multiprocessing.get_context('spawn')
+    workers = [context.Process(target=_write_seed_manifest, args=(str(tmp_path), seed)) for seed in range(4)]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join(timeout=120)
+    assert [worker.exitcode for worker in workers] == [0, 0, 0, 0]
+    manifest = read_manifest(tmp_path)
+    assert manifest['seeds'] == [0, 1, 2, 3]
+    together = plan(experiment('fig6-observability'), [0, 1, 2, 3], tmp_path, steps=500_000)
+    key = lambda job: (job['kind'], job['label'], job['preset'], job['seed'])  # noqa: E731
+    assert sorted(map(key, manifest['jobs']), key=str) == sorted(map(key, map(vars, together)), key=str)
+    assert not list(tmp_path.glob('*.tmp'))
+
+
 def test_parse_seeds():
     assert parse_seeds('0-4') == [0, 1, 2, 3, 4]
     assert parse_seeds('0,2,5') == [0, 2, 5]
