@@ -48,9 +48,9 @@ from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from ..progress import logged_steps
 from .experiments import Experiment, Setting
 
-__all__ = ['BENCHMARK_FORMAT', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of', 'job_status',
-           'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command',
-           'stop_children', 'tied_to_parent']
+__all__ = ['BENCHMARK_FORMAT', 'BUSY', 'JOB_LOCK', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of',
+           'job_status', 'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command',
+           'run_job', 'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -181,6 +181,10 @@ _CHILDREN_LOCK = threading.Lock()
 _STOPPING = threading.Event()
 INTERRUPTED = 130
 """The exit status of a job stopped by a signal (`mate train` and `mate psro` checkpoint first)."""
+BUSY = 75
+"""The status of a job not run because another runner holds its lock (it is running there)."""
+JOB_LOCK = '.job.lock'
+"""The file in a job's directory locked while a runner runs the job."""
 
 
 def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str] = ()) -> dict:
@@ -193,6 +197,25 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
     SIGTERM, on which `mate train` finishes its iteration, writes its checkpoint and exits with status 130."""
     start = time.perf_counter()
     Path(log).parent.mkdir(parents=True, exist_ok=True)
+    return dict(returncode=_run_in_order(commands, log, outputs), seconds=time.perf_counter() - start)
+
+
+def run_job(job: Job) -> dict:
+    """`run_command` of `job` (its commands, its `job.log`), holding the lock of its directory (`JOB_LOCK`): when
+    another runner holds it (two runners of the same seeds on one directory, on this machine or on others sharing
+    it) nothing runs and the status is `BUSY`; a job another runner has completed meanwhile is not run again
+    (status 0). The lock goes with the process that held it, however it ends."""
+    job.dir.mkdir(parents=True, exist_ok=True)
+    with _locked(job.dir / JOB_LOCK, wait=False) as locked:
+        if not locked:
+            return dict(returncode=BUSY, seconds=0.0)
+        if job.done():
+            return dict(returncode=0, seconds=0.0)
+        return run_command(job.commands, str(job.dir / 'job.log'),
+                           [str(p) for p in job.outputs] if job.kind == 'reference' else [])
+
+
+def _run_in_order(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str]) -> int:
     returncode = 0
     with open(log, 'a') as f:
         for index, command in enumerate(commands):
@@ -214,7 +237,7 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
                     _CHILDREN.discard(child)
             if returncode:
                 break
-    return dict(returncode=returncode, seconds=time.perf_counter() - start)
+    return returncode
 
 
 _TIE = ('import ctypes, os, sys\n'
@@ -271,17 +294,22 @@ def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, see
 
 
 @contextlib.contextmanager
-def _locked(path: Path):
-    """Hold an exclusive lock on `path` (POSIX flock; where there is none, as on Windows, no lock)."""
+def _locked(path: Path, wait: bool = True):
+    """Hold an exclusive lock on `path` (POSIX flock) for the block, yielding True; with `wait` False, yield False
+    at once when another process holds it. Where there is no flock (Windows), no lock: True."""
     try:
         import fcntl
     except ImportError:         # pragma: no cover - Windows
-        yield
+        yield True
         return
     with open(path, 'a') as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
         try:
-            yield
+            fcntl.flock(handle, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
@@ -385,7 +413,7 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
             folder = reusable(job, out, source)
             if folder is None:
                 continue
-            shutil.copytree(folder, job.dir, dirs_exist_ok=True)
+            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK))
             (job.dir / REUSED_NOTE).write_text(
                 f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
                 f'(its directory in place of this one)\n')
@@ -397,7 +425,8 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
 
 def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:
     """Run every job of `jobs` not yet done on `runner` (`mate.runners.ThreadRunner` or `RayRunner`), saying one
-    line when each finishes; returns the jobs that failed (their log names why)."""
+    line when each finishes; returns the jobs that did not complete: failed (their log names why), interrupted, or
+    skipped because another runner is running them."""
     todo = [job for job in jobs if not job.done()]
     say(f'{len(jobs) - len(todo)} of {len(jobs)} jobs done before; running {len(todo)}')
     failed: list[Job] = []
@@ -412,13 +441,15 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
             say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{_summary(job)}')
             return
         failed.append(job)
+        if result['returncode'] == BUSY:
+            say(f'[{finished}/{len(todo)}] {job.name}: skipped, another runner is running it (it holds '
+                f'{job.dir / JOB_LOCK})')
+            return
         why = 'interrupted' if result['returncode'] in (INTERRUPTED, -signal.SIGTERM, -signal.SIGINT) else \
             f'failed (exit status {result["returncode"]})'
         say(f'[{finished}/{len(todo)}] {job.name}: {why} after {minutes:.1f} min; log: {job.dir / "job.log"}')
 
-    runner.run([(run_command, dict(commands=job.commands, log=str(job.dir / 'job.log'),
-                                   outputs=[str(p) for p in job.outputs] if job.kind == 'reference' else []))
-                for job in todo], done, names=[job.name for job in todo])
+    runner.run([(run_job, dict(job=job)) for job in todo], done, names=[job.name for job in todo])
     return failed
 
 

@@ -123,6 +123,33 @@ def test_runners_side_by_side_merge_their_seeds_into_one_manifest(tmp_path):
     assert not list(tmp_path.glob('*.tmp'))
 
 
+def test_a_job_another_runner_holds_is_skipped_not_run_twice(tmp_path):
+    """A runner finds a job's directory locked by another (the same seeds started twice on one directory): it runs
+    nothing there, says so, and counts the job as not complete; once the lock is gone the job runs, and a job
+    completed meanwhile by the other runner is not run again."""
+    import dataclasses
+    import fcntl
+
+    from mate.benchmark.runner import BUSY, JOB_LOCK, run_job, run_jobs
+    from mate.runners import ThreadRunner
+    planned = plan(experiment('smoke'), [0], tmp_path)[0]
+    job = dataclasses.replace(planned, commands=(('--version',),), outputs=(planned.dir / 'version.txt',))
+    log = job.dir / 'job.log'
+    job.dir.mkdir(parents=True)
+    with open(job.dir / JOB_LOCK, 'a') as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert run_job(job)['returncode'] == BUSY
+        assert not log.exists()
+        lines: list[str] = []
+        assert run_jobs([job], ThreadRunner(1), say=lines.append) == [job]
+        assert 'skipped, another runner is running it' in lines[-1] and JOB_LOCK in lines[-1]
+    assert run_job(job)['returncode'] == 0
+    assert log.read_text().splitlines()[0] == '$ mate --version'
+    job.outputs[0].write_text('done by the other runner')
+    assert run_job(job)['returncode'] == 0
+    assert log.read_text().count('$ mate --version') == 1
+
+
 def test_parse_seeds():
     assert parse_seeds('0-4') == [0, 1, 2, 3, 4]
     assert parse_seeds('0,2,5') == [0, 2, 5]
