@@ -65,6 +65,8 @@ class IQLConfig(QLearningConfig):
         ((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)), 'learning rate (Adam), a step function of decision '
         'steps [[step, lr], ...]')
 
+    SCHEDULES = ('epsilon_schedule', 'lr_schedule')
+
     def __post_init__(self) -> None:
         super().__post_init__()
         for name in ('buffer_size', 'batch_size'):

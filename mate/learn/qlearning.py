@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 import torch
@@ -52,6 +52,9 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
         ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...]')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
 
+    SCHEDULES: ClassVar[tuple[str, ...]] = ('epsilon_schedule',)
+    """The schedule options of the config (a learner adds its learning rate's): checked once, in __post_init__."""
+
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
@@ -62,8 +65,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
         for name in ('num_envs', 'update_every', 'target_update', 'report_every'):
             if getattr(self, name) < 1:
                 raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
-        # the subclasses' learning-rate schedule too: one check of the shared options per config
-        check_network_options(self, tuple(name for name in ('epsilon_schedule', 'lr_schedule') if hasattr(self, name)))
+        check_network_options(self, self.SCHEDULES)
 
 
 def action_kind(config: QLearningConfig) -> str:

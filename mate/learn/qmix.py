@@ -70,6 +70,8 @@ class QMIXConfig(QLearningConfig):
     lr_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 1e-4),), 'learning rate (RMSprop), a step function of decision steps [[step, lr], ...]')
 
+    SCHEDULES = ('epsilon_schedule', 'lr_schedule')
+
     def __post_init__(self) -> None:
         super().__post_init__()
         for name in ('buffer_size', 'batch_size', 'sequence_length', 'mixer_embed'):
