@@ -8,11 +8,17 @@ exploration rates); constant before the first and after the last breakpoint.
 from __future__ import annotations
 
 import itertools
+import math
 
 __all__ = ['ACTIVATIONS', 'check_network_options', 'piecewise']
 
 ACTIVATIONS = ('tanh', 'relu')
 """The hidden activations of the trainers' networks."""
+
+SCHEDULE_VALUES = {'lr_schedule': ('a learning rate > 0', lambda v: v > 0),
+                   'entropy_schedule': ('an entropy coefficient >= 0', lambda v: v >= 0),
+                   'epsilon_schedule': ('an exploration rate in [0, 1]', lambda v: 0 <= v <= 1)}
+"""What each schedule option's values may be: (in words, the test)."""
 
 
 def piecewise(schedule, step: float, interpolate: bool) -> float:
@@ -28,11 +34,22 @@ def piecewise(schedule, step: float, interpolate: bool) -> float:
 
 def check_network_options(config, schedules: tuple[str, ...] = ()) -> None:
     """The checks every trainer's config shares (torch-free, also `mate rllib-train`'s): its `activation`, when it has
-    one, is one of `ACTIVATIONS`, and each schedule field named in `schedules` has at least one point. ValueError
-    naming the option as the command line spells it otherwise."""
+    one, is one of `ACTIVATIONS`, and each schedule field named in `schedules` has at least one point, each point a
+    [step, value] pair with a finite step >= 0 and a value `SCHEDULE_VALUES` allows. ValueError naming the option as
+    the command line spells it, and the valid range, otherwise."""
     activation = getattr(config, 'activation', None)
     if activation is not None and activation not in ACTIVATIONS:
         raise ValueError(f"--activation must be 'tanh' or 'relu', got {activation!r}")
     for name in schedules:
-        if not getattr(config, name):
-            raise ValueError(f'--{name.replace("_", "-")} needs at least one [step, value] point')
+        flag, points = f'--{name.replace("_", "-")}', getattr(config, name)
+        if not points:
+            raise ValueError(f'{flag} needs at least one [step, value] point')
+        words, valid = SCHEDULE_VALUES[name]
+        for point in points:
+            if len(point) != 2:
+                raise ValueError(f'{flag}: each point is [step, value], got {list(point)}')
+            step, value = point
+            if not (math.isfinite(step) and step >= 0):
+                raise ValueError(f'{flag}: a step is a decision-step count >= 0, got {step}')
+            if not (math.isfinite(value) and valid(value)):
+                raise ValueError(f'{flag}: each value is {words}, got {value} (at step {step})')

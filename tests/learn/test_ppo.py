@@ -2,6 +2,8 @@
 coefficient, value normalisation, schedules, minibatches. The trainers themselves: test_mappo.py and the files
 of the recurrent and communicating variants."""
 
+import re
+
 import pytest
 import torch
 
@@ -57,6 +59,27 @@ def test_schedules():
     assert piecewise(sched, 50, True) == pytest.approx(0.03)
     assert piecewise(sched, 50, False) == pytest.approx(0.05)
     assert piecewise(sched, 1000, True) == 0.0
+
+
+@pytest.mark.parametrize('config, flag, value, message', [
+    ('ppo', 'lr_schedule', ((0, 5e-4), (1000, 0.0)), 'a learning rate > 0, got 0.0 (at step 1000)'),
+    ('ppo', 'lr_schedule', ((0, float('nan')),), 'a learning rate > 0, got nan'),
+    ('ppo', 'entropy_schedule', ((0, -0.01),), 'an entropy coefficient >= 0, got -0.01'),
+    ('ppo', 'lr_schedule', ((-5, 5e-4),), 'a step is a decision-step count >= 0, got -5'),
+    ('ppo', 'lr_schedule', ((0, 5e-4, 3),), 'each point is [step, value], got [0, 0.0005, 3]'),
+    ('ppo', 'entropy_schedule', (), 'needs at least one [step, value] point'),
+    ('iql', 'epsilon_schedule', ((0, 1.5),), 'an exploration rate in [0, 1], got 1.5'),
+    ('iql', 'lr_schedule', ((0, -1e-4),), 'a learning rate > 0, got -0.0001'),
+    ('qmix', 'lr_schedule', ((0, -1e-4),), 'a learning rate > 0, got -0.0001'),
+])
+def test_a_schedule_out_of_range_is_refused_naming_the_option_and_the_range(config, flag, value, message):
+    from mate.learn.iql import IQLConfig
+    from mate.learn.ppo import PPOConfig
+    from mate.learn.qmix import QMIXConfig
+    make = dict(ppo=PPOConfig, iql=IQLConfig, qmix=QMIXConfig)[config]
+    with pytest.raises(ValueError, match='^' + re.escape(f'--{flag.replace("_", "-")}')) as error:
+        make(**{flag: value})
+    assert message in str(error.value)
 
 
 def test_value_normalizer_round_trip():
