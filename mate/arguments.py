@@ -12,7 +12,8 @@ import math
 from collections.abc import Callable
 from contextlib import contextmanager
 
-__all__ = ['ArgumentParser', 'CommandError', 'non_negative_int', 'number', 'positive_int', 'resolving_arguments']
+__all__ = ['ArgumentParser', 'CommandError', 'in_range', 'non_negative_int', 'number', 'number_phrase', 'positive_int',
+           'resolving_arguments']
 
 
 class CommandError(SystemExit):
@@ -32,23 +33,37 @@ def resolving_arguments():
         raise CommandError(str(exc)) from exc
 
 
-def number(kind: type = int, minimum: float | None = None, above: float | None = None) -> Callable[[str], float]:
-    """argparse type: a finite `kind` (int or float) that is >= `minimum` and/or > `above`; an integer may be
-    written as a whole number in any float notation ('2e6', '1000.0')."""
-    bounds = [f'{relation} {bound:g}' for relation, bound in (('>=', minimum), ('>', above)) if bound is not None]
-    expected = f"{'an integer' if kind is int else 'a number'}{' ' if bounds else ''}{' and '.join(bounds)}"
+def number(kind: type = int, minimum: float | None = None, above: float | None = None,
+           maximum: float | None = None) -> Callable[[str], float]:
+    """argparse type: a finite `kind` (int or float) that is >= `minimum`, > `above` and <= `maximum` (each when
+    given); an integer may be written as a whole number in any float notation ('2e6', '1000.0')."""
+    expected = number_phrase(kind, minimum, above, maximum)
 
     def parse(text: str):
         try:
             value = kind(text)
         except ValueError:
             value = _whole(text) if kind is int else math.nan
-        below = (minimum is not None and value < minimum) or (above is not None and value <= above)
-        if not math.isfinite(value) or below:
+        if not in_range(value, minimum, above, maximum):
             raise argparse.ArgumentTypeError(f'expected {expected}, got {text!r}')
         return value
 
     return parse
+
+
+def in_range(value: float, minimum: float | None = None, above: float | None = None,
+             maximum: float | None = None) -> bool:
+    """Whether `value` is finite, >= `minimum`, > `above` and <= `maximum` (each when given)."""
+    return bool(math.isfinite(value) and (minimum is None or value >= minimum) and (above is None or value > above)
+                and (maximum is None or value <= maximum))
+
+
+def number_phrase(kind: type = float, minimum: float | None = None, above: float | None = None,
+                  maximum: float | None = None) -> str:
+    """'an integer >= 1', 'a number > 0 and <= 1': what `number` accepts, in words."""
+    bounds = [f'{relation} {bound:g}' for relation, bound in (('>=', minimum), ('>', above), ('<=', maximum))
+              if bound is not None]
+    return f"{'an integer' if kind is int else 'a number'}{' ' if bounds else ''}{' and '.join(bounds)}"
 
 
 def _whole(text: str) -> float:

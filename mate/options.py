@@ -4,7 +4,8 @@ Every field of a config dataclass becomes an option `--field-name` of an argpars
 field's `metadata['help']` (written with `option(default, 'help')`), its type and choices come from the
 annotation:
 
-* `int`, `float`, `str`: a value (numbers parsed and range-checked: `metadata['minimum']`, `['above']`);
+* `int`, `float`, `str`: a value (numbers parsed and range-checked: `metadata['minimum']`, `['above']`,
+  `['maximum']`; `check_ranges(config)` checks the same ranges of a config made in Python);
 * `bool`: a switch; `--name` sets True (a field whose default is True gets `--no-name` instead);
 * `Literal['a', 'b']`: one of the choices;
 * `tuple[int, ...]` / `tuple[float, ...]`: one or more numbers (`--hidden 64 64`);
@@ -25,16 +26,40 @@ import types
 import typing
 from typing import Any, Literal
 
-from .arguments import number
+from .arguments import in_range, number, number_phrase
 
-__all__ = ['add_options', 'config_from', 'option']
+__all__ = ['add_options', 'check_ranges', 'config_from', 'option']
+
+RANGE_KEYS = ('minimum', 'above', 'maximum')
 
 
 def option(default: Any, help: str, **metadata: Any):   # noqa: A002  (the argparse word)
-    """A dataclass field with its command-line help (and optional `minimum`, `above`, `metavar`, `cli`)."""
+    """A dataclass field with its command-line help (and optional `minimum`, `above`, `maximum`, `metavar`, `cli`)."""
     if isinstance(default, (list, dict, set)):
         raise TypeError('use a tuple default (dataclass fields are shared between instances)')
     return dataclasses.field(default=default, metadata=dict(help=help, **metadata))
+
+
+def check_ranges(config) -> None:
+    """ValueError naming the option (`--clip must be a number > 0, got -0.1`) when a field of the dataclass
+    `config` with a range in its metadata (`minimum`, `above`, `maximum`) holds a number outside it; a tuple field
+    is checked number by number, None (an `X | None` field) passes. The command line checks the same when parsing;
+    this catches configs made in Python."""
+    hints = None
+    for field in dataclasses.fields(config):
+        bounds = tuple(field.metadata.get(key) for key in RANGE_KEYS)
+        if bounds == (None, None, None):
+            continue
+        value = getattr(config, field.name)
+        for item in value if isinstance(value, tuple) else (value,):
+            if item is None:
+                continue
+            if isinstance(item, bool) or not isinstance(item, (int, float)) or not in_range(item, *bounds):
+                hints = hints or typing.get_type_hints(type(config))
+                annotation = _unwrap_optional(hints[field.name])[0]
+                kind = (typing.get_args(annotation) or (float,))[0] if typing.get_origin(annotation) is tuple \
+                    else annotation
+                raise ValueError(f'{flag_of(field.name)} must be {number_phrase(kind, *bounds)}, got {item!r}')
 
 
 def flag_of(name: str) -> str:
@@ -110,7 +135,7 @@ def add_options(parser: argparse.ArgumentParser, config_class, group: str | None
             choices = typing.get_args(annotation)
             target.add_argument(flag, choices=choices, help=_help(field, _show(default)), **kwargs)
         elif annotation in (int, float):
-            target.add_argument(flag, type=number(annotation, meta.get('minimum'), meta.get('above')),
+            target.add_argument(flag, type=number(annotation, *map(meta.get, RANGE_KEYS)),
                                 help=_help(field, _show(default)), **kwargs)
         elif annotation is str:
             target.add_argument(flag, help=_help(field, _show(default)), **kwargs)
@@ -122,7 +147,7 @@ def add_options(parser: argparse.ArgumentParser, config_class, group: str | None
                                                                           if k != 'metavar'})
             else:
                 kind = inner[0] if inner else float
-                target.add_argument(flag, type=number(kind, meta.get('minimum'), meta.get('above')),
+                target.add_argument(flag, type=number(kind, *map(meta.get, RANGE_KEYS)),
                                     nargs='+', help=_help(field, _show(default)), **kwargs)
         else:
             raise TypeError(f'{config_class.__name__}.{field.name}: no command-line form for {hints[field.name]!r}')

@@ -63,8 +63,8 @@ class RLlibPPOConfig(RunConfig, TeamEnvConfig):
     epochs: int = option(16, 'passes over each batch (RLlib num_epochs; the paper: 16)', minimum=1)
     minibatch_size: int = option(256, "agent steps per minibatch (RLlib's minibatch_size, counted in the shared "
                                       "policy's rows: decisions x agents; the paper: 256)", minimum=1)
-    gamma: float = option(0.99, 'discount per decision', minimum=0)
-    gae_lambda: float = option(1.0, 'GAE lambda (RLlib and the paper: 1.0)', minimum=0)
+    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
+    gae_lambda: float = option(1.0, 'GAE lambda (RLlib and the paper: 1.0)', minimum=0, maximum=1)
     clip: float = option(0.3, 'PPO clip range of the probability ratio', above=0)
     value_coef: float = option(1.0, 'weight of the value loss (RLlib vf_loss_coeff)', minimum=0)
     vf_clip: float = option(10_000.0, 'clip of the squared value error (RLlib vf_clip_param; the paper: 10000, '

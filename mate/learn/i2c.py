@@ -88,10 +88,6 @@ class I2CConfig(PPOConfig):
                                     ('--velocity', self.velocity, 'exchanges raw observations')):
             if given:
                 raise ValueError(f'I2C {reason}; {flag} does not combine with it')
-        if self.lstm < 1:
-            raise ValueError(f'--lstm must be a number of LSTM cells >= 1, got {self.lstm}')
-        if self.influence_samples < 1:
-            raise ValueError(f'--influence-samples must be a number of decisions >= 1, got {self.influence_samples}')
         if not 0.0 <= self.message_dropout <= 1.0:
             raise ValueError(f'--message-dropout must be a probability in [0, 1], got {self.message_dropout}')
         if self.communication_range is not None and not self.communication_range > 0:

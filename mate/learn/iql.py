@@ -69,9 +69,6 @@ class IQLConfig(QLearningConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ('buffer_size', 'batch_size'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
         self.hidden = tuple(self.hidden)
 
 

@@ -72,8 +72,6 @@ class RecurrentConfig(PPOConfig):
         super().__post_init__()
         if self.actor == 'per-target' and self.team != 'camera':
             raise ValueError("--actor per-target reads a camera's target slots; it needs --team camera")
-        if self.lstm < 1:
-            raise ValueError(f'--lstm must be a number of LSTM cells >= 1, got {self.lstm}')
 
     @property
     def algo(self) -> str:

@@ -75,8 +75,8 @@ class MATD3Config(RunConfig, TeamEnvConfig):
     target_noise: float = option(0.2, 'std of the target-policy smoothing noise', minimum=0)
     target_noise_clip: float = option(0.5, 'the smoothing noise is clipped at +- this', minimum=0)
     policy_delay: int = option(2, 'critic updates per actor update', minimum=1)
-    tau: float = option(0.01, 'soft target update rate, after every update, in (0, 1]', above=0)
-    gamma: float = option(0.99, 'discount per decision', minimum=0)
+    tau: float = option(0.01, 'soft target update rate, after every update, in (0, 1]', above=0, maximum=1)
+    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     actor_lr: float = option(1e-4, "the actors' learning rate (Adam)", above=0)
     critic_lr: float = option(1e-4, "the critics' learning rate (Adam)", above=0)
     huber: float = option(10.0, 'Huber threshold of the critic loss', above=0)
@@ -90,11 +90,6 @@ class MATD3Config(RunConfig, TeamEnvConfig):
         if self.hrl:
             raise ValueError('--hrl is not an option of MA-TD3: it acts with continuous actions (HRL selections are '
                              'discrete: mappo, iql, qmix)')
-        if not 0.0 < self.tau <= 1.0:
-            raise ValueError(f'tau must be in (0, 1], got {self.tau}')
-        for name in ('num_envs', 'buffer_size', 'batch_size', 'update_every', 'policy_delay'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
         check_network_options(self)
         self.hidden = tuple(self.hidden)
 

@@ -38,8 +38,8 @@ class PPOConfig(RunConfig, TeamEnvConfig):
     rollout_length: int = option(25, 'decisions per env per iteration (the paper: 25-step fragments)', minimum=1)
     epochs: int = option(4, 'passes over each rollout', minimum=1)
     minibatches: int = option(4, 'minibatches per pass', minimum=1)
-    gamma: float = option(0.99, 'discount per decision', minimum=0)
-    gae_lambda: float = option(0.95, 'GAE lambda (RLlib and the paper: 1.0)', minimum=0)
+    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
+    gae_lambda: float = option(0.95, 'GAE lambda (RLlib and the paper: 1.0)', minimum=0, maximum=1)
     clip: float = option(0.3, 'PPO clip range of the probability ratio', above=0)
     value_coef: float = option(1.0, 'weight of the value loss', minimum=0)
     kl_coeff: float = option(0.0, 'initial coefficient of the adaptive KL penalty (RLlib and the paper: 0.2); 0: off',

@@ -47,7 +47,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
                                          'replay stores as many again)', minimum=0)
     update_every: int = option(128, "decision steps between updates (the spec's sampling round of 16 x 8)", minimum=1)
     target_update: int = option(500, 'decision steps between hard copies to the target networks', minimum=1)
-    gamma: float = option(0.99, 'discount per decision', minimum=0)
+    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     epsilon_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...]')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
@@ -62,9 +62,6 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
             raise ValueError(f'selection must be one of {", ".join(SELECTIONS)} (HRL cameras), got {self.selection!r}')
         if self.selection != 'joint' and not self.hrl:
             raise ValueError(f'--selection {self.selection} is how HRL cameras select targets; it needs --hrl')
-        for name in ('num_envs', 'update_every', 'target_update', 'report_every'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
         check_network_options(self, self.SCHEDULES)
 
 

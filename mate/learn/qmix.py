@@ -74,9 +74,6 @@ class QMIXConfig(QLearningConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ('buffer_size', 'batch_size', 'sequence_length', 'mixer_embed'):
-            if getattr(self, name) < 1:
-                raise ValueError(f'{name} must be >= 1, got {getattr(self, name)}')
         if self.credit != 'team':
             raise ValueError(f"QMIX learns from the team reward: credit must be 'team', not {self.credit!r}")
         if len(self.hidden) != 1:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..options import option
+from ..options import check_ranges, option
 
 __all__ = ['RunConfig']
 
@@ -33,6 +33,7 @@ class RunConfig:
         from .device import parse_device
 
         parse_device(self.device)          # a bad name is refused now, with the valid forms
+        check_ranges(self)                 # the options' ranges, as the command line checks them
 
     @property
     def time_limit(self) -> float:

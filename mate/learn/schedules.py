@@ -15,7 +15,7 @@ __all__ = ['ACTIVATIONS', 'check_network_options', 'piecewise']
 ACTIVATIONS = ('tanh', 'relu')
 """The hidden activations of the trainers' networks."""
 
-SCHEDULE_VALUES = {'lr_schedule': ('a learning rate > 0', lambda v: v > 0),
+SCHEDULE_VALUES = {'lr_schedule': ('a learning rate >= 0 (0: the weights stay)', lambda v: v >= 0),
                    'entropy_schedule': ('an entropy coefficient >= 0', lambda v: v >= 0),
                    'epsilon_schedule': ('an exploration rate in [0, 1]', lambda v: 0 <= v <= 1)}
 """What each schedule option's values may be: (in words, the test)."""

@@ -84,8 +84,6 @@ class TarMACConfig(PPOConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.lstm < 1:
-            raise ValueError(f'--lstm must be a number of LSTM cells >= 1, got {self.lstm}')
         if not 0.0 <= self.message_dropout <= 1.0:
             raise ValueError(f'--message-dropout must be a probability in [0, 1], got {self.message_dropout}')
         if self.communication_range is not None and not self.communication_range > 0:

@@ -156,7 +156,7 @@ def test_the_spec_builds_tarmac_and_the_config_defaults():
         spec.replace(network='commnet')
     assert tarmac.TarMACConfig().lstm == 256 and tarmac.TarMACConfig(lstm=64).lstm == 64
     assert tarmac.policy_spec(tarmac.TarMACConfig(hrl=True)).action == 'hrl'          # HRL selections combine
-    with pytest.raises(ValueError, match='--lstm must be a number of LSTM cells >= 1, got 0'):
+    with pytest.raises(ValueError, match='--lstm must be an integer >= 1, got 0'):
         tarmac.TarMACConfig(lstm=0)
 
 

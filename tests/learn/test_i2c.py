@@ -246,7 +246,7 @@ def test_i2c_refuses_what_it_does_not_support(tmp_path):
                                                              'combine with it'),
                             (dict(team='camera', memory=25), 'I2C exchanges raw observations; --memory does not'),
                             (dict(team='camera', velocity=True), 'I2C exchanges raw observations; --velocity does not'),
-                            (dict(influence_samples=0), '--influence-samples must be a number of decisions >= 1')):
+                            (dict(influence_samples=0), '--influence-samples must be an integer >= 1')):
         with pytest.raises(ValueError, match=message):
             _config(tmp_path, **option)
     assert not any(tmp_path.iterdir())                                           # refused before anything ran

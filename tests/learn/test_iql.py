@@ -195,9 +195,9 @@ def test_hrl_joint_iql_plays_only_selections_of_visible_targets(tmp_path):
 
 
 def test_iql_settings_errors():
-    with pytest.raises(ValueError, match='batch_size must be >= 1'):
+    with pytest.raises(ValueError, match='--batch-size must be an integer >= 1'):
         IQLConfig(batch_size=0)
-    with pytest.raises(ValueError, match='update_every must be >= 1'):
+    with pytest.raises(ValueError, match='--update-every must be an integer >= 1'):
         IQLConfig(update_every=0)
     with pytest.raises(ValueError, match='--hrl exists for cameras only'):
         IQLConfig(team='target', hrl=True)

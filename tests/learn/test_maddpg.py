@@ -138,9 +138,9 @@ def test_maddpg_policy_plays_in_mate_evaluate(tmp_path):
 
 
 def test_maddpg_settings_errors():
-    with pytest.raises(ValueError, match='tau must be in'):
+    with pytest.raises(ValueError, match=r'--tau must be a number > 0 and <= 1, got 0'):
         MATD3Config(tau=0)
-    with pytest.raises(ValueError, match='policy_delay must be >= 1'):
+    with pytest.raises(ValueError, match='--policy-delay must be an integer >= 1'):
         MATD3Config(policy_delay=0)
     with pytest.raises(ValueError, match='--hrl is not an option of MA-TD3'):
         MATD3Config(hrl=True)

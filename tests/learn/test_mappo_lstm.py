@@ -78,7 +78,7 @@ def test_policy_spec_config_and_files(tmp_path):
     assert RecurrentConfig.PRESETS['paper'][1]['actor'] == 'mlp'                # --paper: the paper's MLP actor
     with pytest.raises(ValueError, match='--actor per-target reads a camera'):
         RecurrentConfig(team='target', actor='per-target')
-    with pytest.raises(ValueError, match='--lstm must be a number of LSTM cells >= 1, got 0'):
+    with pytest.raises(ValueError, match='--lstm must be an integer >= 1, got 0'):
         RecurrentConfig(lstm=0)
 
     config = RecurrentConfig(actor='mlp', steps=2 * 4 * 3, num_envs=2, rollout_length=4, epochs=1, hidden=(8,), lstm=4,

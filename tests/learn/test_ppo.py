@@ -62,15 +62,16 @@ def test_schedules():
 
 
 @pytest.mark.parametrize('config, flag, value, message', [
-    ('ppo', 'lr_schedule', ((0, 5e-4), (1000, 0.0)), 'a learning rate > 0, got 0.0 (at step 1000)'),
-    ('ppo', 'lr_schedule', ((0, float('nan')),), 'a learning rate > 0, got nan'),
+    ('ppo', 'lr_schedule', ((0, 5e-4), (1000, -1e-5)),
+     'a learning rate >= 0 (0: the weights stay), got -1e-05 (at step 1000)'),
+    ('ppo', 'lr_schedule', ((0, float('nan')),), 'a learning rate >= 0 (0: the weights stay), got nan'),
     ('ppo', 'entropy_schedule', ((0, -0.01),), 'an entropy coefficient >= 0, got -0.01'),
     ('ppo', 'lr_schedule', ((-5, 5e-4),), 'a step is a decision-step count >= 0, got -5'),
     ('ppo', 'lr_schedule', ((0, 5e-4, 3),), 'each point is [step, value], got [0, 0.0005, 3]'),
     ('ppo', 'entropy_schedule', (), 'needs at least one [step, value] point'),
     ('iql', 'epsilon_schedule', ((0, 1.5),), 'an exploration rate in [0, 1], got 1.5'),
-    ('iql', 'lr_schedule', ((0, -1e-4),), 'a learning rate > 0, got -0.0001'),
-    ('qmix', 'lr_schedule', ((0, -1e-4),), 'a learning rate > 0, got -0.0001'),
+    ('iql', 'lr_schedule', ((0, -1e-4),), 'a learning rate >= 0 (0: the weights stay), got -0.0001'),
+    ('qmix', 'lr_schedule', ((0, -1e-4),), 'a learning rate >= 0 (0: the weights stay), got -0.0001'),
 ])
 def test_a_schedule_out_of_range_is_refused_naming_the_option_and_the_range(config, flag, value, message):
     from mate.learn.iql import IQLConfig

@@ -187,7 +187,7 @@ def test_hrl_joint_selection_trains_one_of_2_to_the_nt_choices(tmp_path):
 def test_qmix_settings_errors():
     with pytest.raises(ValueError, match="credit must be 'team'"):
         QMIXConfig(credit='difference')
-    with pytest.raises(ValueError, match='sequence_length must be >= 1'):
+    with pytest.raises(ValueError, match='--sequence-length must be an integer >= 1'):
         QMIXConfig(sequence_length=0)
     with pytest.raises(ValueError, match='one width'):
         QMIXConfig(hidden=(64, 64))
