@@ -15,8 +15,8 @@ at the end, with the same fields:
 
     training: 12,800/20,000 (64%) elapsed 0:00:09 eta 0:00:05  2,345 steps/s  coverage 0.61
 
-`logged_steps(run_dir)` reads how far a training run has come from its `progress.csv`, for the commands that
-watch runs in other processes (`mate psro`, `mate benchmark status`).
+`logged_steps(run_dir)` reads how far a training run has come from its `progress.csv`, and `logged_rate(run_dir)`
+how fast, for the commands that watch runs in other processes (`mate psro`, `mate benchmark status`).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from rich.table import Column
 from rich.text import Text
 
 __all__ = ['PLAIN_INTERVAL', 'ProgressLine', 'StatusColumn', 'StepCountColumn', 'TimesColumn', 'clock',
-           'displayed_count', 'logged_steps', 'progress_bar']
+           'displayed_count', 'last_logged_row', 'logged_rate', 'logged_steps', 'progress_bar']
 
 PLAIN_INTERVAL = 30.0
 """Seconds between two plain progress lines when the output is not a terminal."""
@@ -176,6 +176,25 @@ def logged_steps(run_dir) -> int | None:
     """Decision steps a training run (`mate train`, `mate rllib-train`) in the directory `run_dir` has logged:
     `env_steps` of the last complete row of its `progress.csv`, read from the file's end (cheap on long logs, safe
     while the run writes); None before its first row."""
+    row = last_logged_row(run_dir)
+    return None if row is None else int(row['env_steps'])
+
+
+def logged_rate(run_dir) -> float | None:
+    """Decision steps per second of training so far (`env_steps` / `wall_seconds` of the last complete row of
+    `progress.csv`: evaluations and checkpoints included, the time between resumed sessions not); None before the
+    first row or when the row has no time."""
+    row = last_logged_row(run_dir)
+    try:
+        seconds = float(row['wall_seconds'])
+    except (TypeError, KeyError, ValueError):
+        return None
+    return int(row['env_steps']) / seconds if seconds > 0 else None
+
+
+def last_logged_row(run_dir) -> dict[str, str] | None:
+    """The last complete row of `run_dir/progress.csv` ({column: text}, with an `env_steps` count), read from
+    the file's end; None when there is none yet."""
     path = Path(run_dir) / 'progress.csv'
     try:
         with open(path, 'rb') as f:
@@ -192,5 +211,5 @@ def logged_steps(run_dir) -> int | None:
     for line in reversed(rows):
         fields = line.split(',')
         if len(fields) == len(header) and fields[column].isdigit():
-            return int(fields[column])
+            return dict(zip(header, fields))
     return None

@@ -45,7 +45,7 @@ from pathlib import Path
 
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
-from ..progress import logged_steps
+from ..progress import logged_rate, logged_steps
 from .experiments import Experiment, Setting
 
 __all__ = ['BENCHMARK_FORMAT', 'BUSY', 'JOB_LOCK', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of',
@@ -466,6 +466,14 @@ def _summary(job: Job) -> str:
     return f'; {job.metric} {sum(values) / len(values):.3f} ({len(values)} episodes)'
 
 
+def _duration(seconds: float) -> str:
+    """'about 2 h 05 min', 'about 7 min', 'under a minute'."""
+    minutes = round(seconds / 60)
+    if minutes < 1:
+        return 'under a minute'
+    return f'about {minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'about {minutes} min'
+
+
 JOB_STATES = ('done', 'started', 'waiting')
 """What `job_status` says of a job."""
 
@@ -486,6 +494,9 @@ def job_status(job: Job, steps: int) -> tuple[str, str]:
         return 'started', f'{job.name}: {done} of {len(job.outputs)} evaluations'
     logged = logged_steps(job.dir) if job.kind == 'train' else None
     if logged is not None:
+        rate = logged_rate(job.dir)
+        left = (f'; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
+                if rate and logged < steps else '')
         return 'started', (f'{job.name}: {logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} '
-                           f'%){"; its absolute metric is missing: run again" if logged >= steps else ""}')
+                           f'%){left}{"; its absolute metric is missing: run again" if logged >= steps else ""}')
     return 'waiting', f'{job.name}: waiting'

@@ -260,6 +260,12 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     assert job_status(reference, exp.steps) == ('started', f'{reference.name}: 1 of 2 evaluations')
     assert job_status(run, exp.steps) == ('started', f'{run.name}: 80 of {exp.steps} decision steps (40 %)')
     assert job_status(jobs[1], exp.steps) == ('waiting', f'{jobs[1].name}: waiting')
+    # with the training time logged: what is left at the run's rate so far (80 steps in 2 s: 40 steps/s)
+    (run.dir / 'progress.csv').write_text('iteration,env_steps,wall_seconds\n1,40,1.5\n2,80,2.0\n')
+    assert job_status(run, 5_000)[1] == (f'{run.name}: 80 of 5,000 decision steps (1 %); about 2 min left at its '
+                                         'rate so far (40 steps/s)')
+    assert job_status(run, 300_080)[1].endswith('about 2 h 05 min left at its rate so far (40 steps/s)')
+    assert 'under a minute left' in job_status(run, 100)[1]
     (run.dir / 'progress.csv').write_text(f'iteration,env_steps\n1,{exp.steps}\n')
     assert job_status(run, exp.steps)[1].endswith('its absolute metric is missing: run again')
     assert main(['benchmark', 'status', str(fresh)]) == 0
