@@ -36,6 +36,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -48,9 +49,9 @@ from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from ..progress import logged_rate, logged_steps
 from .experiments import Experiment, Setting
 
-__all__ = ['BENCHMARK_FORMAT', 'BUSY', 'JOB_LOCK', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE', 'horizon_of',
-           'job_status', 'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs', 'run_jobs', 'run_command',
-           'run_job', 'stop_children', 'tied_to_parent']
+__all__ = ['BENCHMARK_FORMAT', 'BUSY', 'JOB_LOCK', 'JOB_RUNNER', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE',
+           'horizon_of', 'job_runner', 'job_status', 'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs',
+           'run_command', 'run_job', 'run_jobs', 'stop_children', 'tied_to_parent']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 SEED_STRIDE = 1000
@@ -185,6 +186,8 @@ BUSY = 75
 """The status of a job not run because another runner holds its lock (it is running there)."""
 JOB_LOCK = '.job.lock'
 """The file in a job's directory locked while a runner runs the job."""
+JOB_RUNNER = '.job.runner'
+"""The file in a job's directory naming the process running it ('HOST PID'), there while it runs."""
 
 
 def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str] = ()) -> dict:
@@ -211,8 +214,34 @@ def run_job(job: Job) -> dict:
             return dict(returncode=BUSY, seconds=0.0)
         if job.done():
             return dict(returncode=0, seconds=0.0)
-        return run_command(job.commands, str(job.dir / 'job.log'),
-                           [str(p) for p in job.outputs] if job.kind == 'reference' else [])
+        runner = job.dir / JOB_RUNNER
+        runner.write_text(f'{socket.gethostname()} {os.getpid()}\n')
+        try:
+            return run_command(job.commands, str(job.dir / 'job.log'),
+                               [str(p) for p in job.outputs] if job.kind == 'reference' else [])
+        finally:
+            runner.unlink(missing_ok=True)
+
+
+def job_runner(job: Job) -> str | None:
+    """Who runs `job` now, from its `JOB_RUNNER` file: 'pid N' (this machine: checked alive), 'HOST, pid N'
+    (another machine: as its runner wrote, not checked); None when no runner runs it (no file, or the process
+    that wrote it on this machine is gone, say killed with its runner)."""
+    try:
+        host, pid = (job.dir / JOB_RUNNER).read_text().split()
+        pid = int(pid)
+    except (OSError, ValueError):
+        return None
+    if host != socket.gethostname():
+        return f'{host}, pid {pid}'
+    if os.name == 'posix':                       # (elsewhere os.kill would end the process)
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:                  # alive, another user's
+            pass
+    return f'pid {pid}'
 
 
 def _run_in_order(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str]) -> int:
@@ -413,7 +442,7 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
             folder = reusable(job, out, source)
             if folder is None:
                 continue
-            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK))
+            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER))
             (job.dir / REUSED_NOTE).write_text(
                 f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
                 f'(its directory in place of this one)\n')
@@ -474,29 +503,42 @@ def _duration(seconds: float) -> str:
     return f'about {minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'about {minutes} min'
 
 
-JOB_STATES = ('done', 'started', 'waiting')
+JOB_STATES = ('done', 'running', 'started', 'waiting')
 """What `job_status` says of a job."""
 
 
 def job_status(job: Job, steps: int) -> tuple[str, str]:
     """(state, line) of a job of a benchmark directory whose runs train `steps` decision steps: 'done' with what
-    it measured ('reused' when copied by --reuse), 'started' with how far it is (a training run's logged decision
-    steps, a population run's iterations, a reference's evaluations), or 'waiting'."""
+    it measured ('reused' when copied by --reuse); 'running' (a runner runs it now: `job_runner`) or 'started' (part
+    done, no runner now) with how far it is (a training run's logged decision steps and the time left at its rate
+    so far, a population run's iterations, a reference's evaluations); or 'waiting'."""
     if job.done():
         reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else ''
         return 'done', f'{job.name}: done{_summary(job)}{reused}'
+    runner = job_runner(job)
+    progress = _progress(job, steps, running=runner is not None)
+    if runner is not None:
+        return 'running', f'{job.name}: {progress or "starting"} (running: {runner})'
+    if progress is not None:
+        return 'started', f'{job.name}: {progress}'
+    return 'waiting', f'{job.name}: waiting'
+
+
+def _progress(job: Job, steps: int, running: bool) -> str | None:
+    """How far a job that is not done has come, or None before anything of it was written."""
     if job.kind == 'psro' and job.outputs[0].exists():
         state = json.loads(job.outputs[0].read_text())
         done, total = max(len(state['iterations']) - 1, 0), int(state['settings']['iterations'])
-        return 'started', f'{job.name}: {done} of {total} iterations'
+        return f'{done} of {total} iterations'
     if job.kind == 'reference' and any(path.exists() for path in job.outputs):
-        done = sum(path.exists() for path in job.outputs)
-        return 'started', f'{job.name}: {done} of {len(job.outputs)} evaluations'
+        return f'{sum(path.exists() for path in job.outputs)} of {len(job.outputs)} evaluations'
     logged = logged_steps(job.dir) if job.kind == 'train' else None
-    if logged is not None:
-        rate = logged_rate(job.dir)
-        left = (f'; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
-                if rate and logged < steps else '')
-        return 'started', (f'{job.name}: {logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} '
-                           f'%){left}{"; its absolute metric is missing: run again" if logged >= steps else ""}')
-    return 'waiting', f'{job.name}: waiting'
+    if logged is None:
+        return None
+    text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)'
+    rate = logged_rate(job.dir)
+    if rate and logged < steps:
+        return f'{text}; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
+    if logged >= steps:
+        return f'{text}; {"its absolute metric" if running else "its absolute metric is missing: run again"}'
+    return text

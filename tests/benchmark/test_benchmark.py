@@ -247,7 +247,7 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     exp = experiment('smoke')
     assert main(['benchmark', 'status', str(runs)]) == 0
     n = len(plan(exp, range(exp.seeds), runs))
-    assert f'smoke: {n} done, 0 started, 0 waiting of {n} jobs' in capsys.readouterr().out
+    assert f'smoke: {n} done, 0 running, 0 started, 0 waiting of {n} jobs' in capsys.readouterr().out
     # a fresh directory: one training run part-way, one reference half evaluated, the rest waiting
     fresh = tmp_path / 'fresh'
     jobs = plan(exp, [0], fresh)
@@ -269,7 +269,27 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     (run.dir / 'progress.csv').write_text(f'iteration,env_steps\n1,{exp.steps}\n')
     assert job_status(run, exp.steps)[1].endswith('its absolute metric is missing: run again')
     assert main(['benchmark', 'status', str(fresh)]) == 0
-    assert f'smoke: 0 done, 2 started, {len(jobs) - 2} waiting of {len(jobs)} jobs' in capsys.readouterr().out
+    assert f'smoke: 0 done, 0 running, 2 started, {len(jobs) - 2} waiting of {len(jobs)} jobs' in capsys.readouterr().out
+    # a runner's file: running when its process lives (here: this one), started when it is gone, as written for
+    # another machine
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    from mate.benchmark.runner import JOB_RUNNER
+    (run.dir / JOB_RUNNER).write_text(f'{socket.gethostname()} {os.getpid()}\n')
+    assert job_status(run, exp.steps) == ('running', f'{run.name}: {exp.steps} of {exp.steps} decision steps (100 %); '
+                                                     f'its absolute metric (running: pid {os.getpid()})')
+    assert job_status(jobs[1], exp.steps)[0] == 'waiting'
+    (jobs[1].dir).mkdir(parents=True, exist_ok=True)
+    (jobs[1].dir / JOB_RUNNER).write_text('node-7 4242\n')
+    assert job_status(jobs[1], exp.steps) == ('running', f'{jobs[1].name}: starting (running: node-7, pid 4242)')
+    gone = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'], capture_output=True, text=True)
+    (run.dir / JOB_RUNNER).write_text(f'{socket.gethostname()} {int(gone.stdout)}\n')
+    assert job_status(run, exp.steps)[0] == 'started'
+    assert main(['benchmark', 'status', str(fresh)]) == 0
+    assert f'smoke: 0 done, 1 running, 2 started, {len(jobs) - 3} waiting' in capsys.readouterr().out
     assert main(['benchmark', 'status', str(tmp_path)]) == 2
     assert 'no benchmark.json' in capsys.readouterr().err
 
