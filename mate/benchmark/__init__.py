@@ -1,8 +1,9 @@
 """The paper's experiments as a benchmark (`mate benchmark`).
 
 - `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `EXPERIMENTS`);
-- `mate.benchmark.runner`: an experiment's jobs (references, training runs, PSRO runs), resumable, on a local
-  process pool or Ray (`mate.runners`);
+- `mate.benchmark.jobs`: an experiment's jobs (references, training runs, PSRO runs) for run seeds and a budget;
+- `mate.benchmark.runner`: the jobs run, resumable, in local processes or on Ray (`mate.runners`);
+- `mate.benchmark.directory`: a benchmark directory's manifest, the reuse of another's jobs, each job's status;
 - `mate.benchmark.report`: `results.md`, `results.json`, figures and `marl_eval.json` from benchmark directories;
 - `mate.benchmark.stats`: IQM, mean and probability of improvement with stratified-bootstrap confidence
   intervals (rliable's definitions, in numpy), curves with bands, normalised scores;

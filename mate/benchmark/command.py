@@ -107,7 +107,8 @@ def _say(console):
 
 def _status(dirs: list[str], say) -> int:
     from .experiments import experiment as experiment_named
-    from .runner import JOB_STATES, job_status, plan, read_manifest
+    from .directory import JOB_STATES, job_status, read_manifest
+    from .jobs import plan
 
     for folder in dirs:
         try:
@@ -143,7 +144,9 @@ def _list(say) -> int:
 def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
     from .experiments import experiment as experiment_named
-    from .runner import parse_seeds, plan, reuse_jobs, run_jobs, stop_children, write_manifest
+    from .directory import reuse_jobs, write_manifest
+    from .jobs import parse_seeds, plan
+    from .runner import run_jobs, stop_children
 
     try:
         experiment = experiment_named(args.name)

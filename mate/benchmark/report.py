@@ -31,7 +31,7 @@ from ..learn.evaluation import read_evaluations
 from .experiments import Experiment
 from .experiments import experiment as experiment_named
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
-from .runner import read_manifest
+from .directory import read_manifest
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
 __all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_interval', 'summarise', 'write_report']
@@ -182,7 +182,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                         entry[f'final_{key}'] = {name: _interval(value) for name, value in estimates.items()}
                         entry[f'final_{key}_values'] = finals.tolist()
                 task['settings'][label] = entry
-                key = 'exploitability_fresh' if f'final_exploitability_fresh_values' in entry else 'exploitability'
+                key = 'exploitability_fresh' if 'final_exploitability_fresh_values' in entry else 'exploitability'
                 if f'final_{key}_values' in entry:       # lower is better: scored negated
                     scores[label] = -np.array(entry[f'final_{key}_values'])
             summary['tasks'][experiment.task(preset)] = task

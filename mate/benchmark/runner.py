@@ -1,181 +1,37 @@
-"""`mate benchmark run`: an experiment's runs as independent jobs, resumable, one line per finished job.
+"""`mate benchmark run`: the jobs of an experiment (`mate.benchmark.jobs`) run as independent processes, on this
+machine (`mate.runners.ThreadRunner`) or as Ray tasks (`RayRunner`), one line per finished job.
 
     from mate.benchmark.experiments import experiment
-    from mate.benchmark.runner import plan
+    from mate.benchmark.jobs import plan
+    from mate.benchmark.runner import run_jobs
+    from mate.runners import ThreadRunner
 
-    jobs = plan(experiment('fig4a-cameras'), seeds=range(5), out='bench/fig4a')
-    print(len(jobs), jobs[-1].name)        # 38 MA-TD3 on MATE-4v8-9 seed 4
-    # run_jobs(jobs, mate.runners.LocalRunner(2), say=print) runs the missing ones
+    jobs = plan(experiment('smoke'), seeds=[0], out='bench/smoke')
+    failed = run_jobs(jobs, ThreadRunner(2), say=print)     # runs the missing ones, two at a time
 
-A job is one command line of the package (`python -m mate ...`) whose output goes to a log file:
-
-* a training run (`mate train COMMAND ... --seed S --eval-every K --eval-episodes E --run-dir OUT/runs/...`) per
-  (setting, preset, seed), done when its `absolute.json` exists (the run completed and its best policy was
-  re-evaluated);
-* a population run (`mate psro ... --out OUT/runs/...`) per (setting, preset, seed), done when its `state.json`
-  holds every iteration;
-* a reference (`mate evaluate` of a rule team against the greedy rules) per (preset, reference): the evaluation
-  episodes (seeds `EVALUATION_SEEDS`, ..., E episodes) and the absolute ones (seeds `ABSOLUTE_SEEDS`, ..., 10 E),
-  each cut at the training horizon, the same episodes the learners are scored on; done when both JSON files exist.
-
-Every job resumes from what it left: a training run from its checkpoint, a population run from its state. The
-runner writes `OUT/benchmark.json` (the experiment, the budget, the seeds, every job's command line) and appends
-each line it says to `OUT/benchmark.log`.
-
-Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
-of a run are seeded `seed + row`) and every run stays below the evaluation seeds; a population run with `mate psro
---seed k`, which spaces its best responses' seeds by 1,000 itself (`PSROSettings.best_response_seed`).
+Each job runs under a lock of its directory (`JOB_LOCK`; two runners never run one job) and names its process in
+`JOB_RUNNER` while it runs (`mate benchmark status` reads it). Every job resumes from what it left: a training run
+from its checkpoint, a population run from its state. Ctrl-C or SIGTERM (`stop_children`) stop every running job
+at a checkpoint.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-import json
 import os
-import re
-import shutil
 import signal
 import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..learn.envs import PAPER_SETTINGS
-from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
-from ..progress import logged_rate, logged_steps
-from .experiments import Experiment, Setting
+from .jobs import Job
 
-__all__ = ['BENCHMARK_FORMAT', 'BUSY', 'JOB_LOCK', 'JOB_RUNNER', 'Job', 'PATH_OPTIONS', 'REUSED_NOTE', 'SEED_STRIDE',
-           'horizon_of', 'job_runner', 'job_status', 'parse_seeds', 'plan', 'read_manifest', 'reusable', 'reuse_jobs',
-           'run_command', 'run_job', 'run_jobs', 'stop_children', 'tied_to_parent']
-
-BENCHMARK_FORMAT = 'mate.benchmark/1'
-SEED_STRIDE = 1000
-"""Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
-MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1
-"""The largest run seed: its training envs (up to SEED_STRIDE rows) stay below the evaluation seeds."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Job:
-    """One command of an experiment.
-
-    Args:
-        kind: 'train', 'psro' or 'reference'.
-        label: the setting's label (training, population) or the reference's agent name.
-        preset: the game.
-        seed: the run seed (None for a reference).
-        dir: the job's directory (the run directory, or the reference's).
-        commands: the command lines after `python -m mate`, run in order.
-        outputs: the files whose existence marks the job done.
-        metric: the per-episode metric the job is scored by (the trained team's: `TEAM_METRIC`; '' for PSRO).
-    """
-
-    kind: str
-    label: str
-    preset: str
-    seed: int | None
-    dir: Path
-    commands: tuple[tuple[str, ...], ...]
-    outputs: tuple[Path, ...]
-    metric: str = ''
-
-    @property
-    def name(self) -> str:
-        seed = '' if self.seed is None else f' seed {self.seed}'
-        return f'{self.label} on {self.preset}{seed}'
-
-    def done(self) -> bool:
-        if self.kind == 'psro':
-            return _psro_complete(self.outputs[0])
-        return all(path.exists() for path in self.outputs)
-
-
-def _psro_complete(state_path: Path) -> bool:
-    if not state_path.exists():
-        return False
-    state = json.loads(state_path.read_text())
-    return len(state['iterations']) > int(state['settings']['iterations'])
-
-
-def parse_seeds(text: str) -> list[int]:
-    """Run seeds from '0-4', '0,2,5' or '3' (ranges inclusive); ValueError naming the valid form otherwise."""
-    seeds: list[int] = []
-    try:
-        for part in str(text).split(','):
-            first, _, last = part.strip().partition('-')
-            seeds.extend(range(int(first), int(last or first) + 1))
-    except ValueError:
-        raise ValueError(f"--seeds: seeds as '0-4', '0,2,5' or '3', got {text!r}") from None
-    if not seeds:
-        raise ValueError(f'--seeds: no seeds in {text!r}')
-    bad = [s for s in seeds if not 0 <= s <= MAX_SEED]
-    if bad:
-        raise ValueError(f'--seeds: run seeds are 0..{MAX_SEED}, got {bad[0]}')
-    return sorted(set(seeds))
-
-
-def horizon_of(experiment: Experiment) -> int | None:
-    """Env steps per training (and evaluation) episode: the experiment's, or the trainer's default of 500 decisions
-    at the paper's frame skip of the team (None for a population experiment: `mate psro` sets its own)."""
-    if experiment.population:
-        return experiment.horizon
-    return experiment.horizon or 500 * PAPER_SETTINGS[experiment.team]['frame_skip']
-
-
-def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path,
-              threads: int) -> Job:
-    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
-    trainer = ('rllib-train',) if setting.command == 'rllib-ppo' else ('train', setting.command)
-    command = (*trainer, *setting.options, '--team', experiment.team, '--config', preset,
-               '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
-               '--eval-every', str(experiment.eval_interval(steps)), '--eval-episodes', str(experiment.eval_episodes),
-               '--threads', str(threads), '--run-dir', str(folder), '--no-progress')
-    return Job('train', setting.label, preset, seed, folder, (command,), (folder / 'absolute.json',),
-               TEAM_METRIC[experiment.team])
-
-
-def _population(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path) -> Job:
-    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
-    command = ('psro', *setting.options, '--config', preset, '--iterations', str(experiment.iterations),
-               '--br-steps', str(steps), '--seed', str(seed), '--workers', '1', '--out', str(folder))
-    return Job('psro', setting.label, preset, seed, folder, (command,), (folder / 'state.json',))
-
-
-def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Job:
-    folder = out / 'references' / f'{agent}-{preset}'
-    own, other = ('--camera-agent', '--target-agent') if experiment.team == 'camera' else \
-        ('--target-agent', '--camera-agent')
-    commands, outputs = [], []
-    for name, seed, episodes in (('evaluation', EVALUATION_SEEDS, experiment.eval_episodes),
-                                 ('absolute', ABSOLUTE_SEEDS, ABSOLUTE_FACTOR * experiment.eval_episodes)):
-        path = folder / f'{name}.json'
-        commands.append(('evaluate', '--config', preset, own, agent, other, 'greedy', '--episodes', str(episodes),
-                         '--seed', str(seed), '--max-episode-steps', str(horizon_of(experiment)), '--no-render',
-                         '--json', str(path)))
-        outputs.append(path)
-    return Job('reference', agent, preset, None, folder, tuple(commands), tuple(outputs), TEAM_METRIC[experiment.team])
-
-
-def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1) -> list[Job]:
-    """Every job of `experiment` for the run seeds `seeds` in the directory `out`: the references first, then each
-    (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
-    `threads`: torch threads per training run."""
-    out = Path(out)
-    steps = int(steps or experiment.steps)
-    jobs = [] if experiment.population else [
-        _reference(experiment, agent, preset, out) for preset in experiment.presets for agent in experiment.references]
-    for seed in seeds:
-        for preset in experiment.presets:
-            for setting in experiment.settings:
-                jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
-                            else _training(experiment, setting, preset, seed, steps, out, threads))
-    return jobs
-
+__all__ = ['BUSY', 'INTERRUPTED', 'JOB_LOCK', 'JOB_RUNNER', 'job_runner', 'locked', 'run_command', 'run_job',
+           'run_jobs', 'stop_children', 'tied_to_parent']
 
 _CHILDREN: set[subprocess.Popen] = set()
 _CHILDREN_LOCK = threading.Lock()
@@ -209,8 +65,8 @@ def run_job(job: Job) -> dict:
     it) nothing runs and the status is `BUSY`; a job another runner has completed meanwhile is not run again
     (status 0). The lock goes with the process that held it, however it ends."""
     job.dir.mkdir(parents=True, exist_ok=True)
-    with _locked(job.dir / JOB_LOCK, wait=False) as locked:
-        if not locked:
+    with locked(job.dir / JOB_LOCK, wait=False) as holding:
+        if not holding:
             return dict(returncode=BUSY, seconds=0.0)
         if job.done():
             return dict(returncode=0, seconds=0.0)
@@ -309,21 +165,8 @@ def stop_children(kill: bool = False) -> int:
     return len(children)
 
 
-def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, seeds: list[int]) -> Path:
-    """`OUT/benchmark.json`: what the directory holds (read by `mate benchmark report`). A directory of another
-    experiment or budget raises ValueError (use another --out).
-
-    Runners started side by side on one directory (`--seeds 0,2,4` and `--seeds 1,3`) each merge their jobs
-    into it: the read, merge and write hold a lock on `OUT/.benchmark.lock`, and the file is replaced whole
-    (a reader never sees it half written)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with _locked(out / '.benchmark.lock'):
-        return _merge_manifest(experiment, jobs, out, steps, seeds)
-
-
 @contextlib.contextmanager
-def _locked(path: Path, wait: bool = True):
+def locked(path: Path, wait: bool = True):
     """Hold an exclusive lock on `path` (POSIX flock) for the block, yielding True; with `wait` False, yield False
     at once when another process holds it. Where there is no flock (Windows), no lock: True."""
     try:
@@ -343,115 +186,6 @@ def _locked(path: Path, wait: bool = True):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: int, seeds: list[int]) -> Path:
-    path = out / 'benchmark.json'
-    manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
-                    eval_every=experiment.eval_interval(steps), eval_episodes=experiment.eval_episodes,
-                    horizon=horizon_of(experiment), seed_stride=SEED_STRIDE)
-    if path.exists():
-        old = read_manifest(out)
-        for key in ('experiment', 'steps', 'eval_every', 'eval_episodes', 'horizon'):
-            if old.get(key) != manifest[key]:
-                raise ValueError(f'{out} holds a benchmark with {key} {old.get(key)!r}, not {manifest[key]!r}; '
-                                 'use another --out')
-        seeds = sorted(set(old.get('seeds', [])) | set(seeds))
-    manifest['seeds'] = seeds
-    manifest['jobs'] = [dict(kind=job.kind, label=job.label, preset=job.preset, seed=job.seed,
-                             dir=os.path.relpath(job.dir, out), commands=[list(c) for c in job.commands])
-                        for job in jobs]
-    if path.exists():       # keep the jobs of seeds run before
-        known = {(j['kind'], j['label'], j['preset'], j['seed']) for j in manifest['jobs']}
-        manifest['jobs'] += [j for j in json.loads(path.read_text())['jobs']
-                             if (j['kind'], j['label'], j['preset'], j['seed']) not in known]
-    tmp = path.with_name(f'benchmark.json.{os.getpid()}.tmp')
-    tmp.write_text(json.dumps(manifest, indent=1))
-    os.replace(tmp, path)
-    return path
-
-
-def read_manifest(out) -> dict:
-    """The `benchmark.json` of a benchmark directory; ValueError when it has none or another format."""
-    path = Path(out) / 'benchmark.json'
-    if not path.exists():
-        raise ValueError(f'{out}: no benchmark.json (not a directory of mate benchmark run)')
-    manifest = json.loads(path.read_text())
-    if manifest.get('format') != BENCHMARK_FORMAT:
-        raise ValueError(f'{path}: format {manifest.get("format")!r}, expected {BENCHMARK_FORMAT!r}')
-    return manifest
-
-
-PATH_OPTIONS = ('--run-dir', '--json', '--out')
-"""The options of a job's command lines whose values are paths inside the benchmark directory."""
-REUSED_NOTE = 'reused.txt'
-"""The file a reused job's directory gets: where it was copied from, and why that is the same job."""
-
-
-_PATH_VALUE = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
-
-
-def _masked(line: str) -> tuple[str, set[Path]]:
-    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths,
-    resolved from the current directory (as the benchmark command that wrote them ran: reuse from the same working
-    directory)."""
-    paths = {Path(match.group(2)).resolve() for match in _PATH_VALUE.finditer(line)}
-    return _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line), paths
-
-
-def _logged_commands(log: Path) -> tuple[set[str], set[Path]]:
-    """The distinct command lines a job's log ran ('$ mate ...' lines, written by `run_command`; a resumed run logs
-    its line once per session), `_masked`; and all their paths."""
-    lines, paths = set(), set()
-    for line in log.read_text(errors='replace').splitlines():
-        if line.startswith('$ mate '):
-            masked, found = _masked(line[len('$ mate '):])
-            lines.add(masked)
-            paths |= found
-    return lines, paths
-
-
-def reusable(job: Job, out, source) -> Path | None:
-    """The directory of the same job in the benchmark directory `source`, when it can stand for `job` of `out`:
-    it is complete there and its log ran exactly `job`'s command lines (every option, seed, budget, evaluation
-    and thread count), with `source` where `out` is; None otherwise. Experiments that share a setting (fig5's
-    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command."""
-    out, source = Path(out).resolve(), Path(source).resolve()
-    folder = source / job.dir.resolve().relative_to(out)
-    twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
-                                                               for p in job.outputs))
-    log = folder / 'job.log'
-    if not twin.done() or not log.exists():
-        return None
-    expected, wanted_paths = set(), set()
-    for command in job.commands:
-        line, paths = _masked(' '.join(command))      # as `run_command` logs it
-        expected.add(line)
-        wanted_paths |= {source / path.relative_to(out) for path in paths}
-    logged, logged_paths = _logged_commands(log)
-    return folder if logged == expected and logged_paths == wanted_paths else None
-
-
-def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
-    """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
-    is `reusable` (the first found), unless the job's directory already holds something (a run in progress is
-    never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
-    copied = []
-    for job in jobs:
-        if job.done() or (job.dir.exists() and any(job.dir.iterdir())):
-            continue
-        for source in sources:
-            folder = reusable(job, out, source)
-            if folder is None:
-                continue
-            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER))
-            (job.dir / REUSED_NOTE).write_text(
-                f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
-                f'(its directory in place of this one)\n')
-            say(f'{job.name}: reused from {folder} (the same command lines)')
-            copied.append(job)
-            break
-    return copied
-
-
 def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:
     """Run every job of `jobs` not yet done on `runner` (`mate.runners.ThreadRunner` or `RayRunner`), saying one
     line when each finishes; returns the jobs that did not complete: failed (their log names why), interrupted, or
@@ -467,7 +201,7 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
         job = todo[index]
         minutes = result['seconds'] / 60
         if result['returncode'] == 0 and job.done():
-            say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{_summary(job)}')
+            say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{job.measured()}')
             return
         failed.append(job)
         if result['returncode'] == BUSY:
@@ -480,65 +214,3 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
 
     runner.run([(run_job, dict(job=job)) for job in todo], done, names=[job.name for job in todo])
     return failed
-
-
-def _summary(job: Job) -> str:
-    """What a finished job measured, for its line."""
-    if job.kind == 'train':
-        absolute = json.loads(job.outputs[0].read_text())
-        return f'; absolute {absolute["metric"]} {absolute["mean"]:.3f} ({len(absolute["episodes"])} episodes)'
-    if job.kind == 'psro':
-        state = json.loads(job.outputs[0].read_text())
-        gains = state['iterations'][-1].get('exploitability')
-        return '' if gains is None else f'; last exploitability {gains["mean"]:.4f}'
-    values = [episode[job.metric] for episode in json.loads(job.outputs[-1].read_text())['episodes']]
-    return f'; {job.metric} {sum(values) / len(values):.3f} ({len(values)} episodes)'
-
-
-def _duration(seconds: float) -> str:
-    """'about 2 h 05 min', 'about 7 min', 'under a minute'."""
-    minutes = round(seconds / 60)
-    if minutes < 1:
-        return 'under a minute'
-    return f'about {minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'about {minutes} min'
-
-
-JOB_STATES = ('done', 'running', 'started', 'waiting')
-"""What `job_status` says of a job."""
-
-
-def job_status(job: Job, steps: int) -> tuple[str, str]:
-    """(state, line) of a job of a benchmark directory whose runs train `steps` decision steps: 'done' with what
-    it measured ('reused' when copied by --reuse); 'running' (a runner runs it now: `job_runner`) or 'started' (part
-    done, no runner now) with how far it is (a training run's logged decision steps and the time left at its rate
-    so far, a population run's iterations, a reference's evaluations); or 'waiting'."""
-    if job.done():
-        reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else ''
-        return 'done', f'{job.name}: done{_summary(job)}{reused}'
-    runner = job_runner(job)
-    progress = _progress(job, steps, running=runner is not None)
-    if runner is not None:
-        return 'running', f'{job.name}: {progress or "starting"} (running: {runner})'
-    if progress is not None:
-        return 'started', f'{job.name}: {progress}'
-    return 'waiting', f'{job.name}: waiting'
-
-
-def _progress(job: Job, steps: int, running: bool) -> str | None:
-    """How far a job that is not done has come, or None before anything of it was written."""
-    if job.kind == 'psro' and job.outputs[0].exists():
-        state = json.loads(job.outputs[0].read_text())
-        done, total = max(len(state['iterations']) - 1, 0), int(state['settings']['iterations'])
-        return f'{done} of {total} iterations'
-    if job.kind == 'reference' and any(path.exists() for path in job.outputs):
-        return f'{sum(path.exists() for path in job.outputs)} of {len(job.outputs)} evaluations'
-    logged = logged_steps(job.dir) if job.kind == 'train' else None
-    if logged is None:
-        return None
-    text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)'
-    rate = logged_rate(job.dir)
-    if rate and logged < steps:
-        return f'{text}; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
-    if logged >= steps:
-        return f'{text}; {"its absolute metric" if running else "its absolute metric is missing: run again"}'
-    return text

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.runner import (MAX_SEED, REUSED_NOTE, SEED_STRIDE, job_status, parse_seeds, plan, reusable,
-                                   write_manifest)
+from mate.benchmark.directory import REUSED_NOTE, job_status, reusable, write_manifest
+from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, parse_seeds, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -83,7 +83,7 @@ def test_training_seeds_never_reach_the_evaluation_seeds(tmp_path):
 def test_a_smaller_budget_evaluates_at_least_four_times(tmp_path):
     """At the experiment's budget the runs evaluate every `eval_every`; `--steps` below it evaluates at least 4 times
     (every steps // 4 when that is sooner), in every training command and in the manifest the report reads."""
-    from mate.benchmark.runner import read_manifest, write_manifest
+    from mate.benchmark.directory import read_manifest
     exp = experiment('fig6-observability')
     assert exp.eval_interval(exp.steps) == exp.eval_interval(2 * exp.steps) == exp.eval_every == 500_000
     assert exp.eval_interval(500_000) == 125_000
@@ -107,7 +107,7 @@ def test_runners_side_by_side_merge_their_seeds_into_one_manifest(tmp_path):
     neither reads it half written and neither loses the other's seeds or jobs."""
     import multiprocessing
 
-    from mate.benchmark.runner import read_manifest
+    from mate.benchmark.directory import read_manifest
     context = multiprocessing.get_context('spawn')
     workers = [context.Process(target=_write_seed_manifest, args=(str(tmp_path), seed)) for seed in range(4)]
     for worker in workers:

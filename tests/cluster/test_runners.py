@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from mate.benchmark.runner import parse_seeds
+from mate.benchmark.jobs import parse_seeds
 from mate.runners import JobFailed, LocalRunner, ThreadRunner, describe_error
 
 

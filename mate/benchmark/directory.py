@@ -1,0 +1,196 @@
+"""A benchmark directory (`mate benchmark run --out OUT`): its manifest `OUT/benchmark.json` (the experiment, the
+budget, the seeds, every job's command line; merged by runners side by side), the reuse of another directory's
+complete jobs (`--reuse`), and what each job has done (`mate benchmark status`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import shutil
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from ..progress import logged_rate, logged_steps
+from .experiments import Experiment
+from .jobs import SEED_STRIDE, Job, horizon_of
+from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
+
+__all__ = ['BENCHMARK_FORMAT', 'JOB_STATES', 'PATH_OPTIONS', 'REUSED_NOTE', 'job_status', 'read_manifest', 'reusable',
+           'reuse_jobs', 'write_manifest']
+
+BENCHMARK_FORMAT = 'mate.benchmark/1'
+
+
+def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, seeds: list[int]) -> Path:
+    """`OUT/benchmark.json`: what the directory holds (read by `mate benchmark report`). A directory of another
+    experiment or budget raises ValueError (use another --out).
+
+    Runners started side by side on one directory (`--seeds 0,2,4` and `--seeds 1,3`) each merge their jobs
+    into it: the read, merge and write hold a lock on `OUT/.benchmark.lock`, and the file is replaced whole
+    (a reader never sees it half written)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with locked(out / '.benchmark.lock'):
+        return _merge_manifest(experiment, jobs, out, steps, seeds)
+
+
+def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: int, seeds: list[int]) -> Path:
+    path = out / 'benchmark.json'
+    manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
+                    eval_every=experiment.eval_interval(steps), eval_episodes=experiment.eval_episodes,
+                    horizon=horizon_of(experiment), seed_stride=SEED_STRIDE)
+    if path.exists():
+        old = read_manifest(out)
+        for key in ('experiment', 'steps', 'eval_every', 'eval_episodes', 'horizon'):
+            if old.get(key) != manifest[key]:
+                raise ValueError(f'{out} holds a benchmark with {key} {old.get(key)!r}, not {manifest[key]!r}; '
+                                 'use another --out')
+        seeds = sorted(set(old.get('seeds', [])) | set(seeds))
+    manifest['seeds'] = seeds
+    manifest['jobs'] = [dict(kind=job.kind, label=job.label, preset=job.preset, seed=job.seed,
+                             dir=os.path.relpath(job.dir, out), commands=[list(c) for c in job.commands])
+                        for job in jobs]
+    if path.exists():       # keep the jobs of seeds run before
+        known = {(j['kind'], j['label'], j['preset'], j['seed']) for j in manifest['jobs']}
+        manifest['jobs'] += [j for j in json.loads(path.read_text())['jobs']
+                             if (j['kind'], j['label'], j['preset'], j['seed']) not in known]
+    tmp = path.with_name(f'benchmark.json.{os.getpid()}.tmp')
+    tmp.write_text(json.dumps(manifest, indent=1))
+    os.replace(tmp, path)
+    return path
+
+
+def read_manifest(out) -> dict:
+    """The `benchmark.json` of a benchmark directory; ValueError when it has none or another format."""
+    path = Path(out) / 'benchmark.json'
+    if not path.exists():
+        raise ValueError(f'{out}: no benchmark.json (not a directory of mate benchmark run)')
+    manifest = json.loads(path.read_text())
+    if manifest.get('format') != BENCHMARK_FORMAT:
+        raise ValueError(f'{path}: format {manifest.get("format")!r}, expected {BENCHMARK_FORMAT!r}')
+    return manifest
+
+
+PATH_OPTIONS = ('--run-dir', '--json', '--out')
+"""The options of a job's command lines whose values are paths inside the benchmark directory."""
+REUSED_NOTE = 'reused.txt'
+"""The file a reused job's directory gets: where it was copied from, and why that is the same job."""
+
+
+_PATH_VALUE = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
+
+
+def _masked(line: str) -> tuple[str, set[Path]]:
+    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths,
+    resolved from the current directory (as the benchmark command that wrote them ran: reuse from the same working
+    directory)."""
+    paths = {Path(match.group(2)).resolve() for match in _PATH_VALUE.finditer(line)}
+    return _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line), paths
+
+
+def _logged_commands(log: Path) -> tuple[set[str], set[Path]]:
+    """The distinct command lines a job's log ran ('$ mate ...' lines, written by `run_command`; a resumed run logs
+    its line once per session), `_masked`; and all their paths."""
+    lines, paths = set(), set()
+    for line in log.read_text(errors='replace').splitlines():
+        if line.startswith('$ mate '):
+            masked, found = _masked(line[len('$ mate '):])
+            lines.add(masked)
+            paths |= found
+    return lines, paths
+
+
+def reusable(job: Job, out, source) -> Path | None:
+    """The directory of the same job in the benchmark directory `source`, when it can stand for `job` of `out`:
+    it is complete there and its log ran exactly `job`'s command lines (every option, seed, budget, evaluation
+    and thread count), with `source` where `out` is; None otherwise. Experiments that share a setting (fig5's
+    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command."""
+    out, source = Path(out).resolve(), Path(source).resolve()
+    folder = source / job.dir.resolve().relative_to(out)
+    twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
+                                                               for p in job.outputs))
+    log = folder / 'job.log'
+    if not twin.done() or not log.exists():
+        return None
+    expected, wanted_paths = set(), set()
+    for command in job.commands:
+        line, paths = _masked(' '.join(command))      # as `run_command` logs it
+        expected.add(line)
+        wanted_paths |= {source / path.relative_to(out) for path in paths}
+    logged, logged_paths = _logged_commands(log)
+    return folder if logged == expected and logged_paths == wanted_paths else None
+
+
+def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
+    """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
+    is `reusable` (the first found), unless the job's directory already holds something (a run in progress is
+    never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
+    copied = []
+    for job in jobs:
+        if job.done() or (job.dir.exists() and any(job.dir.iterdir())):
+            continue
+        for source in sources:
+            folder = reusable(job, out, source)
+            if folder is None:
+                continue
+            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER))
+            (job.dir / REUSED_NOTE).write_text(
+                f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
+                f'(its directory in place of this one)\n')
+            say(f'{job.name}: reused from {folder} (the same command lines)')
+            copied.append(job)
+            break
+    return copied
+
+
+def _duration(seconds: float) -> str:
+    """'about 2 h 05 min', 'about 7 min', 'under a minute'."""
+    minutes = round(seconds / 60)
+    if minutes < 1:
+        return 'under a minute'
+    return f'about {minutes // 60} h {minutes % 60:02d} min' if minutes >= 60 else f'about {minutes} min'
+
+
+JOB_STATES = ('done', 'running', 'started', 'waiting')
+"""What `job_status` says of a job."""
+
+
+def job_status(job: Job, steps: int) -> tuple[str, str]:
+    """(state, line) of a job of a benchmark directory whose runs train `steps` decision steps: 'done' with what
+    it measured ('reused' when copied by --reuse); 'running' (a runner runs it now: `job_runner`) or 'started' (part
+    done, no runner now) with how far it is (a training run's logged decision steps and the time left at its rate
+    so far, a population run's iterations, a reference's evaluations); or 'waiting'."""
+    if job.done():
+        reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else ''
+        return 'done', f'{job.name}: done{job.measured()}{reused}'
+    runner = job_runner(job)
+    progress = _progress(job, steps, running=runner is not None)
+    if runner is not None:
+        return 'running', f'{job.name}: {progress or "starting"} (running: {runner})'
+    if progress is not None:
+        return 'started', f'{job.name}: {progress}'
+    return 'waiting', f'{job.name}: waiting'
+
+
+def _progress(job: Job, steps: int, running: bool) -> str | None:
+    """How far a job that is not done has come, or None before anything of it was written."""
+    if job.kind == 'psro' and job.outputs[0].exists():
+        state = json.loads(job.outputs[0].read_text())
+        done, total = max(len(state['iterations']) - 1, 0), int(state['settings']['iterations'])
+        return f'{done} of {total} iterations'
+    if job.kind == 'reference' and any(path.exists() for path in job.outputs):
+        return f'{sum(path.exists() for path in job.outputs)} of {len(job.outputs)} evaluations'
+    logged = logged_steps(job.dir) if job.kind == 'train' else None
+    if logged is None:
+        return None
+    text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)'
+    rate = logged_rate(job.dir)
+    if rate and logged < steps:
+        return f'{text}; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
+    if logged >= steps:
+        return f'{text}; {"its absolute metric" if running else "its absolute metric is missing: run again"}'
+    return text

@@ -1,0 +1,172 @@
+"""An experiment's jobs: `plan` turns an experiment, run seeds and a budget into `Job`s, each a list of command
+lines of the package (`python -m mate ...`) with the files that mark it done.
+
+    from mate.benchmark.experiments import experiment
+    from mate.benchmark.jobs import plan
+
+    jobs = plan(experiment('fig4a-cameras'), seeds=range(5), out='bench/fig4a')
+    print(len(jobs), jobs[-1].name)        # 38 MA-TD3 on MATE-4v8-9 seed 4
+
+A job is one command line of the package (`python -m mate ...`) whose output goes to a log file:
+
+* a training run (`mate train COMMAND ... --seed S --eval-every K --eval-episodes E --run-dir OUT/runs/...`) per
+  (setting, preset, seed), done when its `absolute.json` exists (the run completed and its best policy was
+  re-evaluated);
+* a population run (`mate psro ... --out OUT/runs/...`) per (setting, preset, seed), done when its `state.json`
+  holds every iteration;
+* a reference (`mate evaluate` of a rule team against the greedy rules) per (preset, reference): the evaluation
+  episodes (seeds `EVALUATION_SEEDS`, ..., E episodes) and the absolute ones (seeds `ABSOLUTE_SEEDS`, ..., 10 E),
+  each cut at the training horizon, the same episodes the learners are scored on; done when both JSON files exist.
+
+Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
+of a run are seeded `seed + row`) and every run stays below the evaluation seeds; a population run with `mate psro
+--seed k`, which spaces its best responses' seeds by 1,000 itself (`PSROSettings.best_response_seed`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..learn.envs import PAPER_SETTINGS
+from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
+from .experiments import Experiment, Setting
+
+__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'horizon_of', 'parse_seeds', 'plan']
+
+SEED_STRIDE = 1000
+"""Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
+MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1
+"""The largest run seed: its training envs (up to SEED_STRIDE rows) stay below the evaluation seeds."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    """One command of an experiment.
+
+    Args:
+        kind: 'train', 'psro' or 'reference'.
+        label: the setting's label (training, population) or the reference's agent name.
+        preset: the game.
+        seed: the run seed (None for a reference).
+        dir: the job's directory (the run directory, or the reference's).
+        commands: the command lines after `python -m mate`, run in order.
+        outputs: the files whose existence marks the job done.
+        metric: the per-episode metric the job is scored by (the trained team's: `TEAM_METRIC`; '' for PSRO).
+    """
+
+    kind: str
+    label: str
+    preset: str
+    seed: int | None
+    dir: Path
+    commands: tuple[tuple[str, ...], ...]
+    outputs: tuple[Path, ...]
+    metric: str = ''
+
+    @property
+    def name(self) -> str:
+        seed = '' if self.seed is None else f' seed {self.seed}'
+        return f'{self.label} on {self.preset}{seed}'
+
+    def done(self) -> bool:
+        """Whether the job has completed (its result files written; for PSRO, every iteration)."""
+        if self.kind == 'psro':
+            return _psro_complete(self.outputs[0])
+        return all(path.exists() for path in self.outputs)
+
+    def measured(self) -> str:
+        """What the finished job measured, for its lines ('; absolute coverage_rate 0.612 (320 episodes)')."""
+        if self.kind == 'train':
+            absolute = json.loads(self.outputs[0].read_text())
+            return f'; absolute {absolute["metric"]} {absolute["mean"]:.3f} ({len(absolute["episodes"])} episodes)'
+        if self.kind == 'psro':
+            state = json.loads(self.outputs[0].read_text())
+            gains = state['iterations'][-1].get('exploitability')
+            return '' if gains is None else f'; last exploitability {gains["mean"]:.4f}'
+        values = [episode[self.metric] for episode in json.loads(self.outputs[-1].read_text())['episodes']]
+        return f'; {self.metric} {sum(values) / len(values):.3f} ({len(values)} episodes)'
+
+
+def _psro_complete(state_path: Path) -> bool:
+    if not state_path.exists():
+        return False
+    state = json.loads(state_path.read_text())
+    return len(state['iterations']) > int(state['settings']['iterations'])
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Run seeds from '0-4', '0,2,5' or '3' (ranges inclusive); ValueError naming the valid form otherwise."""
+    seeds: list[int] = []
+    try:
+        for part in str(text).split(','):
+            first, _, last = part.strip().partition('-')
+            seeds.extend(range(int(first), int(last or first) + 1))
+    except ValueError:
+        raise ValueError(f"--seeds: seeds as '0-4', '0,2,5' or '3', got {text!r}") from None
+    if not seeds:
+        raise ValueError(f'--seeds: no seeds in {text!r}')
+    bad = [s for s in seeds if not 0 <= s <= MAX_SEED]
+    if bad:
+        raise ValueError(f'--seeds: run seeds are 0..{MAX_SEED}, got {bad[0]}')
+    return sorted(set(seeds))
+
+
+def horizon_of(experiment: Experiment) -> int | None:
+    """Env steps per training (and evaluation) episode: the experiment's, or the trainer's default of 500 decisions
+    at the paper's frame skip of the team (None for a population experiment: `mate psro` sets its own)."""
+    if experiment.population:
+        return experiment.horizon
+    return experiment.horizon or 500 * PAPER_SETTINGS[experiment.team]['frame_skip']
+
+
+def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path,
+              threads: int) -> Job:
+    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    trainer = ('rllib-train',) if setting.command == 'rllib-ppo' else ('train', setting.command)
+    command = (*trainer, *setting.options, '--team', experiment.team, '--config', preset,
+               '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
+               '--eval-every', str(experiment.eval_interval(steps)), '--eval-episodes', str(experiment.eval_episodes),
+               '--threads', str(threads), '--run-dir', str(folder), '--no-progress')
+    return Job('train', setting.label, preset, seed, folder, (command,), (folder / 'absolute.json',),
+               TEAM_METRIC[experiment.team])
+
+
+def _population(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path) -> Job:
+    folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    command = ('psro', *setting.options, '--config', preset, '--iterations', str(experiment.iterations),
+               '--br-steps', str(steps), '--seed', str(seed), '--workers', '1', '--out', str(folder))
+    return Job('psro', setting.label, preset, seed, folder, (command,), (folder / 'state.json',))
+
+
+def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Job:
+    folder = out / 'references' / f'{agent}-{preset}'
+    own, other = ('--camera-agent', '--target-agent') if experiment.team == 'camera' else \
+        ('--target-agent', '--camera-agent')
+    commands, outputs = [], []
+    for name, seed, episodes in (('evaluation', EVALUATION_SEEDS, experiment.eval_episodes),
+                                 ('absolute', ABSOLUTE_SEEDS, ABSOLUTE_FACTOR * experiment.eval_episodes)):
+        path = folder / f'{name}.json'
+        commands.append(('evaluate', '--config', preset, own, agent, other, 'greedy', '--episodes', str(episodes),
+                         '--seed', str(seed), '--max-episode-steps', str(horizon_of(experiment)), '--no-render',
+                         '--json', str(path)))
+        outputs.append(path)
+    return Job('reference', agent, preset, None, folder, tuple(commands), tuple(outputs), TEAM_METRIC[experiment.team])
+
+
+def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1) -> list[Job]:
+    """Every job of `experiment` for the run seeds `seeds` in the directory `out`: the references first, then each
+    (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
+    `threads`: torch threads per training run."""
+    out = Path(out)
+    steps = int(steps or experiment.steps)
+    jobs = [] if experiment.population else [
+        _reference(experiment, agent, preset, out) for preset in experiment.presets for agent in experiment.references]
+    for seed in seeds:
+        for preset in experiment.presets:
+            for setting in experiment.settings:
+                jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
+                            else _training(experiment, setting, preset, seed, steps, out, threads))
+    return jobs
