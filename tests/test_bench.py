@@ -19,7 +19,8 @@ def test_plan_covers_single_env_batches_float32_and_the_vector_env():
         assert r['steps'] > 0 and r['env_steps_per_second'] == pytest.approx(r['steps'] / r['seconds'])
         assert r['speedup_vs_original'] is None  # no recorded speed of the original for this preset
         assert 'rounds' not in r
-        assert r['speedup_vs_single_env'] == pytest.approx(r['env_steps_per_second'] / results[0]['env_steps_per_second'])
+        assert r['speedup_vs_single_env'] == pytest.approx(r['env_steps_per_second']
+                                                           / results[0]['env_steps_per_second'])
     assert results[0]['speedup_vs_single_env'] == 1.0
 
 

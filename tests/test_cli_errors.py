@@ -34,7 +34,8 @@ def error_of(capsys, argv: list[str], *expected: str) -> str:
     out, err = capsys.readouterr()
     words = [word for word in argv if not word.startswith('-')]
     # `mate train ALGORITHM` reads its options with the algorithm's own parser: 'mate train mappo: error: ...'
-    command = ' '.join(words[:2]) if words[0] == 'train' and err.startswith(f'mate {" ".join(words[:2])}:') else words[0]
+    command = (' '.join(words[:2]) if words[0] == 'train' and err.startswith(f'mate {" ".join(words[:2])}:')
+               else words[0])
     assert status == 2, (status, out, err)
     assert 'Traceback' not in out + err
     lines = err.strip().splitlines()
@@ -94,7 +95,8 @@ def test_evaluate_with_a_missing_checkpoint(capsys, tmp_path):
 
 
 def test_train_init_from_a_bad_file(capsys, bad_files, tmp_path):
-    error_of(capsys, ['train', 'mappo', '--init-from', str(tmp_path / 'garbage.pt'), '--run-dir', str(tmp_path / 'run')],
+    error_of(capsys, ['train', 'mappo', '--init-from', str(tmp_path / 'garbage.pt'),
+                      '--run-dir', str(tmp_path / 'run')],
              '--init-from', 'garbage.pt', 'does not exist')
     error_of(capsys, ['train', 'mappo', '--init-from', str(bad_files['malicious']), '--run-dir', str(tmp_path / 'run')],
              '--init-from', 'corrupt')
@@ -139,7 +141,8 @@ def test_a_bad_output_path(capsys, tmp_path):
     (['evaluate', '--frame-size', '-5'], ('--frame-size', 'integer >= 16', "'-5'")),
     (['evaluate', '--max-episode-steps', '0'], ('--max-episode-steps', 'integer >= 1')),
     (['evaluate', '--episodes', 'many'], ('--episodes', "'many'")),
-    (['evaluate', '--enhanced-observation', 'cameras'], ('--enhanced-observation', "'both', 'camera', 'target', 'none'")),
+    (['evaluate', '--enhanced-observation', 'cameras'],
+     ('--enhanced-observation', "'both', 'camera', 'target', 'none'")),
     (['generate-config', '--num-cameras', '-1'], ('--num-cameras', 'integer >= 0', "'-1'")),
     (['generate-config', '--num-cargoes-per-target', '3'], ('--num-cargoes-per-target', 'integer >= 4')),
     (['train', 'mappo', '--num-envs', '0'], ('--num-envs', 'integer >= 1')),
@@ -158,7 +161,8 @@ def test_debug_flag_and_variable_show_the_traceback(capsys, monkeypatch):
     for variant in (['--debug', *argv], [*argv, '--debug']):
         assert run(variant) == 2
         err = capsys.readouterr().err
-        assert 'Traceback' in err and err.strip().splitlines()[-1].startswith("mate evaluate: error: unknown camera agent")
+        assert ('Traceback' in err
+                and err.strip().splitlines()[-1].startswith("mate evaluate: error: unknown camera agent"))
     monkeypatch.setenv('MATE_DEBUG', '1')
     assert run(argv) == 2 and 'Traceback' in capsys.readouterr().err
     monkeypatch.setenv('MATE_DEBUG', '0')
@@ -237,7 +241,9 @@ def test_generate_config_shows_its_progress_in_a_log(tmp_path):
                              str(tmp_path / 'two.yaml')], capture_output=True, text=True, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
-    assert lines[0].startswith('placing 2 cameras: 3 runs of up to 2,000 Adam steps') and ' s for 6 cameras on 2 cores)' in lines[0]
+    assert (lines[0].startswith('placing 2 cameras: 3 runs of up to 2,000 Adam steps')
+            and ' s for 6 cameras on 2 cores)' in lines[0])
     progress = [line for line in lines if line.startswith('placing cameras: ')]
-    assert progress[0].startswith('placing cameras: 0/6,000 (0%)') and progress[-1].startswith('placing cameras: 6,000/6,000')
+    assert (progress[0].startswith('placing cameras: 0/6,000 (0%)')
+            and progress[-1].startswith('placing cameras: 6,000/6,000'))
     assert 'covering distance' in progress[-1] and (tmp_path / 'two.yaml').is_file()

@@ -269,7 +269,8 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     (run.dir / 'progress.csv').write_text(f'iteration,env_steps\n1,{exp.steps}\n')
     assert job_status(run, exp.steps)[1].endswith('its absolute metric is missing: run again')
     assert main(['benchmark', 'status', str(fresh)]) == 0
-    assert f'smoke: 0 done, 0 running, 2 started, {len(jobs) - 2} waiting of {len(jobs)} jobs' in capsys.readouterr().out
+    assert (f'smoke: 0 done, 0 running, 2 started, {len(jobs) - 2} waiting of {len(jobs)} jobs'
+            in capsys.readouterr().out)
     # a runner's file: running when its process lives (here: this one), started when it is gone, as written for
     # another machine
     import os

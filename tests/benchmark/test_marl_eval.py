@@ -334,16 +334,20 @@ def _without(predicate, extra=()):
 
 
 REFUSED = {
-    'repeated step metric': records() + [StepRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 0, 1000, 'return', [1.0])],
-    'repeated absolute metric': records() + [AbsoluteRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 'return', [1.0])],
+    'repeated step metric': records() + [
+        StepRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 0, 1000, 'return', [1.0])],
+    'repeated absolute metric': records() + [
+        AbsoluteRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 'return', [1.0])],
     'no absolute metrics': _without(lambda r: isinstance(r, AbsoluteRecord) and r.run == 2 and r.algorithm == 'mappo'),
-    'absolute metric missing': _without(lambda r: isinstance(r, AbsoluteRecord) and r.run == 2 and r.metric == 'coverage'),
+    'absolute metric missing': _without(lambda r: isinstance(r, AbsoluteRecord) and r.run == 2
+                                        and r.metric == 'coverage'),
     'step metric missing': _without(lambda r: isinstance(r, StepRecord) and r.run == 2 and r.step == 1
                                     and r.metric == 'coverage'),
     'step missing in one run': _without(lambda r: isinstance(r, StepRecord) and r.run == 2 and r.step == 1),
     'run missing in one task': _without(lambda r: r.run == 10 and r.task == 'MATE-2v4-0 targets'),
     'algorithm missing in one task': _without(lambda r: r.algorithm == 'greedy' and r.task == 'MATE-2v4-0 targets'),
-    'two step counts for a step': records() + [StepRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 0, 999, 'other', [1.0])],
+    'two step counts for a step': records() + [
+        StepRecord('MATE', 'MATE-2v4-0 targets', 'greedy', 0, 0, 999, 'other', [1.0])],
     'step count not increasing': [StepRecord('E', 'T', 'A', 0, 0, 10, 'r', [1.0]),
                                   StepRecord('E', 'T', 'A', 0, 1, 10, 'r', [1.0]),
                                   AbsoluteRecord('E', 'T', 'A', 0, 'r', [1.0])],

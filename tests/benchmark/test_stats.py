@@ -273,7 +273,8 @@ def test_curve_intervals_shapes_and_steps():
 def test_normalised():
     assert normalised(0.3, random=0.3, reference=0.7) == 0
     assert normalised(0.7, random=0.3, reference=0.7) == pytest.approx(1)
-    per_task = normalised(np.array([[1.0, 5.0], [2.0, 6.0]]), random=np.array([0.0, 4.0]), reference=np.array([2.0, 8.0]))
+    per_task = normalised(np.array([[1.0, 5.0], [2.0, 6.0]]), random=np.array([0.0, 4.0]),
+                          reference=np.array([2.0, 8.0]))
     np.testing.assert_allclose(per_task, [[0.5, 0.25], [1.0, 0.5]])
     with pytest.raises(ValueError, match='must differ'):
         normalised(1.0, random=0.5, reference=0.5)

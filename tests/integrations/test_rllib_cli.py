@@ -29,7 +29,8 @@ def test_the_command_parses_without_ray():
 
 def test_the_defaults_are_the_papers_rllib_settings():
     config = parse()
-    assert (config.gamma, config.gae_lambda, config.clip, config.vf_clip, config.value_coef) == (0.99, 1.0, 0.3, 1e4, 1.0)
+    assert ((config.gamma, config.gae_lambda, config.clip, config.vf_clip, config.value_coef)
+            == (0.99, 1.0, 0.3, 1e4, 1.0))
     assert (config.kl_coeff, config.kl_target, config.epochs, config.minibatch_size) == (0.2, 0.01, 16, 256)
     assert config.rollout_length == 25 and config.max_grad_norm == 0 and not config.vf_share_layers
     assert config.lr_schedule == ((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5))

@@ -23,7 +23,8 @@ def _policy(team: str, hrl=False, memory=0, velocity=False, lstm=0, frame_skip=3
             network='mlp', full_observability=False) -> LoadedPolicy:
     """An untrained (randomly initialised) policy of the given kind: varied, deterministic decisions."""
     nc, nt, no = COUNTS
-    spec = PolicySpec.for_game(team, 'MATE-2v4-0-v0', frame_skip=frame_skip, action=action or ('hrl' if hrl else 'grid'),
+    spec = PolicySpec.for_game(team, 'MATE-2v4-0-v0', frame_skip=frame_skip,
+                               action=action or ('hrl' if hrl else 'grid'),
                                memory=memory, velocity=velocity, network=network, hidden=(32,), lstm=lstm,
                                full_observability=full_observability)
     raw_dim = camera_observation_dim(nc, nt, no) if team == 'camera' else target_observation_dim(nc, nt, no)
@@ -220,7 +221,7 @@ def test_mixture_team_plays_one_member_per_row_and_episode():
 
 def test_make_team_names_the_batched_agents():
     assert isinstance(make_team('greedy', 'camera', 2, (4, 8, 9)), GreedyCameraTeam)
-    assert make_team('greedy', 'camera', 2, (4, 8, 9), memory_period=10).team is mate.Team.CAMERA   # the agents' options
+    assert make_team('greedy', 'camera', 2, (4, 8, 9), memory_period=10).team is mate.Team.CAMERA  # the agents' options
     with pytest.raises(ValueError, match='unknown option.*deterministic for the greedy cameras'):
         make_team('greedy', 'camera', 2, (4, 8, 9), deterministic=False)
     with pytest.raises(ValueError, match='unknown option.*deterministic for the random agents'):

@@ -242,7 +242,8 @@ def test_channel_settings_are_in_the_checkpoint_and_a_resume_refuses_others(tmp_
     assert saved['state']['channel']['message_dropout'] == 0.25
     longer = config_class(**{**config.__dict__, 'steps': 2 * 2 * 3})
     assert train(longer).last_row['env_steps'] == 12
-    with pytest.raises(CheckpointError, match='trained with --message-dropout 0.25; this run has --message-dropout 0.0'):
+    with pytest.raises(CheckpointError,
+                       match='trained with --message-dropout 0.25; this run has --message-dropout 0.0'):
         train(config_class(**{**longer.__dict__, 'message_dropout': 0.0}))
     with pytest.raises(CheckpointError, match='trained with --communication-range 400.0; this run is without it'):
         train(config_class(**{**longer.__dict__, 'communication_range': None}))

@@ -52,7 +52,8 @@ def test_dueling_aggregation_by_hand():
     expected = value[:, None, :] / 2 + advantage - advantage.mean(-1, keepdim=True)
     torch.testing.assert_close(net(obs), expected.reshape(5, 6))
     joint = net(obs).reshape(5, 2, 3).max(-1).values.sum(-1)      # best joint value: V + sum of best centred A
-    torch.testing.assert_close(joint, value[:, 0] + (advantage - advantage.mean(-1, keepdim=True)).max(-1).values.sum(-1))
+    torch.testing.assert_close(joint,
+                               value[:, 0] + (advantage - advantage.mean(-1, keepdim=True)).max(-1).values.sum(-1))
 
 
 def test_replay_ring_wraps_and_samples_shapes():

@@ -62,7 +62,8 @@ def test_critic_and_actor_inputs():
     joint = torch.tensor([[[0.1, 0.2], [0.3, 0.4]]])                          # (K, N=2, A=2)
     own = torch.tensor([[[-1.0, -2.0], [-3.0, -4.0]]], requires_grad=True)
     shared = critic_inputs(state, joint)
-    assert shared.shape == (1, 2, 6) and shared[0, 0].tolist() == shared[0, 1].tolist() == pytest.approx([1, 2, .1, .2, .3, .4])
+    assert (shared.shape == (1, 2, 6)
+            and shared[0, 0].tolist() == shared[0, 1].tolist() == pytest.approx([1, 2, .1, .2, .3, .4]))
     mixed = actor_inputs(state, joint, own)
     assert mixed[0, 0].tolist() == pytest.approx([1, 2, -1, -2, 0.3, 0.4])    # agent 0's own action replaced
     assert mixed[0, 1].tolist() == pytest.approx([1, 2, 0.1, 0.2, -3, -4])

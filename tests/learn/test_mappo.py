@@ -97,7 +97,8 @@ def test_the_files_of_a_run(tmp_path):
 
 def test_policy_spec_of_the_game():
     camera = policy_spec(MAPPOConfig(hrl=True))
-    assert (camera.network, camera.action, camera.heads, camera.choices, camera.frame_skip) == ('per-target', 'hrl', 8, 2, 5)
+    assert ((camera.network, camera.action, camera.heads, camera.choices, camera.frame_skip)
+            == ('per-target', 'hrl', 8, 2, 5))
     target = policy_spec(MAPPOConfig(team='target', critic='local'))
     assert (target.network, target.env_id, target.algo, target.num_actions) == ('mlp', 'MATE-2v4-0-v0', 'ippo', 25)
     with pytest.raises(ValueError, match='--actor per-target reads a camera'):
@@ -109,7 +110,8 @@ def test_policy_spec_of_the_game():
 def test_resuming_another_setting_names_it(tmp_path):
     base = dict(steps=40, num_envs=4, rollout_length=10, horizon=40, threads=1, progress=False, run_dir=str(tmp_path))
     train(MAPPOConfig(hrl=True, **base))
-    with pytest.raises(CheckpointError, match='trained with per-target HRL selections .--hrl.; this run has grid moves'):
+    with pytest.raises(CheckpointError,
+                       match='trained with per-target HRL selections .--hrl.; this run has grid moves'):
         train(MAPPOConfig(**dict(base, steps=80)))
     with pytest.raises(CheckpointError, match='trained by mappo; this run is ippo'):
         train(MAPPOConfig(critic='local', hrl=True, **dict(base, steps=80)))

@@ -128,7 +128,8 @@ def test_train_keeps_the_best_actor(tmp_path):
     saved = load_checkpoint(tmp_path / 'checkpoint.pt')
     assert saved['run']['best_return'] == pytest.approx(max(eligible))
     best = load_checkpoint(tmp_path / 'best.pt')
-    assert 'critic' not in best and 'state' not in best and set(best['actor']) == set(saved['state']['networks']['actor'])
+    assert ('critic' not in best and 'state' not in best
+            and set(best['actor']) == set(saved['state']['networks']['actor']))
 
 
 def test_rescaled_schedules_follow_the_spec():
@@ -191,7 +192,8 @@ def test_psro_end_to_end_then_plots(tmp_path, capsys):
     # the second best responses were warm-started from the first ones
     assert load_checkpoint(out / 'players/camera-2/checkpoint.pt')['config']['init_from'].endswith('init.pt')
     printed = capsys.readouterr().out
-    assert 'on 2 local processes' in printed and 'iteration 2: exploitability' in printed and 'done: 2 iterations' in printed
+    assert ('on 2 local processes' in printed and 'iteration 2: exploitability' in printed
+            and 'done: 2 iterations' in printed)
 
     assert main(['psro', '--solver', 'nash', *TINY, '--out', str(out)]) == 0      # done: nothing to redo
     assert load_state(out) == state
@@ -300,7 +302,8 @@ def test_psro_on_a_local_ray_instance(tmp_path):
     runner = RayRunner(None, num_cpus=2)
     try:
         assert runner.parallel == 2 and ray.is_initialized()
-        settings = PSROSettings(solver='uniform', iterations=1, br_steps=200, num_envs=4, eval_episodes=3, eval_steps=120)
+        settings = PSROSettings(solver='uniform', iterations=1, br_steps=200, num_envs=4, eval_episodes=3,
+                                eval_steps=120)
         state = run_psro(settings, tmp_path / 'run', runner, say=lambda line: None)
     finally:
         runner.close()

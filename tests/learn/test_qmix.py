@@ -66,7 +66,8 @@ def test_sequence_replay_closes_chunks_at_length_and_episode_ends():
     assert replay.open['h0'][1].max() == 0 and replay.position.tolist() == [1, 2]
     assert replay.open['h0'][0].min() == 12 and replay.open['obs'][0, 0, 0, 0] == 3
     batch = replay.sample(5, np.random.default_rng(0))
-    assert batch['obs'].shape == (5, 4, 2, 1) and batch['action'].shape == (5, 3, 2, 1) and batch['mask'].shape == (5, 3)
+    assert (batch['obs'].shape == (5, 4, 2, 1) and batch['action'].shape == (5, 3, 2, 1)
+            and batch['mask'].shape == (5, 3))
     assert batch['h0'].shape == (5, 2, 1) and batch['state'].shape == (5, 4, 1)
     # its state: the stored chunks and the open ones; a copy samples and records the same
     state = replay.state_dict()
@@ -103,7 +104,8 @@ def test_qmix_loss_by_hand():
             if t > 0 and batch['mask'][k, t - 1]:
                 best = q_on.argmax(-1)                                      # the online network chooses
                 next_value = q_tg.gather(-1, best[:, None])[:, 0]
-                y = batch['reward'][k, t - 1] + 0.9 * (1 - batch['terminal'][k, t - 1]) * target_mixer(next_value, batch['state'][k, t])
+                y = (batch['reward'][k, t - 1]
+                     + 0.9 * (1 - batch['terminal'][k, t - 1]) * target_mixer(next_value, batch['state'][k, t]))
                 errors.append((previous - y).item() ** 2)
             if t < L:
                 taken = q_on.gather(-1, batch['action'][k, t].long())[:, 0]

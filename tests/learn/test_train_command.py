@@ -68,8 +68,8 @@ def test_the_options_and_defaults_come_from_the_config_dataclasses(capsys):
     assert '--buffer-size' in text and '--epochs' not in text and '(default: 500,000)' in text
     parser, _, config_class = trainer_parser('mappo')
     text = ' '.join(parser.format_help().split())
-    assert '--rollout-length ROLLOUT_LENGTH decisions per env per iteration (the paper: 25-step fragments) (default: 25)' \
-        in text
+    assert ('--rollout-length ROLLOUT_LENGTH decisions per env per iteration (the paper: 25-step fragments) '
+            '(default: 25)' in text)
     assert '--paper' in text and '--critic' not in text          # `mappo` fixes the critic; `ippo` is its twin
 
 
@@ -84,7 +84,8 @@ def test_a_signal_stops_training_at_an_iteration_and_the_command_continues(tmp_p
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env)
         csv = tmp_path / 'run' / 'progress.csv'
         deadline = time.time() + 300
-        while time.time() < deadline and process.poll() is None and not (csv.exists() and csv.read_text().count('\n') >= 3):
+        while (time.time() < deadline and process.poll() is None
+               and not (csv.exists() and csv.read_text().count('\n') >= 3)):
             time.sleep(0.02)
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=300) == 130

@@ -199,7 +199,8 @@ def test_mate_evaluate_plays_it_batched_and_in_the_single_env_alike(tmp_path, ca
     assert main([*common, '--single-env', '--json', str(tmp_path / 'single.json')]) == 0
     out = capsys.readouterr().out       # the single env, with EnhancedObservation on the cameras added for it
     assert 'single env' in out and 'see the true state' in out
-    batched, single = (json.loads((tmp_path / f'{name}.json').read_text())['episodes'] for name in ('batched', 'single'))
+    batched, single = (json.loads((tmp_path / f'{name}.json').read_text())['episodes']
+                       for name in ('batched', 'single'))
     assert [e['coverage_rate'] for e in batched] == [e['coverage_rate'] for e in single]
     assert main(['evaluate', '--target-agent', 'upper-bound', '--episodes', '1', '--no-render']) == 2
     assert "unknown target agent 'upper-bound'" in capsys.readouterr().err

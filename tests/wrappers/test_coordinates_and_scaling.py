@@ -48,7 +48,8 @@ def test_rescaled_observation_values_and_spaces():
         assert all(space.contains(r) for r in observation)
         bounded = np.isfinite(space.high)
         assert (space.low[bounded] >= -1).all() and (space.high[bounded] <= 1).all()
-    assert env.observation_space == spaces.Tuple((env.camera_joint_observation_space, env.target_joint_observation_space))
+    assert env.observation_space == spaces.Tuple((env.camera_joint_observation_space,
+                                                  env.target_joint_observation_space))
 
 
 def test_relative_and_rescaled_commute():
@@ -67,7 +68,8 @@ def test_single_team_observations():
                              mate.RescaledObservation])
     observation, _ = env.reset(seed=0)
     raw = env.unwrapped.joint_observation()[0]
-    expected = mate.rescale_observation(mate.convert_coordinates(raw, mate.Team.CAMERA, 2, 3, 2), mate.Team.CAMERA, 2, 3, 2)
+    expected = mate.rescale_observation(mate.convert_coordinates(raw, mate.Team.CAMERA, 2, 3, 2),
+                                        mate.Team.CAMERA, 2, 3, 2)
     np.testing.assert_allclose(observation, expected)
     assert env.observation_space == spaces.Tuple((env.camera_observation_space,) * NC)
     assert env.camera_observation_space.high[4] == 1.0

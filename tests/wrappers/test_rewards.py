@@ -58,8 +58,10 @@ def test_repeated_reward_target_done_at_destination():
 
 def test_repeated_reward_single_team_inside_and_outside():
     greedy = mate.GreedyTargetAgent(seed=0)
-    outside = make_env(wrappers=[mate.WrapperSpec(mate.MultiCamera, target_agent=greedy), mate.RepeatedRewardIndividualDone])
-    inside = make_env(wrappers=[mate.RepeatedRewardIndividualDone, mate.WrapperSpec(mate.MultiCamera, target_agent=greedy)])
+    outside = make_env(wrappers=[mate.WrapperSpec(mate.MultiCamera, target_agent=greedy),
+                                 mate.RepeatedRewardIndividualDone])
+    inside = make_env(wrappers=[mate.RepeatedRewardIndividualDone,
+                                mate.WrapperSpec(mate.MultiCamera, target_agent=greedy)])
     results = []
     for env in (outside, inside):
         env.reset(seed=3)
@@ -124,7 +126,8 @@ DOCS = {'raw_reward': 1, 'coverage_rate': 1, 'soft_coverage_score': 1, 'baseline
 
 
 def camera_env(**kwargs):
-    env = make_env(wrappers=[mate.RepeatedRewardIndividualDone, mate.WrapperSpec(mate.AuxiliaryCameraRewards, **kwargs)])
+    env = make_env(wrappers=[mate.RepeatedRewardIndividualDone,
+                             mate.WrapperSpec(mate.AuxiliaryCameraRewards, **kwargs)])
     set_scene(env, goals=[3, 0, 1], episode_step=5, **SCENE)
     return env
 

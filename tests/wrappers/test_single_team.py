@@ -133,7 +133,8 @@ def test_shuffled_slots_are_reproducible():
 
     def run(seed):
         env = make_env(config=config, wrappers=[mate.WrapperSpec(
-            mate.SingleTarget, other_target_agent=mate.GreedyTargetAgent(seed=1), camera_agent=mate.GreedyCameraAgent(seed=2))])
+            mate.SingleTarget, other_target_agent=mate.GreedyTargetAgent(seed=1),
+            camera_agent=mate.GreedyCameraAgent(seed=2))])
         out = []
         for episode in range(3):
             observation, _ = env.reset(seed=seed) if episode == 0 else env.reset()

@@ -1,4 +1,5 @@
-"""MateWrapper attribute forwarding, chain inspection, WrapperSpec / mate.make, and the ordering rules (spec §8.1-8.2, §9)."""
+"""MateWrapper attribute forwarding, chain inspection, WrapperSpec / mate.make, and the ordering rules
+(spec §8.1-8.2, §9)."""
 
 from __future__ import annotations
 
@@ -65,7 +66,8 @@ WRONG_ORDERS = [
     (lambda: [mate.RescaledObservation, mate.SharedFieldOfView], WrapperOrderError,
      'SharedFieldOfView must be applied before RescaledObservation'),
     (lambda: [mate.WrapperSpec(mate.MultiTarget, camera_agent=mate.GreedyCameraAgent(seed=0)),
-              mate.MoreTrainingInformation], WrapperOrderError, 'MoreTrainingInformation must be applied before MultiTarget'),
+              mate.MoreTrainingInformation], WrapperOrderError,
+     'MoreTrainingInformation must be applied before MultiTarget'),
     (lambda: [mate.MoreTrainingInformation, mate.MoreTrainingInformation], WrapperOrderError, 'only once'),
     (lambda: [mate.WrapperSpec(mate.MultiCamera, target_agent=mate.GreedyTargetAgent(seed=0)), mate.DiscreteCamera],
      WrapperOrderError, 'DiscreteCamera must be applied before MultiCamera'),
