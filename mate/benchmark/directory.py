@@ -127,11 +127,12 @@ def reusable(job: Job, out, source) -> Path | None:
 
 def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
     """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
-    is `reusable` (the first found), unless the job's directory already holds something (a run in progress is
-    never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
+    is `reusable` (the first found), unless the job's directory already holds something besides a runner's lock
+    (a run in progress is never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
     copied = []
     for job in jobs:
-        if job.done() or (job.dir.exists() and any(job.dir.iterdir())):
+        if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
+                                                   for path in job.dir.iterdir())):
             continue
         for source in sources:
             folder = reusable(job, out, source)

@@ -222,6 +222,10 @@ def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_p
     busy = other / 'runs' / 'ippo-MATE-2v4-0-seed1'          # a run in progress there is never replaced
     busy.mkdir(parents=True)
     (busy / 'progress.csv').write_text('iteration,env_steps\n')
+    from mate.benchmark.runner import JOB_LOCK
+    left = other / 'runs' / 'mappo-MATE-2v4-0-seed0'         # only a lock left by a runner killed at once: reused
+    left.mkdir(parents=True)
+    (left / JOB_LOCK).touch()
     assert main(['benchmark', 'run', 'smoke', '--out', str(other), '--reuse', str(runs)]) == 0
     out = capsys.readouterr().out
     assert out.count('reused from') == len(jobs) - 1 and 'running 1' in out
