@@ -24,7 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                           'seed) training run with periodic evaluations on held-out seeds and the '
                                           'absolute metric at the end. Jobs run side by side in local processes (or '
                                           'as Ray tasks with --address); the same command resumes an interrupted '
-                                          'benchmark. One line per finished job, also in OUT/benchmark.log.')
+                                          'benchmark. Several runners may share OUT (a job runs under a lock of its '
+                                          'directory: one a runner is running, another skips). One line per finished '
+                                          'job, also in OUT/benchmark.log.')
     run.add_argument('name', metavar='NAME', help='the experiment (mate benchmark list)')
     run.add_argument('--seeds', default=None, help="run seeds, e.g. '0-4' or '0,2,5' (default: the experiment's, "
                                                    '0-4 for the figures)')
@@ -45,9 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           "runs from fig6's); repeatable")
     status = commands.add_parser('status', help='what each job of benchmark directories has done',
                                  description='One line per job of each benchmark directory (mate benchmark run '
-                                             '--out): done with what it measured, started with how far it is '
-                                             '(decision steps, PSRO iterations), or waiting; then the counts. Reads '
-                                             'the files only: safe while the benchmark runs.')
+                                             '--out): done with what it measured; running (with its runner) or '
+                                             'started (no runner now) with how far it is (decision steps and the '
+                                             'time left, PSRO iterations); or waiting; then the counts. Reads the '
+                                             'files only: safe while the benchmark runs.')
     status.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
     report = commands.add_parser('report', help='figures, a markdown table and marl_eval.json from benchmark '
                                                 'directories',
