@@ -32,33 +32,40 @@ END = '<!-- end of mate benchmark quote -->'
 def headline(summary: dict, link: str) -> str:
     """The headline table of one experiment's report summary (an entry of `results.json`): per task and setting,
     the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
-    on fresh seeds), the normalised score (greedy = 1), the references on the same episodes; then each claim's
-    verdict with its evidence. `link`: the report's `results.md`, which the table's caption links to."""
+    on fresh seeds), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
+    same episodes; then each claim's verdict with its evidence. `link`: the report's `results.md`, which the table's
+    caption links to."""
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
     lines = [f'*{summary["experiment"]}* ({summary["figure"]}): {summary["steps"]:,} decision steps {unit}'
              + (f' (the experiment\'s budget: {summary["paper_steps"]:,})' if summary['steps'] != summary['paper_steps']
                 else '') + f'; quoted by `mate benchmark quote` from [its report]({link}).', '']
     if population:
-        lines += ['| task | setting | runs | final exploitability, IQM [95 % CI] | on fresh seeds, IQM [95 % CI] |',
-                  '|---|---|---|---|---|']
+        lines += ['| task | setting | runs | final exploitability, IQM [95 % CI] | on fresh seeds, IQM [95 % CI] | '
+                  'each run (on fresh seeds when measured) |', '|---|---|---|---|---|---|']
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
+                each = entry.get('final_exploitability_fresh_values', entry.get('final_exploitability_values'))
                 lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
-                             f'{format_interval(fresh and fresh["IQM"], 4)} |')
+                             f'{format_interval(fresh and fresh["IQM"], 4)} | {_each(each, 4)} |')
     else:
-        lines += ['| task | setting | runs | absolute metric, IQM [95 % CI] | normalised, greedy = 1 |',
-                  '|---|---|---|---|---|']
+        lines += ['| task | setting | runs | absolute metric, IQM [95 % CI] | normalised, greedy = 1 | '
+                  'each run, by seed |', '|---|---|---|---|---|---|']
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(entry["absolute"]["IQM"])} | '
-                             f'{format_interval(entry.get("normalised_greedy"), 2)} |')
+                             f'{format_interval(entry.get("normalised_greedy"), 2)} | {_each(entry.get("values"))} |')
             for agent, reference in data['references'].items():
-                lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - |')
+                lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - | - |')
     if summary.get('claims'):
         lines += ['', *claim_rows(summary['claims'])]
     return '\n'.join(lines)
+
+
+def _each(values, digits: int = 3) -> str:
+    """'0.366, 0.444, 0.049' (each run's score), or '-' without them."""
+    return ', '.join(f'{value:.{digits}f}' for value in values) if values else '-'
 
 
 def _summary(path: str, experiment: str, root: Path) -> dict:

@@ -385,6 +385,11 @@ def test_population_smoke_run_and_report(tmp_path):
     assert entry['final_exploitability_fresh_values'] == [s['iterations'][-1]['exploitability_fresh']['mean']
                                                           for s in states]
     assert (report / 'smoke-psro-exploitability.png').exists() and not (report / 'marl_eval.json').exists()
+    from mate.benchmark.quote import headline                 # the quoted table: each run's, on fresh seeds
+    summary = json.loads((report / 'results.json').read_text())['smoke-psro']
+    row = next(line for line in headline(summary, 'results.md').splitlines() if '| PSRO-Nash |' in line)
+    assert row.endswith(' | ' + ', '.join(f'{value:.4f}' for value in entry['final_exploitability_fresh_values'])
+                        + ' |')
 
 
 def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tmp_path):

@@ -45,6 +45,8 @@ def test_quote_rewrites_a_stale_block_and_check_finds_a_changed_report(report, c
     summary = json.loads((root / 'reports/diag/results.json').read_text())['diag-targets-4v8-0']
     own = summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['absolute']['IQM']
     assert f'| MATE-4v8-0 targets | own credit | 3 | {own["point"]:.3f} [{own["low"]:.3f}, {own["high"]:.3f}] |' in text
+    each = summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['values']     # each run, by seed
+    assert f' | {", ".join(f"{value:.3f}" for value in each)} |\n' in text and len(each) == 3
     assert '[its report](../reports/diag/results.md)' in text          # relative to the quoting file
     assert '**confirmed**' in text and '**no data**' in text
     assert main(['benchmark', 'quote', '--root', str(root), '--check', str(page)]) == 0
