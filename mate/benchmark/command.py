@@ -206,6 +206,10 @@ def _run(args: argparse.Namespace, say) -> int:
         say_and_log(f'{len(failed)} job{"s" * (len(failed) > 1)} did not complete; their logs name why; run the same '
                     'command again to retry them')
         return 1
+    if not all(job.done() for job in planned):
+        say_and_log(f'every job of this runner done; the others are running in another runner (mate benchmark status '
+                    f'{out})')
+        return 0
     say_and_log(f'all jobs done; the report: mate benchmark report {out} --out REPORT_DIR')
     return 0
 

@@ -188,11 +188,13 @@ def locked(path: Path, wait: bool = True):
 
 def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:
     """Run every job of `jobs` not yet done on `runner` (`mate.runners.ThreadRunner` or `RayRunner`), saying one
-    line when each finishes; returns the jobs that did not complete: failed (their log names why), interrupted, or
-    skipped because another runner is running them."""
+    line when each finishes; returns the jobs that did not complete here: failed (their log names why) or
+    interrupted. A job another runner is running is skipped (`BUSY`), not failed: the last line says how many of
+    those are still running there."""
     todo = [job for job in jobs if not job.done()]
     say(f'{len(jobs) - len(todo)} of {len(jobs)} jobs done before; running {len(todo)}')
     failed: list[Job] = []
+    elsewhere: list[Job] = []
     finished = 0
 
     def done(index: int, result: dict) -> None:
@@ -203,14 +205,19 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
         if result['returncode'] == 0 and job.done():
             say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{job.measured()}')
             return
-        failed.append(job)
         if result['returncode'] == BUSY:
+            elsewhere.append(job)
             say(f'[{finished}/{len(todo)}] {job.name}: skipped, another runner is running it (it holds '
                 f'{job.dir / JOB_LOCK})')
             return
+        failed.append(job)
         why = 'interrupted' if result['returncode'] in (INTERRUPTED, -signal.SIGTERM, -signal.SIGINT) else \
             f'failed (exit status {result["returncode"]})'
         say(f'[{finished}/{len(todo)}] {job.name}: {why} after {minutes:.1f} min; log: {job.dir / "job.log"}')
 
     runner.run([(run_job, dict(job=job)) for job in todo], done, names=[job.name for job in todo])
+    running = [job for job in elsewhere if not job.done()]
+    if running:
+        say(f'{len(running)} job{"s" * (len(running) > 1)} still running in another runner: '
+            f'{", ".join(job.name for job in running)}')
     return failed
