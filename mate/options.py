@@ -45,7 +45,6 @@ def check_ranges(config) -> None:
     `config` with a range in its metadata (`minimum`, `above`, `maximum`) holds a number outside it; a tuple field
     is checked number by number, None (an `X | None` field) passes. The command line checks the same when parsing;
     this catches configs made in Python."""
-    hints = None
     for field in dataclasses.fields(config):
         bounds = tuple(field.metadata.get(key) for key in RANGE_KEYS)
         if bounds == (None, None, None):
@@ -55,8 +54,7 @@ def check_ranges(config) -> None:
             if item is None:
                 continue
             if isinstance(item, bool) or not isinstance(item, (int, float)) or not in_range(item, *bounds):
-                hints = hints or typing.get_type_hints(type(config))
-                annotation = _unwrap_optional(hints[field.name])[0]
+                annotation = _unwrap_optional(typing.get_type_hints(type(config))[field.name])[0]
                 kind = (typing.get_args(annotation) or (float,))[0] if typing.get_origin(annotation) is tuple \
                     else annotation
                 raise ValueError(f'{flag_of(field.name)} must be {number_phrase(kind, *bounds)}, got {item!r}')

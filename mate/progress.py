@@ -15,8 +15,9 @@ at the end, with the same fields:
 
     training: 12,800/20,000 (64%) elapsed 0:00:09 eta 0:00:05  2,345 steps/s  coverage 0.61
 
-`logged_steps(run_dir)` reads how far a training run has come from its `progress.csv`, and `logged_rate(run_dir)`
-how fast, for the commands that watch runs in other processes (`mate psro`, `mate benchmark status`).
+`logged_steps(run_dir)` reads how far a training run has come from its `progress.csv` (`last_logged_row`, and
+`training_rate` of that row how fast), for the commands that watch runs in other processes (`mate psro`,
+`mate benchmark status`).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from rich.table import Column
 from rich.text import Text
 
 __all__ = ['PLAIN_INTERVAL', 'ProgressLine', 'StatusColumn', 'StepCountColumn', 'TimesColumn', 'clock',
-           'displayed_count', 'last_logged_row', 'logged_rate', 'logged_steps', 'progress_bar']
+           'displayed_count', 'last_logged_row', 'logged_steps', 'progress_bar', 'training_rate']
 
 PLAIN_INTERVAL = 30.0
 """Seconds between two plain progress lines when the output is not a terminal."""
@@ -180,11 +181,10 @@ def logged_steps(run_dir) -> int | None:
     return None if row is None else int(row['env_steps'])
 
 
-def logged_rate(run_dir) -> float | None:
-    """Decision steps per second of training so far (`env_steps` / `wall_seconds` of the last complete row of
-    `progress.csv`: evaluations and checkpoints included, the time between resumed sessions not); None before the
-    first row or when the row has no time."""
-    row = last_logged_row(run_dir)
+def training_rate(row: dict[str, str]) -> float | None:
+    """Decision steps per second of training so far from a row of `progress.csv` (`last_logged_row`): `env_steps` /
+    `wall_seconds`, evaluations and checkpoints included, the time between resumed sessions not; None when the row
+    has no time."""
     try:
         seconds = float(row['wall_seconds'])
     except (TypeError, KeyError, ValueError):

@@ -69,7 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                 description='Rewrite every quote block of the markdown files (between the lines '
                                             '"<!-- mate benchmark quote: RESULTS_JSON EXPERIMENT -->" and "<!-- end '
                                             'of mate benchmark quote -->") with the headline table of that report: '
-                                            'IQM [95 % CI] per setting, the references, the claims\' verdicts. '
+                                            'IQM [95 % CI] per setting, each run\'s score, the references, the '
+                                            'claims\' verdicts. '
                                             '--check only says which blocks differ (exit status 1).')
     quote.add_argument('files', nargs='+', metavar='FILE', help='markdown files (README.md, docs/*.md)')
     quote.add_argument('--root', default='.', help='the directory the markers\' paths are relative to (default .)')

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..progress import logged_rate, logged_steps
+from ..progress import last_logged_row, training_rate
 from .experiments import Experiment
 from .jobs import SEED_STRIDE, Job, horizon_of
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
@@ -185,11 +185,11 @@ def _progress(job: Job, steps: int, running: bool) -> str | None:
         return f'{done} of {total} iterations'
     if job.kind == 'reference' and any(path.exists() for path in job.outputs):
         return f'{sum(path.exists() for path in job.outputs)} of {len(job.outputs)} evaluations'
-    logged = logged_steps(job.dir) if job.kind == 'train' else None
-    if logged is None:
+    row = last_logged_row(job.dir) if job.kind == 'train' else None   # one read: the steps and the rate agree
+    if row is None:
         return None
+    logged, rate = int(row['env_steps']), training_rate(row)
     text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)'
-    rate = logged_rate(job.dir)
     if rate and logged < steps:
         return f'{text}; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
     if logged >= steps:

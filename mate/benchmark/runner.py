@@ -56,7 +56,28 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
     SIGTERM, on which `mate train` finishes its iteration, writes its checkpoint and exits with status 130."""
     start = time.perf_counter()
     Path(log).parent.mkdir(parents=True, exist_ok=True)
-    return dict(returncode=_run_in_order(commands, log, outputs), seconds=time.perf_counter() - start)
+    returncode = 0
+    with open(log, 'a') as f:
+        for index, command in enumerate(commands):
+            if index < len(outputs) and outputs[index] and Path(outputs[index]).exists():
+                continue
+            if _STOPPING.is_set():
+                returncode = INTERRUPTED
+                break
+            f.write(f'$ mate {" ".join(command)}\n')
+            f.flush()
+            child = subprocess.Popen(tied_to_parent([sys.executable, '-m', 'mate', *command]), stdout=f,
+                                     stderr=subprocess.STDOUT, start_new_session=True)
+            with _CHILDREN_LOCK:
+                _CHILDREN.add(child)
+            try:
+                returncode = _wait(child)
+            finally:
+                with _CHILDREN_LOCK:
+                    _CHILDREN.discard(child)
+            if returncode:
+                break
+    return dict(returncode=returncode, seconds=time.perf_counter() - start)
 
 
 def run_job(job: Job) -> dict:
@@ -98,31 +119,6 @@ def job_runner(job: Job) -> str | None:
         except PermissionError:                  # alive, another user's
             pass
     return f'pid {pid}'
-
-
-def _run_in_order(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[str]) -> int:
-    returncode = 0
-    with open(log, 'a') as f:
-        for index, command in enumerate(commands):
-            if index < len(outputs) and outputs[index] and Path(outputs[index]).exists():
-                continue
-            if _STOPPING.is_set():
-                returncode = INTERRUPTED
-                break
-            f.write(f'$ mate {" ".join(command)}\n')
-            f.flush()
-            child = subprocess.Popen(tied_to_parent([sys.executable, '-m', 'mate', *command]), stdout=f,
-                                     stderr=subprocess.STDOUT, start_new_session=True)
-            with _CHILDREN_LOCK:
-                _CHILDREN.add(child)
-            try:
-                returncode = _wait(child)
-            finally:
-                with _CHILDREN_LOCK:
-                    _CHILDREN.discard(child)
-            if returncode:
-                break
-    return returncode
 
 
 _TIE = ('import ctypes, os, sys\n'
