@@ -220,10 +220,15 @@ def test_evaluate_a_policy_on_a_game_it_was_not_trained_for(capsys, batched):
 
 
 def test_ctrl_c_during_evaluate_exits_130_with_one_line(tmp_path):
-    """SIGINT once the episodes are being played (its progress line shows): status 130, one line, no traceback."""
-    process = subprocess.Popen([sys.executable, '-m', 'mate', 'evaluate', '--episodes', '100000', '--no-render'],
+    """SIGINT once the episodes are being played (its progress line shows): status 130, one line, no traceback.
+
+    The child starts with SIGINT's default action: a suite started in the background (`pytest &` from a script)
+    runs with SIGINT ignored, which its children inherit, and Python then installs no KeyboardInterrupt handler
+    (the child would rightly ignore the signal). 20,000 games at once: about 24 M env steps, minutes of work."""
+    process = subprocess.Popen([sys.executable, '-m', 'mate', 'evaluate', '--episodes', '20000', '--no-render'],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
-                               env={**os.environ, 'MATE_COMPILE_NOTICE': '0'})
+                               env={**os.environ, 'MATE_COMPILE_NOTICE': '0'},
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         for line in process.stdout:                  # not a terminal: plain progress lines
             if line.startswith('evaluating: '):

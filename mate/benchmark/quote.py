@@ -33,7 +33,8 @@ def headline(summary: dict, link: str) -> str:
     """The headline table of one experiment's report summary (an entry of `results.json`): per task and setting,
     the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
     on fresh seeds), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
-    same episodes; then each claim's verdict with its evidence. `link`: the report's `results.md`, which the table's
+    same episodes; then each claim's verdict with its evidence; then the runs not complete when the report was written
+    (left out), if any. `link`: the report's `results.md`, which the table's
     caption links to."""
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
@@ -60,7 +61,21 @@ def headline(summary: dict, link: str) -> str:
                 lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - | - |')
     if summary.get('claims'):
         lines += ['', *claim_rows(summary['claims'])]
+    if summary.get('incomplete'):
+        left_out = _by_seed(summary['incomplete'])
+        lines += ['', f'Not in the table (not complete when the report was written): {left_out}.']
     return '\n'.join(lines)
+
+
+def _by_seed(jobs: list[str]) -> str:
+    """'MAPPO+I2C on MATE-4v8-0 (seeds 2, 3, 4), ...' from the report's job names ('... seed N'), in order."""
+    seeds: dict[str, list[str]] = {}
+    for job in jobs:
+        match = re.fullmatch(r'(?P<run>.+) seed (?P<seed>\d+)', job)
+        run, seed = (match['run'], match['seed']) if match else (job, None)
+        seeds.setdefault(run, []).extend([seed] if seed is not None else [])
+    return ', '.join(run + (f' (seed{"s" * (len(numbers) > 1)} {", ".join(numbers)})' if numbers else '')
+                     for run, numbers in seeds.items())
 
 
 def _each(values, digits: int = 3) -> str:

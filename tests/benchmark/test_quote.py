@@ -68,3 +68,16 @@ def test_quote_errors_are_one_line(report, capsys):
     page.write_text(f'<!-- mate benchmark quote: reports/none/results.json diag-targets-4v8-0 -->\n{END}\n')
     assert main(['benchmark', 'quote', '--root', str(root), str(page)]) == 2
     assert 'which does not exist' in capsys.readouterr().err
+
+
+def test_a_quoted_table_names_the_runs_its_report_left_out():
+    """A report written while runs were missing says so in the quote too, not only in its results.md."""
+    from mate.benchmark.quote import headline
+    summary = json.loads((ROOT / 'docs/results/diag-targets-4v8-0/results.json').read_text())['diag-targets-4v8-0']
+    summary['incomplete'] = []
+    assert 'Not in the table' not in headline(summary, 'results.md')
+    summary['incomplete'] = ['own credit on MATE-4v8-0 seed 3', 'team credit on MATE-4v8-0 seed 2',
+                             'team credit on MATE-4v8-0 seed 4', 'greedy on MATE-4v8-0']
+    assert headline(summary, 'results.md').endswith(
+        '\n\nNot in the table (not complete when the report was written): own credit on MATE-4v8-0 (seed 3), '
+        'team credit on MATE-4v8-0 (seeds 2, 4), greedy on MATE-4v8-0.')
