@@ -34,8 +34,7 @@ def headline(summary: dict, link: str) -> str:
     the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
     on fresh seeds), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
     same episodes; then each claim's verdict with its evidence; then the runs not complete when the report was written
-    (left out), if any. `link`: the report's `results.md`, which the table's
-    caption links to."""
+    (left out), if any. `link`: the report's `results.md`, which the table's caption links to."""
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
     lines = [f'*{summary["experiment"]}* ({summary["figure"]}): {summary["steps"]:,} decision steps {unit}'
