@@ -34,12 +34,29 @@ from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .experiments import Experiment, Setting
 
-__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'horizon_of', 'parse_seeds', 'plan']
+__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'parse_seeds', 'plan']
 
 SEED_STRIDE = 1000
 """Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
 MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1
 """The largest run seed: its training envs (up to SEED_STRIDE rows) stay below the evaluation seeds."""
+
+
+def job_name(label: str, preset: str, seed: int | None) -> str:
+    """How a job is named in progress lines and errors: 'MAPPO on MATE-4v8-0 seed 3' ('greedy on MATE-4v8-0' for a
+    reference, which has no seed)."""
+    return f'{label} on {preset}' + ('' if seed is None else f' seed {seed}')
+
+
+def by_setting(jobs: Iterable[tuple[str, str, int | None]]) -> list[str]:
+    """(label, preset, seed) triples grouped by setting, in order of first appearance: ['MAPPO on MATE-4v8-0 (seeds 3,
+    4)', 'greedy on MATE-4v8-0'] (a reference has no seed)."""
+    seeds: dict[tuple[str, str], list[int]] = {}
+    for label, preset, seed in jobs:
+        seeds.setdefault((label, preset), []).extend([] if seed is None else [seed])
+    return [job_name(label, preset, None) + (f' (seed{"s" * (len(numbers) > 1)} {", ".join(map(str, numbers))})'
+                                             if numbers else '')
+            for (label, preset), numbers in seeds.items()]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,8 +85,7 @@ class Job:
 
     @property
     def name(self) -> str:
-        seed = '' if self.seed is None else f' seed {self.seed}'
-        return f'{self.label} on {self.preset}{seed}'
+        return job_name(self.label, self.preset, self.seed)
 
     def done(self) -> bool:
         """Whether the job has completed (its result files written; for PSRO, every iteration)."""

@@ -61,20 +61,9 @@ def headline(summary: dict, link: str) -> str:
     if summary.get('claims'):
         lines += ['', *claim_rows(summary['claims'])]
     if summary.get('incomplete'):
-        left_out = _by_seed(summary['incomplete'])
-        lines += ['', f'Not in the table (not complete when the report was written): {left_out}.']
+        lines += ['', 'Not in the table (not complete when the report was written): '
+                  f'{", ".join(summary["incomplete"])}.']
     return '\n'.join(lines)
-
-
-def _by_seed(jobs: list[str]) -> str:
-    """'MAPPO+I2C on MATE-4v8-0 (seeds 2, 3, 4), ...' from the report's job names ('... seed N'), in order."""
-    seeds: dict[str, list[str]] = {}
-    for job in jobs:
-        match = re.fullmatch(r'(?P<run>.+) seed (?P<seed>\d+)', job)
-        run, seed = (match['run'], match['seed']) if match else (job, None)
-        seeds.setdefault(run, []).extend([seed] if seed is not None else [])
-    return ', '.join(run + (f' (seed{"s" * (len(numbers) > 1)} {", ".join(numbers)})' if numbers else '')
-                     for run, numbers in seeds.items())
 
 
 def _each(values, digits: int = 3) -> str:

@@ -32,6 +32,7 @@ from .experiments import Experiment
 from .experiments import experiment as experiment_named
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
 from .directory import read_manifest
+from .jobs import by_setting, job_name
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
 __all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_interval', 'summarise', 'write_report']
@@ -64,7 +65,7 @@ class Results:
     experiment: Experiment
     steps: int                                           # decision steps per run (the budget run)
     runs: list[TrainingRun] = dataclasses.field(default_factory=list)
-    incomplete: list[str] = dataclasses.field(default_factory=list)       # jobs not (yet) complete, by name
+    incomplete: list[tuple] = dataclasses.field(default_factory=list)     # (label, preset, seed) of jobs not complete
     references: dict = dataclasses.field(default_factory=dict)           # (agent, preset) -> {evaluation, absolute}
     populations: dict = dataclasses.field(default_factory=dict)          # (label, preset, seed) -> state.json
 
@@ -101,11 +102,11 @@ def collect(directories: Iterable) -> dict[str, Results]:
 def _read_job(results: Results, directory: Path, job: dict) -> None:
     folder = directory / job['dir']
     kind, label, preset, seed = job['kind'], job['label'], job['preset'], job['seed']
-    name = f'{label} on {preset}' + ('' if seed is None else f' seed {seed}')
+    name = job_name(label, preset, seed)
     if kind == 'reference':
         files = {part: folder / f'{part}.json' for part in ('evaluation', 'absolute')}
         if not all(path.exists() for path in files.values()):
-            results.incomplete.append(name)
+            results.incomplete.append((label, preset, seed))
             return
         metric = _metric(results.experiment)
         results.references[(label, preset)] = {
@@ -116,13 +117,13 @@ def _read_job(results: Results, directory: Path, job: dict) -> None:
         state_path = folder / 'state.json'
         state = json.loads(state_path.read_text()) if state_path.exists() else None
         if state is None or len(state['iterations']) <= int(state['settings']['iterations']):
-            results.incomplete.append(name)
+            results.incomplete.append((label, preset, seed))
             return
         _add_once(results.populations, (label, preset, seed), state, name)
         return
     absolute_path = folder / 'absolute.json'
     if not absolute_path.exists():
-        results.incomplete.append(name)
+        results.incomplete.append((label, preset, seed))
         return
     absolute = json.loads(absolute_path.read_text())
     evaluations = read_evaluations(folder)
@@ -132,6 +133,12 @@ def _read_job(results: Results, directory: Path, job: dict) -> None:
     if any(r.label == label and r.preset == preset and r.seed == run.seed for r in results.runs):
         raise ValueError(f'{name} is in two of the directories; report each run once')
     results.runs.append(run)
+
+
+def _job_order(job: tuple) -> tuple:
+    """Sort key of a (label, preset, seed) triple; a reference (seed None) before the seeds of its setting."""
+    label, preset, seed = job
+    return label, preset, -1 if seed is None else seed
 
 
 def _add_once(table: dict, key, value, name: str) -> None:
@@ -165,7 +172,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                    team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
                    eval_every=experiment.eval_interval(results.steps), eval_episodes=experiment.eval_episodes,
                    iterations=experiment.iterations,
-                   incomplete=sorted(results.incomplete), tasks={})
+                   incomplete=by_setting(sorted(results.incomplete, key=_job_order)), tasks={})
     claims: list[dict] = []
     for preset in experiment.presets:
         task = dict(settings={}, references={}, improvement={})

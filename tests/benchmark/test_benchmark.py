@@ -10,7 +10,7 @@ import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
 from mate.benchmark.directory import REUSED_NOTE, job_status, reusable, write_manifest
-from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, parse_seeds, plan
+from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_seeds, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -345,6 +345,31 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
             assert keys[-1] == 'absolute_metrics' and keys[0] == 'step_0'
             assert len(run['absolute_metrics']['coverage_rate']) == ABSOLUTE_FACTOR * exp.eval_episodes
             assert len(run['step_0']['coverage_rate']) == exp.eval_episodes
+
+
+def test_a_report_names_the_runs_it_left_out_grouped_by_setting(smoke, tmp_path):
+    """Runs not complete (no absolute metric yet) are left out of the statistics and named once per setting, seeds
+    together, in results.json (which the quotes read) and results.md."""
+    import shutil
+    runs = tmp_path / 'runs'
+    shutil.copytree(smoke[0], runs)
+    jobs = json.loads((runs / 'benchmark.json').read_text())['jobs']
+    gone = {('MAPPO', 2), ('MAPPO', 0), ('greedy', None)}
+    for job in jobs:
+        if (job['label'], job['seed']) in gone:
+            (runs / job['dir'] / 'absolute.json').unlink()
+    assert main(['benchmark', 'report', str(runs), '--out', str(tmp_path / 'report'), '--reps', '200']) == 0
+    results = json.loads((tmp_path / 'report' / 'results.json').read_text())['smoke']
+    assert results['incomplete'] == ['MAPPO on MATE-2v4-0 (seeds 0, 2)', 'greedy on MATE-2v4-0']
+    assert results['tasks']['MATE-2v4-0 cameras']['settings']['MAPPO']['seeds'] == [1]
+    assert ('Not complete (left out): MAPPO on MATE-2v4-0 (seeds 0, 2), greedy on MATE-2v4-0.'
+            in (tmp_path / 'report' / 'results.md').read_text())
+
+
+def test_by_setting_groups_seeds_in_order_of_first_appearance():
+    assert by_setting([('B', 'P', 3), ('A', 'P', 1), ('B', 'P', 1), ('greedy', 'P', None), ('A', 'Q', 0)]) == [
+        'B on P (seeds 3, 1)', 'A on P (seed 1)', 'greedy on P', 'A on Q (seed 0)']
+    assert by_setting([]) == []
 
 
 def test_a_directory_of_another_budget_is_refused(smoke, capsys):
