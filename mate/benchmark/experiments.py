@@ -35,9 +35,9 @@ class Setting:
 
     Args:
         label: its name in figures and tables ('HRL-MAPPO', 'MAPPO+TarMAC', ...).
-        command: the `mate train` trainer ('mappo', 'ippo', 'mappo-lstm', 'tarmac', 'i2c', 'iql', 'qmix', 'matd3'),
-            'rllib-ppo' for RLlib's PPO (`mate rllib-train`, the same run files and evaluation protocol), or 'psro'
-            for a population run.
+        command: the `mate train` trainer ('mappo', 'ippo', 'mappo-as', 'mappo-lstm', 'tarmac', 'i2c', 'iql', 'qmix',
+            'matd3'), 'rllib-ppo' for RLlib's PPO (`mate rllib-train`, the same run files and evaluation protocol), or
+            'psro' for a population run.
         options: further command-line options of the trainer (or of `mate psro`).
     """
 
@@ -243,6 +243,16 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
                 Claim('a longer discount horizon helps', 'gamma 0.995', 'MAPPO'),
                 Claim('fewer envs (more updates per decision) help', '16 envs', 'MAPPO'),
                 Claim('a narrower network helps', 'hidden 64', 'MAPPO'))),
+    Experiment(
+        'critic-targets-4v8-0', "diagnostics: MAPPO's critic and IPPO's on MATE-4v8-0 targets (own credit)", 'target',
+        ('MATE-4v8-0',),
+        (Setting('MAPPO', 'mappo', OWN), Setting('IPPO', 'ippo', OWN), Setting('MAPPO-AS', 'mappo-as', OWN)),
+        steps=10_000_000,        # fig5-targets-comm's budget and evaluations: its MAPPO and IPPO runs are reused
+        claim="IPPO's targets beat MAPPO's because MAPPO's critic, on the global state alone, fits each target's "
+              'own return less well',
+        claims=(Claim("the agent's own observation beside the state helps MAPPO's critic", 'MAPPO-AS', 'MAPPO'),
+                Claim('MAPPO-AS targets score above the greedy targets', 'MAPPO-AS', 'greedy'),
+                Claim('MAPPO-AS and IPPO targets agree', 'MAPPO-AS', 'IPPO', kind='agree'))),
     _witness('target', 'MATE-2v4-0', 'MATE-2v4-0 targets', references=('random', 'greedy')),
     _witness('camera', 'MATE-4v8-9', 'flat MATE-4v8-9 cameras', references=CAMERA_REFERENCES),
     Experiment(

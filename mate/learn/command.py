@@ -33,6 +33,9 @@ TRAINERS = {
                      dict(critic='state')),
     'ippo': Trainer('mate.learn.mappo', 'MAPPOConfig', "IPPO: feed-forward actor, critic on each agent's observation",
                     dict(critic='local')),
+    'mappo-as': Trainer('mate.learn.mappo', 'MAPPOConfig', 'MAPPO-AS: MAPPO whose critic reads the global state with '
+                                                           "each agent's observation appended (one value per agent)",
+                        dict(critic='agent')),
     'mappo-lstm': Trainer('mate.learn.mappo_lstm', 'RecurrentConfig',
                           "recurrent MAPPO / IPPO (--critic local): MLP -> LSTM -> head, the paper's actor"),
     'tarmac': Trainer('mate.learn.tarmac', 'TarMACConfig', 'TarMAC: learned messages read through attention one '

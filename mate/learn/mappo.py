@@ -3,8 +3,8 @@
     config  ->  PolicySpec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games,
                 the other team a batched opponent, the greedy rules by default)
             ->  networks: one actor shared by every agent of the team (full parameter sharing, as in the paper),
-                a critic on the global state (MAPPO, `critic='state'`) or on each agent's observation (IPPO,
-                `critic='local'`)
+                a critic on the global state (MAPPO, `critic='state'`), on each agent's observation (IPPO,
+                `critic='local'`) or on both (MAPPO with the agent-specific global state, `critic='agent'`)
             ->  loop: collect T decisions x B envs x N agents, GAE, K epochs of clipped PPO on minibatches
             ->  `Run`: logs (progress line, CSV, TensorBoard when installed), checkpoints, best.pt, final.pt
 
@@ -47,7 +47,8 @@ from .ppo import (
 from .run import Run
 from .spec import PolicySpec
 
-__all__ = ['HRL_CAMERA_HIDDEN', 'MAPPOConfig', 'critic_input_dim', 'critic_inputs', 'per_agent', 'policy_spec', 'train']
+__all__ = ['HRL_CAMERA_HIDDEN', 'MAPPOConfig', 'critic_input_dim', 'critic_inputs', 'critic_outputs', 'per_agent',
+           'policy_spec', 'train']
 
 
 HRL_CAMERA_HIDDEN = (64, 64)
@@ -60,8 +61,9 @@ the targets learn faster with 256 (docs/training.md, "Network width")."""
 class MAPPOConfig(PPOConfig):
     """Settings of a feed-forward MAPPO / IPPO run (`train(config)`, `mate train mappo|ippo`)."""
 
-    critic: Literal['state', 'local'] = option('state', "the critic's input: the global state (MAPPO) or each agent's "
-                                                        'observation (IPPO)')
+    critic: Literal['state', 'local', 'agent'] = option('state', "the critic's input: the global state (MAPPO), each "
+                                                                 "agent's observation (IPPO), or the global state with "
+                                                                 "each agent's observation appended (MAPPO-AS)")
     actor: Literal['mlp', 'per-target'] | None = option(None, "policy network: 'mlp' (the paper's) or, for cameras, "
                                                               "'per-target' (one shared scorer per target slot); None: "
                                                               'per-target for cameras, mlp for targets')
@@ -79,7 +81,7 @@ class MAPPOConfig(PPOConfig):
 
     @property
     def algo(self) -> str:
-        return 'mappo' if self.critic == 'state' else 'ippo'
+        return {'state': 'mappo', 'local': 'ippo', 'agent': 'mappo-as'}[self.critic]
 
 
 MAPPOConfig.PRESETS = {'paper': (PAPER_HELP + "; the paper's MLP actor", dict(PAPER_HYPERPARAMETERS, actor='mlp'))}
@@ -100,26 +102,37 @@ def policy_spec(config: MAPPOConfig, envs=None) -> PolicySpec:
 def critic_inputs(critic: str, obs: torch.Tensor, state: torch.Tensor, messages: torch.Tensor | None = None):
     """What the critic reads: the global state (..., S) for MAPPO (one value per env: the reward is shared, so
     every agent's value is the same, as in the paper's critic), the local observations (..., N, D) for IPPO (one
-    value per agent). TarMAC: `messages` (..., N, M), the N messages the agents read at the decision, flattened
-    and appended (..., S + N M) or (..., N, D + N M)."""
-    inputs = obs if critic == 'local' else state
+    value per agent), both for MAPPO-AS, `critic='agent'`: the state with each agent's own observation appended
+    (..., N, S + D), one value per agent (the agent-specific global state of Yu et al. 2022, "The Surprising
+    Effectiveness of PPO in Cooperative Multi-Agent Games"). TarMAC: `messages` (..., N, M), the N messages the
+    agents read at the decision, flattened and appended (..., S + N M) or (..., N, D + N M)."""
+    if critic == 'agent':
+        inputs = torch.cat([state.unsqueeze(-2).expand(*obs.shape[:-1], state.shape[-1]), obs], dim=-1)
+    else:
+        inputs = obs if critic == 'local' else state
     if messages is None:
         return inputs
     flat = messages.flatten(-2)
-    if critic == 'local':
+    if critic != 'state':
         flat = flat.unsqueeze(-2).expand(*obs.shape[:-1], flat.shape[-1])
     return torch.cat([inputs, flat], dim=-1)
 
 
 def critic_input_dim(critic: str, obs_dim: int, state_dim: int, messages_dim: int = 0) -> int:
     """Size of `critic_inputs`; `messages_dim`: N x M for a TarMAC critic, else 0."""
-    return (obs_dim if critic == 'local' else state_dim) + messages_dim
+    return {'state': state_dim, 'local': obs_dim, 'agent': state_dim + obs_dim}[critic] + messages_dim
+
+
+def critic_outputs(critic: str, num_agents: int, per_agent_rewards: bool) -> int:
+    """Values per critic input: N heads for MAPPO's critic on the state when each agent has its own reward (one
+    state, N returns), else 1 (a team value, or one value per agent row for IPPO and MAPPO-AS)."""
+    return num_agents if per_agent_rewards and critic == 'state' else 1
 
 
 def per_agent(critic: str, values: torch.Tensor, num_agents: int, shared: bool = True) -> torch.Tensor:
     """Critic outputs -> (..., N): (...,) per env (MAPPO, a `shared` team value) repeated to every agent; (..., N)
-    per agent (IPPO, or MAPPO's per-agent heads when `shared` is false) unchanged."""
-    return values if critic == 'local' or not shared else values.unsqueeze(-1).expand(*values.shape, num_agents)
+    per agent (IPPO, MAPPO-AS, or MAPPO's per-agent heads when `shared` is false) unchanged."""
+    return values if critic != 'state' or not shared else values.unsqueeze(-1).expand(*values.shape, num_agents)
 
 
 # ============================================================================ training
@@ -144,7 +157,7 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
     torch.manual_seed(config.seed)
     actor = make_actor(spec).to(device)
     critic = Critic(critic_input_dim(config.critic, D, S), config.hidden, config.activation,
-                    outputs=N if per_agent_rewards and config.critic == 'state' else 1).to(device)
+                    outputs=critic_outputs(config.critic, N, per_agent_rewards)).to(device)
     value_norm = ValueNormalizer().to(device)
     learned = [*actor.parameters(), *critic.parameters()]
     optimizer = torch.optim.Adam(learned, lr=config.lr_schedule[0][1], eps=1e-5)

@@ -45,7 +45,7 @@ from .checkpoint import CheckpointError
 from .comm import Channel, channel_difference
 from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
-from .mappo import critic_input_dim, critic_inputs, per_agent
+from .mappo import critic_input_dim, critic_inputs, critic_outputs, per_agent
 from .networks import Critic, restarted
 from .policy import make_actor
 from .ppo import (
@@ -147,7 +147,7 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
     actor = actor.to(device)
     M = actor.key_size + actor.value_size                          # message size
     critic = Critic(critic_input_dim(config.critic, D, S, N * M), config.hidden, config.activation,
-                    outputs=N if per_agent_rewards and config.critic == 'state' else 1).to(device)
+                    outputs=critic_outputs(config.critic, N, per_agent_rewards)).to(device)
     value_norm = ValueNormalizer().to(device)
     learned = [*actor.parameters(), *critic.parameters()]
     optimizer = torch.optim.Adam(learned, lr=config.lr_schedule[0][1], eps=1e-5)

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.mappo import MAPPOConfig, critic_inputs, per_agent, policy_spec, train
+from mate.learn.mappo import MAPPOConfig, critic_input_dim, critic_inputs, critic_outputs, per_agent, policy_spec, train
 from mate.learn.policy import load_policy
 
 from .resume import assert_same_run, stopped_and_resumed
@@ -23,7 +23,19 @@ def test_critic_inputs():
     assert per_agent('local', local, 4) is local
 
 
-@pytest.mark.parametrize('critic', ['state', 'local'])
+def test_the_agent_specific_critic_reads_the_state_and_each_agents_observation():
+    obs, state = torch.randn(3, 4, 10), torch.randn(3, 7)
+    inputs = critic_inputs('agent', obs, state)
+    assert inputs.shape == (3, 4, 17) == (3, 4, critic_input_dim('agent', 10, 7))
+    for agent in range(4):
+        assert torch.equal(inputs[:, agent, :7], state) and torch.equal(inputs[:, agent, 7:], obs[:, agent])
+    local = torch.randn(3, 4)
+    assert per_agent('agent', local, 4) is local                      # one value per agent row
+    assert [critic_outputs(c, 4, True) for c in ('state', 'local', 'agent')] == [4, 1, 1]
+    assert MAPPOConfig(critic='agent').algo == 'mappo-as'
+
+
+@pytest.mark.parametrize('critic', ['state', 'local', 'agent'])
 def test_tiny_run_improves_return(tmp_path, critic):
     rows = []
     config = MAPPOConfig(critic=critic, actor='mlp', steps=16 * 16 * 12, num_envs=16, rollout_length=16, epochs=4,
