@@ -59,7 +59,7 @@ the targets learn faster with 256 (docs/training.md, "Network width")."""
 
 @dataclasses.dataclass
 class MAPPOConfig(PPOConfig):
-    """Settings of a feed-forward MAPPO / IPPO run (`train(config)`, `mate train mappo|ippo`)."""
+    """Settings of a feed-forward MAPPO / IPPO / MAPPO-AS run (`train(config)`, `mate train mappo|ippo|mappo-as`)."""
 
     critic: Literal['state', 'local', 'agent'] = option('state', "the critic's input: the global state (MAPPO), each "
                                                                  "agent's observation (IPPO), or the global state with "
