@@ -57,9 +57,10 @@ def test_shipped_policy_beats_the_greedy_agent(name):
 
 @pytest.mark.slow
 def test_the_4v8_0_targets_play_well_off_the_floor():
-    """pretrained:mappo-target-4v8-0 (MAPPO, each target rewarded with its own part of the team reward): on seeds
-    0-19 against the greedy cameras, batched, far above random targets (the floor where team-reward MAPPO stays)
-    and level with the greedy targets (docs/results.md: 0.344 against 0.328 over 160 held-out episodes)."""
+    """pretrained:mappo-target-4v8-0 (MAPPO-AS, each target rewarded with its own part of the team reward): on
+    seeds 0-19 against the greedy cameras, batched, far above random targets (the floor where team-reward MAPPO
+    stays) and level with the greedy targets (docs/results/pretrained/mappo-target-4v8-0.md: 0.352 against 0.327
+    on 320 fresh episodes)."""
     from mate.learn.evaluation import evaluate_policy
     from mate.teams import GreedyTeam, RandomTeam, play_batch
 
