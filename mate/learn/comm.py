@@ -445,18 +445,23 @@ class I2CTraining(nn.Module):
 
 # ============================================================================ the perturbed channel of training
 
-def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac', delay: int = 0) -> None:
+def check_channel(dropout: float, range_limit: float | None, comm: str = 'tarmac', delay: int = 0,
+                  as_flags: bool = False) -> None:
     """ValueError (one line, naming the valid range) unless `dropout` is a probability in [0, 1], `range_limit`
     None or a distance > 0 and `delay` a whole number of decisions >= 0; a perturbed channel needs a communicating
-    team (`comm` 'tarmac' or 'i2c'), a delay TarMAC (an I2C reply that comes after its decision is never read)."""
+    team (`comm` 'tarmac' or 'i2c'), a delay TarMAC (an I2C reply that comes after its decision is never read).
+    `as_flags`: name the settings as the command line does (`--message-dropout`), for the trainers' configs."""
+    dropout_name, range_name, delay_name = (('--message-dropout', '--communication-range', '--message-delay')
+                                            if as_flags else ('message_dropout', 'communication_range',
+                                                              'message_delay'))
     if isinstance(dropout, bool) or not isinstance(dropout, (int, float)) or not 0.0 <= dropout <= 1.0:
-        raise ValueError(f'message_dropout must be a probability in [0, 1], got {dropout!r}')
+        raise ValueError(f'{dropout_name} must be a probability in [0, 1], got {dropout!r}')
     if range_limit is not None and (isinstance(range_limit, bool) or not isinstance(range_limit, (int, float))
                                     or not range_limit > 0):
-        raise ValueError(f'communication_range must be a distance > 0 in world units (None: unlimited), '
+        raise ValueError(f'{range_name} must be a distance > 0 in world units (None: unlimited), '
                          f'got {range_limit!r}')
     if isinstance(delay, bool) or not isinstance(delay, int) or delay < 0:
-        raise ValueError(f'message_delay must be a whole number of decisions >= 0, got {delay!r}')
+        raise ValueError(f'{delay_name} must be a whole number of decisions >= 0, got {delay!r}')
     if (dropout > 0 or range_limit is not None or delay > 0) and comm not in COMMUNICATION[1:]:
         raise ValueError(f"message_dropout, communication_range and message_delay perturb learned messages; they "
                          f"need comm 'tarmac' or 'i2c', not {comm!r}")

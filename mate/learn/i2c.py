@@ -43,7 +43,7 @@ import torch
 
 from ..options import option
 from .checkpoint import CheckpointError
-from .comm import I2C_REGULARISER, Channel, I2CTraining, channel_difference
+from .comm import I2C_REGULARISER, Channel, I2CTraining, channel_difference, check_channel
 from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .networks import Critic, restarted
@@ -88,11 +88,7 @@ class I2CConfig(PPOConfig):
                                     ('--velocity', self.velocity, 'exchanges raw observations')):
             if given:
                 raise ValueError(f'I2C {reason}; {flag} does not combine with it')
-        if not 0.0 <= self.message_dropout <= 1.0:
-            raise ValueError(f'--message-dropout must be a probability in [0, 1], got {self.message_dropout}')
-        if self.communication_range is not None and not self.communication_range > 0:
-            raise ValueError(f'--communication-range must be a distance > 0 (world units), got '
-                             f'{self.communication_range}')
+        check_channel(self.message_dropout, self.communication_range, 'i2c', as_flags=True)
 
     @property
     def algo(self) -> str:

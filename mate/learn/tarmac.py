@@ -42,7 +42,7 @@ import torch
 
 from ..options import option
 from .checkpoint import CheckpointError
-from .comm import Channel, channel_difference
+from .comm import Channel, channel_difference, check_channel
 from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
 from .mappo import critic_input_dim, critic_inputs, critic_outputs, per_agent
@@ -84,13 +84,7 @@ class TarMACConfig(PPOConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not 0.0 <= self.message_dropout <= 1.0:
-            raise ValueError(f'--message-dropout must be a probability in [0, 1], got {self.message_dropout}')
-        if self.communication_range is not None and not self.communication_range > 0:
-            raise ValueError(f'--communication-range must be a distance > 0 (world units), got '
-                             f'{self.communication_range}')
-        if isinstance(self.message_delay, bool) or not isinstance(self.message_delay, int) or self.message_delay < 0:
-            raise ValueError(f'--message-delay must be a whole number of decisions >= 0, got {self.message_delay}')
+        check_channel(self.message_dropout, self.communication_range, 'tarmac', self.message_delay, as_flags=True)
 
     @property
     def algo(self) -> str:
