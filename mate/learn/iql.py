@@ -125,11 +125,7 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
         target_net.load_state_dict(saved['networks']['target'])
         optimizer.load_state_dict(saved['optimizer'])
         rng.bit_generator.state = saved['rng']
-    if saved is not None and 'envs' in saved:
-        envs.load_state_dict(saved['envs'])
-        obs = envs.observations()[0]
-    else:
-        obs = envs.reset(seed=config.seed + 10_007 * run.iteration)[0]
+    obs = run.first_observations(envs, saved)[0]
 
     # ---- the schedule, in decision steps: updates, target copies, log rows
     steps = run.env_steps

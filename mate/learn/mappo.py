@@ -173,11 +173,7 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
     elif config.init_from:
         warm_start(config.init_from, spec, actor, dict(critic=critic, value_norm=value_norm), config.algo,
                    config.credit)
-    if saved is not None and 'envs' in saved:
-        envs.load_state_dict(saved['envs'])
-        obs, state = envs.observations()
-    else:
-        obs, state = envs.reset(seed=config.seed + 10_007 * run.iteration)
+    obs, state = run.first_observations(envs, saved)
     obs, state = torch.from_numpy(obs).to(device), torch.from_numpy(state).to(device)
     masking = config.mask_invisible and spec.hrl
 

@@ -191,11 +191,7 @@ def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, co
         rng.bit_generator.state = saved['rng']
         noise.set_state(saved['noise'])
         updates = int(saved['updates'])
-    if saved is not None and 'envs' in saved:
-        envs.load_state_dict(saved['envs'])
-        obs, state = envs.observations()
-    else:
-        obs, state = envs.reset(seed=config.seed + 10_007 * run.iteration)
+    obs, state = run.first_observations(envs, saved)
 
     # ---- the schedule, in decision steps: updates and log rows
     steps = run.env_steps

@@ -166,12 +166,9 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
         optimizer.load_state_dict(saved['optimizer'])
         rng.bit_generator.state = saved['rng']
         hidden = torch.as_tensor(saved['hidden']).to(device)
-    if saved is not None and 'envs' in saved:
-        envs.load_state_dict(saved['envs'])
-        obs, state = envs.observations()
-    else:
-        obs, state = envs.reset(seed=config.seed + 10_007 * run.iteration)
-        hidden.zero_()
+    obs, state = run.first_observations(envs, saved)
+    if 'envs' not in (saved or {}):
+        hidden.zero_()                                               # the envs were reset: so is the memory
 
     # ---- the schedule, in decision steps: updates, target copies, log rows
     steps = run.env_steps

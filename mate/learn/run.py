@@ -62,6 +62,9 @@ TIMING_COLUMNS = ('wall_seconds', 'steps_per_second', 'collect_share')
 RESUME_SETTINGS = ('credit',)
 """Config settings that a resumed run must share with its checkpoint beside the spec and the algorithm (the reward
 each agent learns from, hence the critic's outputs)."""
+RESET_SEED_STRIDE = 10_007
+"""A session that cannot continue its checkpoint's episodes resets the envs with seed `seed + RESET_SEED_STRIDE x
+iteration` (`Run.first_observations`)."""
 
 
 def mean_or_nan(values) -> float:
@@ -164,6 +167,18 @@ class Run:
         if self.evaluator is not None:
             self.evaluator.resume(run.get('evaluation'), self.iteration, self.env_steps)
         return data['state']
+
+    def first_observations(self, envs, saved: dict | None):
+        """The first decision of this session in `envs` (a `TeamVecEnv`): `(features (B, N, D), state (B, S))`.
+
+        A checkpoint with the batch's state (`saved['envs']`, what `resume` returned) continues the very episodes
+        it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x
+        iteration`, the config's seed for a fresh run and other seeds for each later session of an older
+        checkpoint."""
+        if saved is not None and 'envs' in saved:
+            envs.load_state_dict(saved['envs'])
+            return envs.observations()
+        return envs.reset(seed=self.config.seed + RESET_SEED_STRIDE * self.iteration)
 
     # ------------------------------------------------------------------ the session
     def __enter__(self) -> Run:

@@ -91,3 +91,38 @@ def test_another_algorithm_or_spec_is_refused(tmp_path):
     with pytest.raises(CheckpointError, match='trained with --hidden 8; this run has --hidden 16'):
         wider.resume()
     assert _run(tmp_path, resume=False).resume() is None     # --fresh
+
+
+class _RecordingEnvs:
+    """What `Run.first_observations` asks of a TeamVecEnv, recorded."""
+
+    def __init__(self):
+        self.calls = []
+
+    def reset(self, seed):
+        self.calls.append(('reset', seed))
+        return 'reset features', 'reset state'
+
+    def load_state_dict(self, state):
+        self.calls.append(('load', state))
+
+    def observations(self):
+        return 'restored features', 'restored state'
+
+
+def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_seed(tmp_path):
+    from types import SimpleNamespace
+
+    from mate.learn.run import RESET_SEED_STRIDE
+
+    run = Run(tmp_path, 'toy', SimpleNamespace(seed=7), SPEC, total_steps=100)
+    envs = _RecordingEnvs()
+    assert run.first_observations(envs, None) == ('reset features', 'reset state')       # a fresh run: its seed
+    assert envs.calls == [('reset', 7)]
+    envs.calls.clear()
+    assert run.first_observations(envs, {'envs': 'batch'}) == ('restored features', 'restored state')
+    assert envs.calls == [('load', 'batch')]                                             # the same episodes go on
+    envs.calls.clear()
+    run.iteration = 3                                                                    # an older checkpoint
+    run.first_observations(envs, {'networks': {}})
+    assert envs.calls == [('reset', 7 + 3 * RESET_SEED_STRIDE)]
