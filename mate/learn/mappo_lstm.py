@@ -3,7 +3,8 @@
     config  ->  PolicySpec (the 'mlp' or 'per-target' network with an LSTM of `lstm` cells)  ->  `TeamVecEnv`
             ->  networks: one recurrent actor shared by the team (`RecurrentActor`: the feed-forward actor's body, an
                 LSTM, the head on [body features, LSTM output]), a feed-forward critic on the global state (MAPPO,
-                `critic='state'`) or on each agent's observation (IPPO, `critic='local'`)
+                `critic='state'`), on each agent's observation (IPPO, `critic='local'`) or on both (MAPPO-AS,
+                `critic='agent'`, as `mappo.py`)
             ->  loop: collect T decisions x B envs x N agents, the actor carrying its memory from decision to decision
                 (and from iteration to iteration), GAE, K epochs of clipped PPO on minibatches of whole env sequences
             ->  `Run`: logs, checkpoints, best.pt, final.pt
@@ -60,8 +61,9 @@ __all__ = ['RecurrentConfig', 'policy_spec', 'train']
 class RecurrentConfig(PPOConfig):
     """Settings of a recurrent MAPPO / IPPO run (`train(config)`, `mate train mappo-lstm`)."""
 
-    critic: Literal['state', 'local'] = option('state', "the critic's input: the global state (MAPPO) or each agent's "
-                                                        'observation (IPPO)')
+    critic: Literal['state', 'local', 'agent'] = option('state', "the critic's input: the global state (MAPPO), each "
+                                                                 "agent's observation (IPPO) or the state with each "
+                                                                 "agent's observation appended (MAPPO-AS)")
     actor: Literal['mlp', 'per-target'] | None = option(None, "the body and head around the LSTM: 'mlp' (the paper's) "
                                                               "or, for cameras, 'per-target' (one shared scorer per "
                                                               'target slot); None: per-target for cameras, mlp for '
@@ -75,7 +77,7 @@ class RecurrentConfig(PPOConfig):
 
     @property
     def algo(self) -> str:
-        return 'mappo-lstm' if self.critic == 'state' else 'ippo-lstm'
+        return {'state': 'mappo-lstm', 'local': 'ippo-lstm', 'agent': 'mappo-as-lstm'}[self.critic]
 
 
 RecurrentConfig.PRESETS = {'paper': (PAPER_HELP + "; the paper's MLP actor",

@@ -3,7 +3,8 @@
     config  ->  PolicySpec (network 'tarmac': the MLP body, an LSTM of `lstm` cells, a head of [logits | message])
             ->  `TeamVecEnv`, and the channel the messages go through in training (`Channel`: ideal by default)
             ->  networks: one `TarMACActor` shared by the team; a feed-forward critic on the global state (MAPPO,
-                `critic='state'`) or on each agent's observation (IPPO, `critic='local'`), the messages appended
+                `critic='state'`), on each agent's observation (IPPO, `critic='local'`) or on both (MAPPO-AS,
+                `critic='agent'`, as `mappo.py`), the messages appended
             ->  loop: collect T decisions x B envs x N agents, the actor carrying (h, c, messages) from decision to
                 decision; GAE; K epochs of clipped PPO on minibatches of whole env sequences, unrolled through the
                 messages
@@ -19,7 +20,7 @@ head at t (within a rollout; the memory carried in from the previous one is a co
 
 The critic reads the N messages of the decision too (spec training.md §4.1): those the agents read at it (the
 previous decision's; zeros at an episode's first), stored with the rollout as data (T, B, N, 64) and appended flat
-(N x 64) to the global state or to each agent's observation. A horizon cut's bootstrap value reads the messages just
+(N x 64) to the global state or to each agent's critic input. A horizon cut's bootstrap value reads the messages just
 sent (those the episode's next decision would read); the rollout's last value those the next decision reads.
 
 The lossy channel of training (`message_dropout`, `communication_range`): at every decision of the rollout a mask
@@ -71,8 +72,10 @@ __all__ = ['TarMACConfig', 'policy_spec', 'train']
 class TarMACConfig(PPOConfig):
     """Settings of a TarMAC run (`train(config)`, `mate train tarmac`)."""
 
-    critic: Literal['state', 'local'] = option('state', "the critic's input, the messages appended: the global state "
-                                                        "(MAPPO) or each agent's observation (IPPO)")
+    critic: Literal['state', 'local', 'agent'] = option('state', "the critic's input, the messages appended: the "
+                                                                 "global state (MAPPO), each agent's observation "
+                                                                 "(IPPO) or the state with each agent's observation "
+                                                                 "appended (MAPPO-AS)")
     lstm: int = option(256, "LSTM cells of the actor (the paper's 256)", minimum=1)
     message_dropout: float = option(0.0, 'train under a lossy channel: each sender -> receiver delivery lost with '
                                          'this probability in [0, 1] (as RandomMessageDropout)', metavar='P')
@@ -88,7 +91,7 @@ class TarMACConfig(PPOConfig):
 
     @property
     def algo(self) -> str:
-        return 'mappo-tarmac' if self.critic == 'state' else 'ippo-tarmac'
+        return {'state': 'mappo-tarmac', 'local': 'ippo-tarmac', 'agent': 'mappo-as-tarmac'}[self.critic]
 
     @property
     def channel(self) -> dict:

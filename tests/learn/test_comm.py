@@ -333,12 +333,18 @@ def test_critic_inputs_append_the_messages():
     ippo = critic_inputs('local', obs, state, messages)
     assert ippo.shape == (5, 3, 7 + 12) and torch.equal(ippo[:, 2, 7:], messages.reshape(5, 12))
     assert critic_input_dim('state', 7, 11, 12) == 23 and critic_input_dim('local', 7, 11, 12) == 19
+    agent = critic_inputs('agent', obs, state, messages)                  # MAPPO-AS: state, own observation, messages
+    assert agent.shape == (5, 3, 11 + 7 + 12) and critic_input_dim('agent', 7, 11, 12) == 30
+    assert torch.equal(agent[:, 1, :11], state) and torch.equal(agent[:, 1, 11:18], obs[:, 1])
+    assert torch.equal(agent[:, 1, 18:], messages.reshape(5, 12))
 
 
-@pytest.mark.parametrize('critic', ['state', 'local'])
+@pytest.mark.parametrize('critic', ['state', 'local', 'agent'])
 def test_tarmac_critic_reads_the_messages(tmp_path, critic):
     tarmac.train(_targets(tmp_path, critic=critic, num_envs=2, rollout_length=3, steps=2 * 3))
     data = load_checkpoint(tmp_path / 'checkpoint.pt')
-    base = data['spec']['obs_dim'] if critic == 'local' else data['spec']['state_dim']
+    assert data['algo'] == {'state': 'mappo-tarmac', 'local': 'ippo-tarmac', 'agent': 'mappo-as-tarmac'}[critic]
+    spec = data['spec']
+    base = {'state': spec['state_dim'], 'local': spec['obs_dim'], 'agent': spec['state_dim'] + spec['obs_dim']}[critic]
     first = next(v for k, v in data['state']['networks']['critic'].items() if k.endswith('weight'))
     assert first.shape[1] == base + 4 * 64

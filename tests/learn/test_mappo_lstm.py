@@ -93,6 +93,21 @@ def test_policy_spec_config_and_files(tmp_path):
     assert 'lstm.weight_hh_l0' in load_checkpoint(tmp_path / 'final.pt')['actor']
     with pytest.raises(CheckpointError, match='trained by mappo-lstm; this run is ippo-lstm'):
         train(RecurrentConfig(**{**config.__dict__, 'critic': 'local', 'steps': 48}), envs=CueMatching(num_envs=2))
+    with pytest.raises(CheckpointError, match='trained by mappo-lstm; this run is mappo-as-lstm'):
+        train(RecurrentConfig(**{**config.__dict__, 'critic': 'agent', 'steps': 48}), envs=CueMatching(num_envs=2))
+
+
+def test_recurrent_mappo_as_critic_reads_state_and_own_observation(tmp_path):
+    """critic='agent' (MAPPO-AS): one value per agent from the state with the agent's own observation appended."""
+    config = RecurrentConfig(actor='mlp', critic='agent', steps=2 * 4 * 2, num_envs=2, rollout_length=4, epochs=1,
+                             hidden=(8,), lstm=4, run_dir=str(tmp_path), progress=False)
+    assert config.algo == 'mappo-as-lstm'
+    train(config, envs=CueMatching(num_envs=2))
+    saved = load_checkpoint(tmp_path / 'checkpoint.pt')
+    spec = saved['spec']
+    critic = saved['state']['networks']['critic']
+    first, *_, last = (v for k, v in critic.items() if k.endswith('weight'))
+    assert first.shape[1] == spec['state_dim'] + spec['obs_dim'] and last.shape[0] == 1
     with pytest.raises(CheckpointError, match='trained with --lstm 4; this run has --lstm 8'):
         train(RecurrentConfig(**{**config.__dict__, 'lstm': 8, 'steps': 48}), envs=CueMatching(num_envs=2))
 
