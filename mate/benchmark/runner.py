@@ -84,13 +84,13 @@ def run_job(job: Job) -> dict:
     """`run_command` of `job` (its commands, its `job.log`), holding the lock of its directory (`JOB_LOCK`): when
     another runner holds it (two runners of the same seeds on one directory, on this machine or on others sharing
     it) nothing runs and the status is `BUSY`; a job another runner has completed meanwhile is not run again
-    (status 0). The lock goes with the process that held it, however it ends."""
+    (status 0, `elsewhere` true). The lock goes with the process that held it, however it ends."""
     job.dir.mkdir(parents=True, exist_ok=True)
     with locked(job.dir / JOB_LOCK, wait=False) as holding:
         if not holding:
             return dict(returncode=BUSY, seconds=0.0)
         if job.done():
-            return dict(returncode=0, seconds=0.0)
+            return dict(returncode=0, seconds=0.0, elsewhere=True)
         runner = job.dir / JOB_RUNNER
         runner.write_text(f'{socket.gethostname()} {os.getpid()}\n')
         try:
@@ -199,7 +199,8 @@ def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> lis
         job = todo[index]
         minutes = result['seconds'] / 60
         if result['returncode'] == 0 and job.done():
-            say(f'[{finished}/{len(todo)}] {job.name}: done in {minutes:.1f} min{job.measured()}')
+            how = 'done by another runner meanwhile' if result.get('elsewhere') else f'done in {minutes:.1f} min'
+            say(f'[{finished}/{len(todo)}] {job.name}: {how}{job.measured()}')
             return
         if result['returncode'] == BUSY:
             elsewhere.append(job)
