@@ -123,7 +123,7 @@ def test_runners_side_by_side_merge_their_seeds_into_one_manifest(tmp_path):
     assert not list(tmp_path.glob('*.tmp'))
 
 
-def test_a_job_another_runner_holds_is_skipped_not_run_twice(tmp_path, monkeypatch):
+def test_a_job_another_runner_holds_is_skipped_not_run_twice(tmp_path):
     """A runner finds a job's directory locked by another (the same seeds started twice on one directory): it runs
     nothing there and says so (a skip, not a failure), naming it at the end as still running elsewhere; once the
     lock is gone the job runs, and a job completed meanwhile by the other runner is not run again."""
@@ -149,12 +149,19 @@ def test_a_job_another_runner_holds_is_skipped_not_run_twice(tmp_path, monkeypat
     job.outputs[0].write_text('done by the other runner')
     assert run_job(job) == dict(returncode=0, seconds=0.0, elsewhere=True)
     assert log.read_text().count('$ mate --version') == 1
+
+    class OtherRunnerFinishesFirst(ThreadRunner):
+        """The other runner completes the job after this one planned it (not done: queued) and before its turn."""
+
+        def run(self, jobs, done, names=None, **kwargs):
+            job.outputs[0].write_text(json.dumps({'episodes': [{job.metric: 0.5}]}))
+            super().run(jobs, done, names, **kwargs)
+
+    job.outputs[0].unlink()
     lines.clear()
-    # the other runner completes it between this runner's plan (not done: queued) and its turn (done: not run)
-    monkeypatch.setattr(type(job), 'done', lambda self: bool(lines))
-    monkeypatch.setattr(type(job), 'measured', lambda self: '')
-    assert run_jobs([job], ThreadRunner(1), say=lines.append) == []
-    assert lines[-1].endswith(f'{job.name}: done by another runner meanwhile'), lines  # not 'done in 0.0 min'
+    assert run_jobs([job], OtherRunnerFinishesFirst(1), say=lines.append) == []
+    assert lines[-1].endswith(f'{job.name}: done by another runner meanwhile; coverage_rate 0.500 (1 episodes)'), \
+        lines                                                                          # not 'done in 0.0 min'
 
 
 def test_parse_seeds():
