@@ -167,7 +167,7 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
         rng.bit_generator.state = saved['rng']
         hidden = torch.as_tensor(saved['hidden']).to(device)
     obs, state = run.first_observations(envs, saved)
-    if 'envs' not in (saved or {}):
+    if not run.continues_episodes(saved):
         hidden.zero_()                                               # the envs were reset: so is the memory
 
     # ---- the schedule, in decision steps: updates, target copies, log rows

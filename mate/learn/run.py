@@ -168,6 +168,13 @@ class Run:
             self.evaluator.resume(run.get('evaluation'), self.iteration, self.env_steps)
         return data['state']
 
+    @staticmethod
+    def continues_episodes(saved: dict | None) -> bool:
+        """Whether this session goes on with the episodes the checkpoint stopped in: `saved` (what `resume`
+        returned) holds the batch's state. False for a fresh run and for an older checkpoint without it, whose batch
+        `first_observations` resets: every episode starts anew, and with it any memory an actor carries."""
+        return saved is not None and 'envs' in saved
+
     def first_observations(self, envs, saved: dict | None):
         """The first decision of this session in `envs` (a `TeamVecEnv`): `(features (B, N, D), state (B, S))`.
 
@@ -175,7 +182,7 @@ class Run:
         it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x
         iteration`, the config's seed for a fresh run and other seeds for each later session of an older
         checkpoint."""
-        if saved is not None and 'envs' in saved:
+        if self.continues_episodes(saved):
             envs.load_state_dict(saved['envs'])
             return envs.observations()
         return envs.reset(seed=self.config.seed + RESET_SEED_STRIDE * self.iteration)

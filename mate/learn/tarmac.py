@@ -166,7 +166,8 @@ def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, c
         generator.set_state(saved['generator'])
         channel_generator.set_state(saved['channel_generator'])
         memory = tuple(part.to(device) for part in saved['memory'])
-        starting = saved['starting'].to(device)
+        if run.continues_episodes(saved):     # else the envs are reset: every episode starts, memory zeroed
+            starting = saved['starting'].to(device)
     elif config.init_from:
         warm_start(config.init_from, spec, actor, dict(critic=critic, value_norm=value_norm), config.algo,
                    config.credit)

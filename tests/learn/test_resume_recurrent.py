@@ -32,3 +32,40 @@ def test_a_stopped_run_resumes_exactly(tmp_path, name):
 
     straight, stopped = stopped_and_resumed(train, config_of, 1, tmp_path)
     assert_same_run(straight, stopped)
+
+
+@pytest.mark.parametrize('name', TRAINERS)
+def test_a_checkpoint_without_the_envs_restarts_every_episode_from_zero_memory(tmp_path, name):
+    """An older checkpoint without the batch's state resets the envs (`Run.first_observations`): the memory it
+    saved belongs to episodes that no longer exist, so every episode starts from zero memory and what that memory
+    held cannot change the run."""
+    import os
+    import shutil
+    import signal
+
+    import torch
+
+    from mate.learn.checkpoint import load_checkpoint, save_checkpoint
+
+    train, config_class, options = TRAINERS[name]
+
+    def config_of(run_dir, fresh):
+        return config_class(**TINY, **options, run_dir=str(run_dir), fresh=fresh)
+
+    def stop(row):                                                      # a checkpoint after iteration 1
+        if row['iteration'] == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    assert train(config_of(tmp_path / 'first', True), callback=stop).interrupted
+    finals = []
+    for junk in (None, 5.0):
+        run_dir = tmp_path / f'older-{junk}'
+        shutil.copytree(tmp_path / 'first', run_dir)
+        data = load_checkpoint(run_dir / 'checkpoint.pt')
+        del data['state']['envs']                                       # as written before envs were saved
+        if junk is not None:
+            data['state']['memory'] = [torch.full_like(part, junk) for part in data['state']['memory']]
+        save_checkpoint(run_dir / 'checkpoint.pt', data)
+        train(config_of(run_dir, False))
+        finals.append(run_dir)
+    assert_same_run(*finals)

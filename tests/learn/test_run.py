@@ -126,3 +126,5 @@ def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_
     run.iteration = 3                                                                    # an older checkpoint
     run.first_observations(envs, {'networks': {}})
     assert envs.calls == [('reset', 7 + 3 * RESET_SEED_STRIDE)]
+    assert not Run.continues_episodes(None) and not Run.continues_episodes({'networks': {}})
+    assert Run.continues_episodes({'envs': 'batch'})
