@@ -295,7 +295,5 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
                 status=f"entropy {means['entropy']:.2f}",
                 actor=actor.state_dict,
                 save=run_state)
-            if config.snapshot_every and run.iteration % config.snapshot_every == 0:
-                run.save_policy(f'snapshots/policy-{run.env_steps:010d}.pt', actor.state_dict())
     run.finish(run_state(), actor.state_dict())
     return run

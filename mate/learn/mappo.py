@@ -267,7 +267,5 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
                 entropy_coef=entropy_coef, **means, kl_coeff=row_kl_coeff), status=f"entropy {means['entropy']:.2f}",
                 actor=actor.state_dict,
                 save=run_state)
-            if config.snapshot_every and run.iteration % config.snapshot_every == 0:
-                run.save_policy(f'snapshots/policy-{run.env_steps:010d}.pt', actor.state_dict())
     run.finish(run_state(), actor.state_dict())
     return run

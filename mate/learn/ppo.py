@@ -57,8 +57,6 @@ class PPOConfig(RunConfig, TeamEnvConfig):
         '[[step, coefficient], ...]')
     mask_invisible: bool = option(True, 'HRL: never select a target the camera cannot see (the executor would ignore '
                                         'it; masking removes its random bits from the gradient)')
-    snapshot_every: int = option(0, 'keep the policy every N iterations as RUN_DIR/snapshots/policy-STEPS.pt; 0: off',
-                                 minimum=0)
     init_from: str | None = option(None, 'warm start from the networks of a checkpoint or policy file of the same '
                                          'setting (steps and schedules start from 0)', metavar='PATH')
 

@@ -83,6 +83,7 @@ class Run:
         total_steps: decision steps of the whole run.
         time_limit: seconds of training wall time (earlier sessions included); 0: none.
         checkpoint_every: iterations between periodic checkpoints.
+        snapshot_every: iterations between snapshots of the policy (`snapshots/policy-STEPS.pt`); 0: none.
         progress: show the progress bar (or plain lines).
         callback: `callback(row)` after every logged row.
         resume: continue from `run_dir/checkpoint.pt` when it exists (else start over, overwriting).
@@ -91,14 +92,15 @@ class Run:
     """
 
     def __init__(self, run_dir, algo: str, config, spec: PolicySpec, *, total_steps: int, time_limit: float = 0.0,
-                 checkpoint_every: int = 20, progress: bool = True, callback: Callable[[dict], None] | None = None,
-                 resume: bool = True, console=None, evaluator: Evaluator | None = None) -> None:
+                 checkpoint_every: int = 20, snapshot_every: int = 0, progress: bool = True,
+                 callback: Callable[[dict], None] | None = None, resume: bool = True, console=None,
+                 evaluator: Evaluator | None = None) -> None:
         self.dir = Path(run_dir)
         self.evaluator = evaluator
         self.dir.mkdir(parents=True, exist_ok=True)
         self.algo, self.config, self.spec = algo, config, spec
         self.total_steps, self.time_limit = int(total_steps), float(time_limit)
-        self.checkpoint_every = int(checkpoint_every)
+        self.checkpoint_every, self.snapshot_every = int(checkpoint_every), int(snapshot_every)
         self.show_progress, self.callback, self.console = progress, callback, console
         self.env_steps, self.iteration, self.best_return = 0, 0, -math.inf
         self.episodes: deque = deque(maxlen=EPISODE_WINDOW)
@@ -127,7 +129,8 @@ class Run:
             evaluator = Evaluator(run_dir, spec, config.eval_every, config.eval_episodes, config.resolved_horizon,
                                   resolve_device(config.device))
         return cls(run_dir, algo, config, spec, total_steps=config.steps, time_limit=config.time_limit,
-                   checkpoint_every=config.checkpoint_every, progress=config.progress, callback=callback,
+                   checkpoint_every=config.checkpoint_every, snapshot_every=config.snapshot_every,
+                   progress=config.progress, callback=callback,
                    resume=not config.fresh, console=console, evaluator=evaluator)
 
     # ------------------------------------------------------------------ resume
@@ -303,7 +306,8 @@ class Run:
         """Count the iteration's `steps` and finished `episodes`; evaluate the policy (`actor()` gives its network's
         state) when the evaluation protocol is due; log the row (CSV, TensorBoard, progress, callback), keep the
         policy as `best.pt` when the episode window's mean return is the best so far (and as `best-eval.pt` after its
-        best evaluation), and write the periodic checkpoint (`save()` gives the algorithm's state). Returns the row."""
+        best evaluation) and as a snapshot every `snapshot_every` iterations, and write the periodic checkpoint
+        (`save()` gives the algorithm's state). Returns the row."""
         self.env_steps += int(steps)
         self.iteration += 1
         self.episodes.extend(episodes)
@@ -328,6 +332,8 @@ class Run:
             self._line.update(completed=self.env_steps, status=(
                 f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
                 f"return {row['episode_return']:.1f}" + (f'  {status}' if status else '')))
+        if actor is not None and self.snapshot_every and self.iteration % self.snapshot_every == 0:
+            self.save_policy(f'snapshots/policy-{self.env_steps:010d}.pt', actor())
         if save is not None and self.iteration % self.checkpoint_every == 0:
             self.checkpoint(save())
         self.last_row = row

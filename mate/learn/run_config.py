@@ -24,6 +24,8 @@ class RunConfig:
     fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
     progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')
     checkpoint_every: int = option(20, 'iterations between checkpoints', minimum=1)
+    snapshot_every: int = option(0, 'keep the policy every N iterations as RUN_DIR/snapshots/policy-STEPS.pt; 0: off',
+                                 minimum=0)
     eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
                                 '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
                              minimum=0)

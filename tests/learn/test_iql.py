@@ -121,6 +121,16 @@ def test_iql_checkpoints_resume_and_refuse_another_experiment(tmp_path):
         train(IQLConfig(**{**SMALL, 'steps': 4 * 120, 'team': 'camera'}, run_dir=str(tmp_path)))
 
 
+def test_iql_keeps_snapshots_that_load_as_policies(tmp_path):
+    """`--snapshot-every` is the run's (`RunConfig`), not PPO's: every trainer keeps its policy every N iterations."""
+    from mate.learn.policy import load_policy
+
+    train(IQLConfig(**SMALL, snapshot_every=2, run_dir=str(tmp_path)))          # 3 iterations of 80 decision steps
+    assert sorted(p.name for p in (tmp_path / 'snapshots').iterdir()) == ['policy-0000000160.pt']
+    policy = load_policy(tmp_path / 'snapshots' / 'policy-0000000160.pt', 'target')
+    assert policy.spec.algo == 'iql' and policy.spec.num_actions == 25
+
+
 def test_iql_policy_plays_in_mate_evaluate(tmp_path):
     from mate.learn.policy import PolicyTeam, load_policy, make_team
     from mate.teams import play_batch
