@@ -56,7 +56,7 @@ from .ppo import (
     action_distribution,
     adapt_kl_coeff,
     bootstrapped,
-    compute_gae,
+    learning_targets,
     minibatch_rows,
     ppo_update,
     warm_start,
@@ -238,18 +238,14 @@ def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, cons
             # ---- advantages (per agent: the team reward repeated, or each agent's own)
             with torch.no_grad():
                 last_values = values_of(state)
-            dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
-                                              config.gae_lambda)
-            value_norm.update(returns)
+            b_adv, b_ret = learning_targets(reward_buf, value_buf, done_buf, last_values, value_norm, config.gamma,
+                                            config.gae_lambda)    # (T * B, N) rows, as the other buffers' below
 
             # ---- learn: the prior's labels and the regulariser's targets, once; then K epochs over minibatches of
             # whole env sequences, each unrolled from its first memory
             torch.set_num_threads(threads)
             flat = lambda x: x.reshape(T * B, *x.shape[2:])   # noqa: E731
             b_obs, b_state, b_action, b_logp = flat(obs_buf), flat(state_buf), flat(action_buf), flat(logp_buf)
-            b_adv, b_ret = flat(advantages), value_norm.normalize(flat(returns))
-            b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
             label_rows = torch.randperm(T * B, generator=generator, device=device)[:config.influence_samples]
             labels, influence = signals.labels(b_state[label_rows], b_action[label_rows, :, 0])   # (R, N, N - 1)
             label_obs = b_obs[label_rows]

@@ -39,7 +39,7 @@ from .ppo import (
     action_distribution,
     adapt_kl_coeff,
     bootstrapped,
-    compute_gae,
+    learning_targets,
     minibatch_rows,
     ppo_update,
     warm_start,
@@ -237,17 +237,13 @@ def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, co
             # ---- advantages (per agent: the team reward repeated, or each agent's own)
             with torch.no_grad():
                 last_values = values_of(obs, state)
-            dones = done_buf.unsqueeze(-1).expand(T, B, N)
-            advantages, returns = compute_gae(reward_buf, value_buf, dones, last_values, config.gamma,
-                                              config.gae_lambda)
-            value_norm.update(returns)
+            b_adv, b_ret = learning_targets(reward_buf, value_buf, done_buf, last_values, value_norm, config.gamma,
+                                            config.gae_lambda)    # (T * B, N) rows, as the other buffers' below
 
             # ---- learn: K epochs over shuffled minibatches of (decision, env) rows, all agents of a row together
             torch.set_num_threads(learn_threads)
             flat = lambda x: x.reshape(T * B, *x.shape[2:])   # noqa: E731
             b_obs, b_state, b_action, b_logp = flat(obs_buf), flat(state_buf), flat(action_buf), flat(logp_buf)
-            b_adv, b_ret = flat(advantages), value_norm.normalize(flat(returns))
-            b_adv = (b_adv - b_adv.mean()) / (b_adv.std() + 1e-8)
             stats = UpdateStats('policy_loss', 'value_loss', 'entropy', 'approx_kl', 'clip_fraction')
             for _ in range(config.epochs):
                 for idx in minibatch_rows(T, B, config.minibatches, False, generator):

@@ -27,7 +27,7 @@ from .run import RunConfig
 from .schedules import check_network_options, piecewise
 
 __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'ValueNormalizer', 'action_distribution',
-           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'minibatch_rows', 'ppo_policy_loss', 'ppo_update',
+           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'learning_targets', 'minibatch_rows', 'ppo_policy_loss', 'ppo_update',
            'sampled_kl', 'warm_start']
 
 
@@ -115,6 +115,23 @@ def compute_gae(rewards, values, dones, last_values, gamma: float, lam: float):
         running = delta + gamma * lam * alive * running
         advantages[t] = running
     return advantages, advantages + values
+
+
+def learning_targets(rewards, values, episode_ends, last_values, value_norm: ValueNormalizer, gamma: float,
+                     lam: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """What the PPO update regresses on, for a rollout of T decisions x B envs x N agents, one row per (decision,
+    env): `(advantages (T * B, N), standardised over the rollout; returns (T * B, N) in the units of `value_norm`,
+    updated with them first)`.
+
+    rewards, values: (T, B, N) (a team reward repeated per agent, or each agent's own); episode_ends: (T, B), the
+    env's episode ended after decision t; last_values: (B, N), the values after the last decision (`compute_gae`).
+    """
+    T, B, N = values.shape
+    advantages, returns = compute_gae(rewards, values, episode_ends.unsqueeze(-1).expand(T, B, N), last_values, gamma,
+                                      lam)
+    value_norm.update(returns)
+    advantages, returns = advantages.reshape(T * B, N), value_norm.normalize(returns.reshape(T * B, N))
+    return (advantages - advantages.mean()) / (advantages.std() + 1e-8), returns
 
 
 def minibatch_rows(T: int, B: int, minibatches: int, sequences: bool, generator) -> list[torch.Tensor]:

@@ -8,7 +8,15 @@ import pytest
 import torch
 
 from mate.learn.networks import Actor
-from mate.learn.ppo import ValueNormalizer, adapt_kl_coeff, compute_gae, minibatch_rows, ppo_policy_loss, sampled_kl
+from mate.learn.ppo import (
+    ValueNormalizer,
+    adapt_kl_coeff,
+    compute_gae,
+    learning_targets,
+    minibatch_rows,
+    ppo_policy_loss,
+    sampled_kl,
+)
 from mate.learn.schedules import piecewise
 
 
@@ -127,3 +135,26 @@ def test_minibatch_rows_cover_the_rollout_once():
 
 def test_actor_head_starts_near_uniform():
     assert Actor(10, 25)(torch.randn(5, 10)).abs().max() < 0.1
+
+
+def test_learning_targets_are_rows_of_decision_major_gae_standardised_and_normalised():
+    """One row per (decision, env), t-major as the update's flattened buffers; the episode end of an env stops its
+    bootstrap for every agent; advantages standardised over the rollout; returns in the updated normaliser's units."""
+    generator = torch.Generator().manual_seed(0)
+    T, B, N = 3, 2, 2
+    rewards, values = torch.randn(T, B, N, generator=generator), torch.randn(T, B, N, generator=generator)
+    last_values = torch.randn(B, N, generator=generator)
+    episode_ends = torch.tensor([[0.0, 1.0], [0.0, 0.0], [1.0, 0.0]])
+    norm = ValueNormalizer()
+    advantages, returns = learning_targets(rewards, values, episode_ends, last_values, norm, 0.9, 0.8)
+    assert advantages.shape == returns.shape == (T * B, N)
+    assert float(norm.count) > 1                                                  # updated with this rollout
+    assert float(advantages.mean()) == pytest.approx(0.0, abs=1e-6)
+    assert float(advantages.std()) == pytest.approx(1.0, abs=1e-5)
+    # env 1's episode ended after decision 0: that decision's advantage is its own one-step TD error, for each agent
+    raw, raw_returns = compute_gae(rewards, values, episode_ends.unsqueeze(-1).expand(T, B, N), last_values, 0.9, 0.8)
+    assert torch.allclose(raw[0, 1], rewards[0, 1] - values[0, 1])
+    row = 0 * B + 1                                                               # (t = 0, env 1)
+    standardised = (raw - raw.mean()) / (raw.std() + 1e-8)
+    assert torch.allclose(advantages[row], standardised[0, 1])
+    assert torch.allclose(returns[2 * B + 0], norm.normalize(raw_returns[2, 0]))  # (t = 2, env 0)
