@@ -9,10 +9,12 @@ experiment's seeds may be spread over several directories, e.g. run on several m
   IQM normalised as (score - random) / (reference - random) with the greedy rules and, for cameras, the upper-bound
   controller as reference; the references' own scores on the same episodes; the probability of improvement between
   every two settings. Population experiments: the final exploitability (IQM and mean with CIs over the runs), from
-  the payoff matrix and with the best responses re-played on fresh seeds (`mate psro`'s `exploitability_fresh`).
+  the payoff matrix and with the best responses re-played on fresh seeds (`mate psro`'s `exploitability_fresh`),
+  and how many policies each team's last meta-strategy spreads over (`effective_policies`, IQM with CIs).
 * `results.json`: the same numbers, machine-readable (what README and docs quote).
 * `<experiment>-curves.png`: the periodic evaluations against decision steps, IQM with its 95 % CI band per
-  setting, the references as horizontal lines; population experiments: `<experiment>-exploitability.png`.
+  setting, the references as horizontal lines; population experiments: `<experiment>-exploitability.png` (Fig. 7)
+  and `<experiment>-meta-strategies.png` (Fig. 8: every run's meta-strategies, iteration x policy heat maps).
 * `marl_eval.json`: every training run's evaluations and absolute metric in marl-eval's layout (environment: the
   experiment, task: '<preset> <team>s', algorithm: the setting, run: `seed_<k>`; `mate.benchmark.marl_eval`).
 """
@@ -28,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..learn.evaluation import read_evaluations
+from ..learn.population.solvers import effective_policies
 from .experiments import Experiment
 from .experiments import experiment as experiment_named
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
@@ -188,6 +191,13 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                         estimates = interval_estimates({label: finals}, reps=reps)[label]
                         entry[f'final_{key}'] = {name: _interval(value) for name, value in estimates.items()}
                         entry[f'final_{key}_values'] = finals.tolist()
+                entry['final_effective_policies'] = {}
+                for team in ('camera', 'target'):    # how many policies each last meta-strategy spreads over
+                    spread = np.array([effective_policies(last[f'{team}_strategy']) for last in lasts])
+                    estimates = interval_estimates({label: spread}, reps=reps)[label]
+                    entry['final_effective_policies'][team] = dict(
+                        {name: _interval(value) for name, value in estimates.items()}, values=spread.tolist(),
+                        pool=[len(last[f'{team}_strategy']) for last in lasts])
                 task['settings'][label] = entry
                 key = 'exploitability_fresh' if 'final_exploitability_fresh_values' in entry else 'exploitability'
                 if f'final_{key}_values' in entry:       # lower is better: scored negated
@@ -330,6 +340,35 @@ def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None
     return save_figure(figure, path)
 
 
+def plot_meta_strategies(results: Results, path) -> Path | None:
+    """Population experiments (Fig. 8): every run's meta-strategies, iteration x policy heat maps; a row per
+    (task, setting, team), a column per run."""
+    from ..learn.population.plots import draw_meta_strategies
+    from ..plotting import pyplot, save_figure
+
+    runs = sorted((key, state) for key, state in results.populations.items() if state['iterations'])
+    if not runs:
+        return None
+    groups = sorted({(preset, label) for (label, preset, _), _ in runs})
+    columns = max(sum(1 for (lab, p, _), _ in runs if (p, lab) == group) for group in groups)
+    iterations = max(len(state['iterations']) for _, state in runs)
+    plt = pyplot()
+    height = 0.22 * iterations + 1.4
+    figure, axes = plt.subplots(2 * len(groups), columns, figsize=(3.2 * columns, height * 2 * len(groups)),
+                                squeeze=False)
+    for row, (preset, label) in enumerate(groups):
+        members = [(seed, state) for (lab, p, seed), state in runs if (p, lab) == (preset, label)]
+        for team_row, team in enumerate(('camera', 'target')):
+            for column in range(columns):
+                ax = axes[2 * row + team_row][column]
+                if column >= len(members):
+                    ax.axis('off')
+                    continue
+                seed, state = members[column]
+                draw_meta_strategies(ax, state, team, f'{label} {team}s, {preset}, seed {seed}')
+    return save_figure(figure, path)
+
+
 # ============================================================================ files
 
 
@@ -350,8 +389,8 @@ def claim_rows(claims: list[dict]) -> list[str]:
     return rows
 
 
-def markdown(summary: dict, figure: str | None) -> str:
-    """One experiment's section of `results.md`."""
+def markdown(summary: dict, figures: list[str]) -> str:
+    """One experiment's section of `results.md`, showing the report's `figures` (file names)."""
     lines = [f'## {summary["experiment"]}: {summary["figure"]}', '']
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
@@ -365,7 +404,7 @@ def markdown(summary: dict, figure: str | None) -> str:
                 f'episodes; absolute metric on {10 * summary["eval_episodes"]} other held-out episodes')
     lines += [f'Claim tested: {summary["claim"]}.', '', f'Budget: {budget}; {protocol}. Intervals: 95 % stratified '
               'bootstrap over runs.', '']
-    if figure:
+    for figure in figures:
         lines += [f'![{summary["experiment"]}]({figure})', '']
     for task, data in summary['tasks'].items():
         lines += [f'### {task}', '']
@@ -377,6 +416,17 @@ def markdown(summary: dict, figure: str | None) -> str:
                 lines.append(f'| {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
                              f'{format_interval(values and values["mean"], 4)} | '
                              f'{format_interval(fresh and fresh["IQM"], 4)} |')
+            lines += ['', 'How many policies the last meta-strategies spread over (exp of their entropy: 1 for a '
+                      'pure strategy, the pool size for a uniform one; the heat maps show every iteration, colour '
+                      'from 0, dark, to 1, yellow):', '',
+                      '| setting | pool | cameras: IQM [95 % CI] | each run | targets: IQM [95 % CI] | each run |',
+                      '|---|---|---|---|---|---|']
+            for label, entry in data['settings'].items():
+                spread = entry['final_effective_policies']
+                pools = sorted(set(spread['camera']['pool']) | set(spread['target']['pool']))
+                cells = [f'{format_interval(spread[team]["IQM"], 2)} | '
+                         f'{", ".join(f"{v:.2f}" for v in spread[team]["values"])}' for team in ('camera', 'target')]
+                lines.append(f'| {label} | {", ".join(map(str, pools))} | {cells[0]} | {cells[1]} |')
             lines.append('')
             continue
         camera = summary['team'] == 'camera'
@@ -443,11 +493,14 @@ def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[st
     for name, results in merged.items():
         summary = summarise(results, reps)
         summaries[name] = summary
-        figure = plot_exploitability(results, out / f'{name}-exploitability.png', reps) \
-            if results.experiment.population else plot_curves(results, out / f'{name}-curves.png', reps)
-        if figure is not None:
-            files[figure.name] = figure
-        sections.append(markdown(summary, None if figure is None else figure.name))
+        if results.experiment.population:
+            figures = [plot_exploitability(results, out / f'{name}-exploitability.png', reps),
+                       plot_meta_strategies(results, out / f'{name}-meta-strategies.png')]
+        else:
+            figures = [plot_curves(results, out / f'{name}-curves.png', reps)]
+        figures = [figure for figure in figures if figure is not None]
+        files.update({figure.name: figure for figure in figures})
+        sections.append(markdown(summary, [figure.name for figure in figures]))
         if not results.experiment.population:
             records += marl_eval_records(results, name)
         complete = len(results.runs) + len(results.populations)

@@ -424,6 +424,15 @@ def test_population_smoke_run_and_report(tmp_path):
     assert entry['final_exploitability_fresh_values'] == [s['iterations'][-1]['exploitability_fresh']['mean']
                                                           for s in states]
     assert (report / 'smoke-psro-exploitability.png').exists() and not (report / 'marl_eval.json').exists()
+    assert (report / 'smoke-psro-meta-strategies.png').exists()                    # Fig. 8: every run's heat maps
+    from mate.learn.population.solvers import effective_policies
+
+    for team in ('camera', 'target'):                     # how far each last meta-strategy spreads, per run
+        spread = entry['final_effective_policies'][team]
+        assert spread['values'] == [effective_policies(s['iterations'][-1][f'{team}_strategy']) for s in states]
+        assert spread['pool'] == [len(s['iterations'][-1][f'{team}_strategy']) for s in states]
+        assert spread['IQM']['low'] <= spread['IQM']['point'] <= spread['IQM']['high']
+    assert 'How many policies the last meta-strategies spread over' in (report / 'results.md').read_text()
     from mate.benchmark.quote import headline                 # the quoted table: each run's, on fresh seeds
     summary = json.loads((report / 'results.json').read_text())['smoke-psro']
     row = next(line for line in headline(summary, 'results.md').splitlines() if '| PSRO-Nash |' in line)

@@ -142,3 +142,16 @@ def test_exploitability_rejects_bad_strategies():
         exploitability([[1, 0], [0, 1]], [0.7, 0.7], [1.0])
     with pytest.raises(ValueError, match='first 1..2 policies'):
         exploitability([[1, 0], [0, 1]], [0.2, 0.3, 0.5], [1.0])
+
+
+def test_effective_policies_of_a_meta_strategy():
+    """exp of the entropy: how many policies a meta-strategy spreads over."""
+    from mate.learn.population.solvers import effective_policies
+
+    assert effective_policies([1.0]) == pytest.approx(1.0)
+    assert effective_policies([0.0, 1.0, 0.0]) == pytest.approx(1.0)           # pure: one policy
+    assert effective_policies([0.25] * 4) == pytest.approx(4.0)                # uniform: the pool
+    assert effective_policies([0.5, 0.5, 0.0]) == pytest.approx(2.0)
+    assert 1.0 < effective_policies([0.9, 0.1]) < 2.0
+    with pytest.raises(ValueError, match='probability vector'):
+        effective_policies([0.5, 0.6])

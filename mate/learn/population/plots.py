@@ -4,7 +4,7 @@
   the runs (seeds) of that solver with a band of ± one standard deviation; a panel per term (mean,
   cameras, targets).
 * `plot_meta_strategies(state, path)`: the meta-strategy of each iteration as a heat map (iteration x
-  policy index), one panel per team.
+  policy index), one panel per team (`draw_meta_strategies` draws one panel into given axes).
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ import numpy as np
 
 from ...plotting import pyplot, save_figure
 
-__all__ = ['SOLVER_NAMES', 'exploitability_table', 'plot_exploitability', 'plot_meta_strategies']
+__all__ = ['SOLVER_NAMES', 'draw_meta_strategies', 'exploitability_table', 'meta_strategy_grid', 'plot_exploitability',
+           'plot_meta_strategies']
 
 SOLVER_NAMES = {'nash': 'PSRO-Nash', 'uniform': 'FSP (uniform)', 'last': 'SP (newest)'}
 
@@ -66,6 +67,31 @@ def plot_exploitability(states: list[dict], path) -> Path:
     return save_figure(figure, path)
 
 
+def meta_strategy_grid(state: dict, team: str) -> np.ndarray:
+    """(iterations, largest pool) the meta-strategy of `team` ('camera' or 'target') at each finished iteration of a
+    run's `state`, NaN beyond the pool of the time."""
+    records = state['iterations']
+    size = max(len(r[f'{team}_strategy']) for r in records)
+    grid = np.full((len(records), size), np.nan)
+    for row, record in enumerate(records):
+        strategy = record[f'{team}_strategy']
+        grid[row, :len(strategy)] = strategy
+    return grid
+
+
+def draw_meta_strategies(ax, state: dict, team: str, title: str):
+    """Draw the heat map of `meta_strategy_grid(state, team)` into `ax` (row: iteration, column: policy); returns
+    the image (for a colour bar)."""
+    grid = meta_strategy_grid(state, team)
+    image = ax.imshow(grid, cmap='viridis', vmin=0.0, vmax=1.0, aspect='auto', origin='upper')
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel('policy index (0: initial)')
+    ax.set_ylabel('iteration')
+    ax.set_xticks(range(grid.shape[1]))
+    ax.set_yticks(range(grid.shape[0]))
+    return image
+
+
 def plot_meta_strategies(state: dict, path) -> Path:
     """Fig. 8: each iteration's meta-strategy over each pool as a heat map (row: iteration, column: policy)."""
     plt = pyplot()
@@ -74,16 +100,7 @@ def plot_meta_strategies(state: dict, path) -> Path:
         raise ValueError('the run has no finished iteration yet')
     figure, axes = plt.subplots(1, 2, figsize=(10, 0.45 * len(records) + 2.2))
     for ax, team in zip(axes, ('camera', 'target')):
-        size = max(len(r[f'{team}_strategy']) for r in records)
-        grid = np.full((len(records), size), np.nan)
-        for row, record in enumerate(records):
-            strategy = record[f'{team}_strategy']
-            grid[row, :len(strategy)] = strategy
-        image = ax.imshow(grid, cmap='viridis', vmin=0.0, vmax=1.0, aspect='auto', origin='upper')
-        ax.set_title(f'{team} meta-strategy ({SOLVER_NAMES.get(state["settings"]["solver"], "")})')
-        ax.set_xlabel('policy index (0: initial)')
-        ax.set_ylabel('iteration')
-        ax.set_xticks(range(size))
-        ax.set_yticks(range(len(records)))
+        image = draw_meta_strategies(ax, state, team,
+                                     f'{team} meta-strategy ({SOLVER_NAMES.get(state["settings"]["solver"], "")})')
         figure.colorbar(image, ax=ax, fraction=0.046, pad=0.04)
     return save_figure(figure, path)

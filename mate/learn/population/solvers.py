@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ['SOLVERS', 'exploitability', 'last_strategies', 'meta_strategies', 'solve_zero_sum', 'uniform_strategies']
+__all__ = ['SOLVERS', 'effective_policies', 'exploitability', 'last_strategies', 'meta_strategies', 'solve_zero_sum', 'uniform_strategies']
 
 _LP_OPTIONS = {'primal_feasibility_tolerance': 1e-10, 'dual_feasibility_tolerance': 1e-10}
 
@@ -117,6 +117,14 @@ def _strategy(strategy, size: int, name: str) -> np.ndarray:
     if not np.isfinite(vector).all() or (vector < 0).any() or abs(vector.sum() - 1.0) > 1e-6:
         raise ValueError(f'{name} must be a probability vector (non-negative, summing to 1), got {vector.tolist()}')
     return vector
+
+
+def effective_policies(strategy) -> float:
+    """How many policies a meta-strategy spreads over: exp of its entropy (in nats), from 1 (a pure strategy) to
+    the pool size (uniform). ValueError unless `strategy` is a probability vector."""
+    vector = _strategy(strategy, len(np.atleast_1d(strategy)), 'strategy')
+    weights = vector[vector > 0]
+    return float(np.exp(-(weights * np.log(weights)).sum()))
 
 
 def exploitability(payoff, row_strategy, column_strategy) -> dict[str, float]:
