@@ -27,8 +27,8 @@ from .run import RunConfig
 from .schedules import check_network_options, piecewise
 
 __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'ValueNormalizer', 'action_distribution',
-           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'learning_targets', 'minibatch_rows', 'ppo_policy_loss', 'ppo_update',
-           'sampled_kl', 'warm_start']
+           'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'learning_targets', 'minibatch_rows', 'ppo_policy_loss',
+           'ppo_update', 'sampled_kl', 'warm_start']
 
 
 @dataclasses.dataclass

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ['SOLVERS', 'effective_policies', 'exploitability', 'last_strategies', 'meta_strategies', 'solve_zero_sum', 'uniform_strategies']
+__all__ = ['SOLVERS', 'effective_policies', 'exploitability', 'last_strategies', 'meta_strategies', 'solve_zero_sum',
+           'uniform_strategies']
 
 _LP_OPTIONS = {'primal_feasibility_tolerance': 1e-10, 'dual_feasibility_tolerance': 1e-10}
 
