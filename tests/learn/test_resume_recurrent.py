@@ -5,9 +5,15 @@ episodes cut by the horizon inside the rollouts make both matter), and for a los
 
 from __future__ import annotations
 
+import os
+import shutil
+import signal
+
 import pytest
+import torch
 
 from mate.learn import i2c, mappo_lstm, tarmac
+from mate.learn.checkpoint import load_checkpoint, save_checkpoint
 
 from .resume import assert_same_run, stopped_and_resumed
 
@@ -39,14 +45,6 @@ def test_a_checkpoint_without_the_envs_restarts_every_episode_from_zero_memory(t
     """An older checkpoint without the batch's state resets the envs (`Run.first_observations`): the memory it
     saved belongs to episodes that no longer exist, so every episode starts from zero memory and what that memory
     held cannot change the run."""
-    import os
-    import shutil
-    import signal
-
-    import torch
-
-    from mate.learn.checkpoint import load_checkpoint, save_checkpoint
-
     train, config_class, options = TRAINERS[name]
 
     def config_of(run_dir, fresh):
