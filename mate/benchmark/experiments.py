@@ -142,6 +142,10 @@ OWN = ('--credit', 'own')
 tracking penalty and deliveries, which sum to the team's): with the team reward alone, MAPPO targets on MATE-4v8-0
 score -0.075, -0.060 and 0.133 over 1 M decisions in three seeds (random -0.09), with their own parts 0.253, 0.249
 and 0.262 (greedy 0.33; `diag-targets-4v8-0`, docs/results.md). The paper's learners used the team reward."""
+OWN_PSRO = ('--target-credit', 'own')
+"""The population experiments' target best responses are rewarded as the figures' target learners are (`OWN`): the
+team reward the paper used leaves MAPPO targets on the floor of MATE-4v8-0, and a population whose target best
+responses cannot learn would measure the cameras alone."""
 PAPER_PPO = ('--paper', '--epochs', '16', '--gae-lambda', '1.0')
 """MAPPO with the paper's RLlib PPO hyper-parameters where ours differ (spec training.md §1.6): `--paper` (adaptive
 KL penalty from 0.2, its learning-rate steps and entropy ramps stretched over 10 M decisions), 16 epochs, GAE lambda
@@ -257,15 +261,16 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
     _witness('camera', 'MATE-4v8-9', 'flat MATE-4v8-9 cameras', references=CAMERA_REFERENCES),
     Experiment(
         'fig7-psro', 'Fig. 7: exploitability of PSRO-Nash, FSP and SP', 'both', ('MATE-2v4-0',),
-        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')), Setting('FSP', 'psro', ('--solver', 'uniform')),
-         Setting('SP', 'psro', ('--solver', 'last'))),
+        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash', *OWN_PSRO)),
+         Setting('FSP', 'psro', ('--solver', 'uniform', *OWN_PSRO)),
+         Setting('SP', 'psro', ('--solver', 'last', *OWN_PSRO))),
         steps=100_000, iterations=10,
         claim='PSRO-Nash and SP reach less exploitable populations; FSP decreases slowly',
         claims=(Claim('PSRO-Nash ends less exploitable than FSP', 'PSRO-Nash', 'FSP'),
                 Claim('SP ends less exploitable than FSP', 'SP', 'FSP'))),
     Experiment(
         'fig8-psro-4v8-0', 'Fig. 8: PSRO-Nash on MATE-4v8-0', 'both', ('MATE-4v8-0',),
-        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash')),),
+        (Setting('PSRO-Nash', 'psro', ('--solver', 'nash', *OWN_PSRO)),),
         steps=100_000, iterations=10,
         claim='both teams adapt; the Nash meta-strategies spread over several policies'),
 )}

@@ -151,6 +151,25 @@ def test_best_response_job_returns_a_policy_of_its_team(tmp_path):
         best_response('target', ENV, ['random'], [0.0], steps=100, seed=0, run_dir=str(tmp_path / 'none'))
 
 
+def test_target_best_response_can_be_rewarded_by_each_targets_own_part(tmp_path):
+    """`--target-credit own`: the target best response trains with `credit='own'` (per-agent rewards, as the
+    benchmark's target learners); the cameras' reward has no such option."""
+    result = best_response('target', ENV, ['random'], [1.0], steps=100, seed=0, run_dir=str(tmp_path / 'own'),
+                           num_envs=4, credit='own')
+    assert policy_from_bytes(result['policy'], 'target').spec.team == 'target'
+    assert load_checkpoint(tmp_path / 'own' / 'checkpoint.pt')['config']['credit'] == 'own'
+    with pytest.raises(ValueError, match='is for targets'):
+        best_response('camera', ENV, ['random'], [1.0], steps=100, seed=0, run_dir=str(tmp_path / 'c'),
+                      credit='own')
+    settings = PSROSettings(iterations=1, br_steps=200, num_envs=4, eval_episodes=3, eval_steps=120,
+                            target_credit='own')
+    state = run_psro(settings, tmp_path / 'run', LocalRunner(1), say=lambda line: None)
+    assert state['settings']['target_credit'] == 'own'
+    for side, credit in (('target', 'own'), ('camera', 'team')):                # the loop hands it to the targets
+        assert load_checkpoint(tmp_path / 'run' / 'players' / f'{side}-1' / 'checkpoint.pt')['config'][
+            'credit'] == credit
+
+
 def test_payoff_entries_are_reproducible_and_keep_their_order():
     pairs = [(1, 0), (0, 0)]
     first = payoff_entries(ENV, ['random', 'greedy'], ['random'], pairs, episodes=4, max_episode_steps=400)
@@ -316,6 +335,9 @@ def test_psro_settings_are_checked(tmp_path, capsys):
         PSROSettings(solver='minimax').validate()
     with pytest.raises(PSROError, match='br_steps must be an integer >= 1'):
         PSROSettings(br_steps=0).validate()
+    with pytest.raises(PSROError, match="target_credit must be 'team' or 'own'"):
+        PSROSettings(target_credit='difference').validate()
+    assert PSROSettings(target_credit='own').same_experiment(PSROSettings()) == ['target_credit']  # no resume
     assert main(['psro', '--address', 'local', '--workers', '2', '--out', str(tmp_path / 'x')]) == 2
     assert '--workers is for local processes' in capsys.readouterr().err
     assert main(['psro', '--initial-cameras', 'heuristic', '--out', str(tmp_path / 'x')]) == 2

@@ -35,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--initial-cameras', default='random', metavar='AGENT',
                         help='first member of the camera pool: random, greedy or pretrained:NAME (default random)')
     parser.add_argument('--initial-targets', default='random', metavar='AGENT', help='as --initial-cameras')
+    parser.add_argument('--target-credit', choices=('team', 'own'), default='team',
+                        help="the target best responses' reward: team (the team's, as the paper) or own (each "
+                             "target's own part of it, which learns on MATE-4v8-0 where the team's does not); "
+                             'default team')
     parser.add_argument('--out', default=None, help='run directory (default runs/psro-SOLVER-seedN); an existing run '
                                                      'with the same settings resumes')
     parser.add_argument('--workers', type=positive_int, default=None,
@@ -69,7 +73,7 @@ def run(args: argparse.Namespace, console) -> int:
     settings = PSROSettings(solver=args.solver, config=args.config, iterations=args.iterations, br_steps=args.br_steps,
                             eval_episodes=args.eval_episodes, eval_steps=args.eval_steps, seed=args.seed,
                             num_envs=args.num_envs, initial_cameras=args.initial_cameras,
-                            initial_targets=args.initial_targets)
+                            initial_targets=args.initial_targets, target_credit=args.target_credit)
     out = Path(args.out or f'runs/psro-{args.solver}-seed{args.seed}')
     for flag, spec in (('--initial-cameras', args.initial_cameras), ('--initial-targets', args.initial_targets)):
         if not (spec in ('random', 'greedy') or spec.startswith('pretrained:')):

@@ -59,10 +59,11 @@ def rescaled_schedules(total_steps: int) -> dict:
 
 def best_response(team: str, env: dict, opponents: list, weights: list[float], steps: int, seed: int,
                   run_dir: str, init: bytes | None = None, num_envs: int = 16, torch_threads: int = 1,
-                  checkpoint_every: int = 5, device: str = 'auto') -> dict:
-    """Train `team`'s best response (cameras: HRL-MAPPO with the mixed reward; targets: MAPPO) for `steps`
-    decision steps against the mixture of the other team's `opponents` (payloads) with `weights` (drawn per
-    episode and env row), warm-started from the actor of `init` (policy bytes) if given.
+                  checkpoint_every: int = 5, device: str = 'auto', credit: str = 'team') -> dict:
+    """Train `team`'s best response (cameras: HRL-MAPPO with the mixed reward; targets: MAPPO, rewarded by `credit`:
+    'team', the team's reward as the spec says, or 'own', each target's own part of it) for `steps` decision steps
+    against the mixture of the other team's `opponents` (payloads) with `weights` (drawn per episode and env row),
+    warm-started from the actor of `init` (policy bytes) if given.
 
     `torch_threads`: threads of the training's updates; one, because a best response's minibatches are small
     and two threads ran them several times slower whenever the other core was busy (another job, the env).
@@ -90,7 +91,11 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
         init_path = run_dir / 'init.pt'
         init_path.write_bytes(init)
     camera = team == 'camera'
+    if camera and credit != 'team':
+        raise ValueError(f"a camera best response is rewarded by the team's mixed reward; credit {credit!r} is for "
+                         'targets')
     config = MAPPOConfig(team=team, config=env.get('config') or env['env_id'].removesuffix('-v0'), hrl=camera,
+                         credit=credit,
                          steps=int(steps), num_envs=int(num_envs), seed=int(seed), threads=int(torch_threads),
                          checkpoint_every=int(checkpoint_every), device=device, run_dir=str(run_dir), progress=False,
                          init_from=None if init_path is None else str(init_path), **rescaled_schedules(steps))

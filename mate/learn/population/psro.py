@@ -73,10 +73,14 @@ class PSROSettings:
     num_envs: int = 16                   # envs per best-response training
     initial_cameras: str = 'random'      # the pools' first members (batched agent names)
     initial_targets: str = 'random'
+    target_credit: str = 'team'          # the target best responses' reward: 'team' (the spec's) or 'own' (each
+                                         # target's own part of it, as the benchmark's target learners)
 
     def validate(self) -> PSROSettings:
         if self.solver not in SOLVERS:
             raise PSROError(f'unknown solver {self.solver!r}; choose one of {", ".join(SOLVERS)}')
+        if self.target_credit not in ('team', 'own'):
+            raise PSROError(f"target_credit must be 'team' or 'own', got {self.target_credit!r}")
         for name, minimum in (('iterations', 0), ('br_steps', 1), ('eval_episodes', 1), ('num_envs', 1), ('seed', 0)):
             value = getattr(self, name)
             if not isinstance(value, int) or value < minimum:
@@ -351,7 +355,8 @@ class _Loop:
             job_list.append((self.jobs.best_response, dict(
                 team=side, env=self.env, opponents=opponents, weights=weights, steps=settings.br_steps,
                 seed=settings.best_response_seed(i, side), run_dir=str((out / 'players' / f'{side}-{i}').resolve()),
-                init=init, num_envs=settings.num_envs, device=self.device)))
+                init=init, num_envs=settings.num_envs, device=self.device,
+                **(dict(credit=settings.target_credit) if side == 'target' else {}))))
         say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
             f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
         stopped = []
