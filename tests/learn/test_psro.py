@@ -158,7 +158,7 @@ def test_target_best_response_can_be_rewarded_by_each_targets_own_part(tmp_path)
                            num_envs=4, credit='own')
     assert policy_from_bytes(result['policy'], 'target').spec.team == 'target'
     assert load_checkpoint(tmp_path / 'own' / 'checkpoint.pt')['config']['credit'] == 'own'
-    with pytest.raises(ValueError, match='is for targets'):
+    with pytest.raises(ValueError, match='exists for targets only'):          # MAPPOConfig's own check
         best_response('camera', ENV, ['random'], [1.0], steps=100, seed=0, run_dir=str(tmp_path / 'c'),
                       credit='own')
     settings = PSROSettings(iterations=1, br_steps=200, num_envs=4, eval_episodes=3, eval_steps=120,

@@ -91,9 +91,6 @@ def best_response(team: str, env: dict, opponents: list, weights: list[float], s
         init_path = run_dir / 'init.pt'
         init_path.write_bytes(init)
     camera = team == 'camera'
-    if camera and credit != 'team':
-        raise ValueError(f"a camera best response is rewarded by the team's mixed reward; credit {credit!r} is for "
-                         'targets')
     config = MAPPOConfig(team=team, config=env.get('config') or env['env_id'].removesuffix('-v0'), hrl=camera,
                          credit=credit,
                          steps=int(steps), num_envs=int(num_envs), seed=int(seed), threads=int(torch_threads),

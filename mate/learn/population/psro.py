@@ -356,7 +356,7 @@ class _Loop:
                 team=side, env=self.env, opponents=opponents, weights=weights, steps=settings.br_steps,
                 seed=settings.best_response_seed(i, side), run_dir=str((out / 'players' / f'{side}-{i}').resolve()),
                 init=init, num_envs=settings.num_envs, device=self.device,
-                **(dict(credit=settings.target_credit) if side == 'target' else {}))))
+                credit=settings.target_credit if side == 'target' else 'team')))
         say(f'iteration {i}/{settings.iterations}: training the {" and ".join(todo)} best response'
             f'{"s" if len(todo) > 1 else ""} ({settings.br_steps:,} decision steps each)')
         stopped = []
