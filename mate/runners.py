@@ -10,7 +10,9 @@ A job is a module-level function and its keyword arguments (both picklable; a `s
 the arguments, inside lists and dicts too). `done(index, result)` is called in this process exactly once per job
 that finishes, in the order they finish. A job that raises does not stop the others: `failed(name, reason)` (when
 given) hears of it at once, the jobs still running are waited for (and their `done` called), then `run` raises
-`JobFailed` naming every failed job. On Ray, a job whose worker or node is lost (a node dies, a worker is killed)
+`JobFailed` naming every failed job. A `done` that returns `STOP` (a job that a signal interrupted, say) starts no
+further job: the jobs not yet started are dropped, never reported; the ones already running are waited for (on Ray,
+cancelled: each hears a KeyboardInterrupt and may stop cleanly) and `run` returns. On Ray, a job whose worker or node is lost (a node dies, a worker is killed)
 is run again, up to `retries` times, and counted once; a job that raises is never retried. After each finished
 job, `runner.timings[index]` holds its measured costs (`seconds` of its own work, `wall` from submission to result
 in this process, `fetch` of its shared arguments, the `node` it ran on). Used by `mate psro` (best responses,
@@ -22,7 +24,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-__all__ = ['JobFailed', 'LocalRunner', 'RayRunner', 'RunnerError', 'Shared', 'ThreadRunner', 'describe_error']
+__all__ = ['STOP', 'JobFailed', 'LocalRunner', 'RayRunner', 'RunnerError', 'Shared', 'ThreadRunner', 'describe_error']
+
+STOP = 'stop'
+"""What `done(index, result)` returns to start no further job of the `run` (a job stopped by a signal: the next
+one would otherwise start, and a Ctrl-C would not stop the stage)."""
 
 RAY_RETRIES = 3
 """How often a Ray job lost to a system failure (its worker process or node died) is run again (Ray's default)."""
@@ -126,13 +132,14 @@ class _Runner:
         return list(names) if names is not None else [f'{getattr(function, "__name__", "job")} #{i}'
                                                       for i, (function, _) in enumerate(jobs)]
 
-    def _finished(self, index: int, outcome: dict, wall: float, done: Callable) -> None:
+    def _finished(self, index: int, outcome: dict, wall: float, done: Callable) -> bool:
+        """Report a finished job to `done`; True when `done` asks for no further job (`STOP`)."""
         if index in self._reported:        # never: each job is reported once (a retried job has one result)
             raise RuntimeError(f'job {index} reported twice')
         self._reported.add(index)
         self.timings[index] = dict(seconds=outcome['seconds'], wall=wall, fetch=outcome['fetch'],
                                    node=outcome['node'])
-        done(index, outcome['result'])
+        return done(index, outcome['result']) == STOP
 
     def _failed(self, index: int, name: str, reason: str, failed: Callable | None) -> None:
         self._reported.add(index)
@@ -154,12 +161,16 @@ class _Runner:
                    for index, (function, kwargs) in enumerate(jobs)}
         for future in as_completed(futures):
             index = futures[future]
+            if future.cancelled():          # dropped after a STOP before it started
+                continue
             try:
                 outcome = future.result()
             except Exception as exc:  # noqa: BLE001  (the job raised, or its process died)
                 self._failed(index, names[index], describe_error(exc), failed)
                 continue
-            self._finished(index, outcome, time.perf_counter() - submitted, done)
+            if self._finished(index, outcome, time.perf_counter() - submitted, done):
+                for other in futures:
+                    other.cancel()          # the ones not started yet; the running ones go on and are reported
         self._end()
 
 
@@ -196,7 +207,8 @@ class LocalRunner(_Runner):
                 except Exception as exc:  # noqa: BLE001  (a job's own failure: named, the run goes on)
                     self._failed(index, names[index], describe_error(exc), failed)
                     continue
-                self._finished(index, outcome, time.perf_counter() - submitted, done)
+                if self._finished(index, outcome, time.perf_counter() - submitted, done):
+                    break
             self._end()
             return
         self._run_in_pool(jobs, names, done, failed)
@@ -292,7 +304,7 @@ class RayRunner(_Runner):
         for index, (function, kwargs) in enumerate(jobs):
             ref = self._remote.options(name=names[index][:200], **options).remote(function, kwargs)
             refs[ref], submitted[index] = index, time.perf_counter()
-        pending = list(refs)
+        pending, stopping = list(refs), False
         try:
             while pending:
                 finished, pending = ray.wait(pending, num_returns=1)
@@ -304,10 +316,15 @@ class RayRunner(_Runner):
                     self._failed(index, names[index], describe_error(cause if cause is not None else exc), failed)
                     continue
                 except ray.exceptions.RayError as exc:              # lost more often than the retries allow
+                    if stopping and isinstance(exc, ray.exceptions.TaskCancelledError):
+                        continue                                    # cancelled after a STOP: dropped
                     self._failed(index, names[index], f'lost after {self.retries} retries ({describe_error(exc)})',
                                  failed)
                     continue
-                self._finished(index, outcome, time.perf_counter() - submitted[index], done)
+                if self._finished(index, outcome, time.perf_counter() - submitted[index], done) and not stopping:
+                    stopping = True
+                    for ref in pending:
+                        ray.cancel(ref)
         except KeyboardInterrupt:
             # stop the tasks (a KeyboardInterrupt inside each: a job may stop its own work cleanly) and give them
             # time to do so before the runner closes

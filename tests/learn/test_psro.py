@@ -280,7 +280,8 @@ def test_psro_resumes_after_a_kill(tmp_path):
 @pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_psro_at_an_iteration_of_a_best_response_and_the_run_resumes_exactly(tmp_path, signal_number):
     """SIGINT/SIGTERM while the camera best response trains: it finishes the iteration, writes its checkpoint
-    (networks, optimiser, generators, envs with the opponent mixture) and the command exits 130; the same command
+    (networks, optimiser, generators, envs with the opponent mixture), the target best response queued behind it
+    does not start, and the command exits 130; the same command
     continues and ends with the state of a run never stopped (pools' policies, payoffs, strategies)."""
     arguments = ['psro', '--workers', '1', '--iterations', '1', '--br-steps', '2000', '--num-envs', '4',
                  '--eval-episodes', '2', '--eval-steps', '60', '--device', 'cpu']
@@ -301,6 +302,8 @@ def test_a_signal_stops_psro_at_an_iteration_of_a_best_response_and_the_run_resu
     assert 'Traceback' not in err and 'stopping after this iteration' in out + err
     saved = load_checkpoint(stopped / 'players' / 'camera-1' / 'checkpoint.pt')
     assert 0 < saved['run']['env_steps'] < 2000 and not (stopped / 'players' / 'camera-1.pt').exists()
+    # the stage's other job (the target best response, queued behind it with --workers 1) never started
+    assert not (stopped / 'players' / 'target-1').exists() and 'training return' not in out
     resumed = subprocess.run([sys.executable, '-m', 'mate', *arguments, '--out', str(stopped)], env=env,
                              capture_output=True, text=True)
     assert resumed.returncode == 0, resumed.stderr[-2000:]

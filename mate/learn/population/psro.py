@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ...progress import logged_steps
-from ...runners import LocalRunner, RayRunner
+from ...runners import STOP, LocalRunner, RayRunner
 from ..evaluation import EVALUATION_SEEDS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
@@ -287,6 +287,7 @@ class _Loop:
         def finished(index, result):
             status = done(index, result)
             self.log(names[index], iteration, status or 'done', index)
+            return STOP if status == 'interrupted' else None    # a signal stopped it: start no further job
 
         def failed(name, reason):
             self.log(name, iteration, 'failed', None, reason=reason)
