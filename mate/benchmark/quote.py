@@ -21,7 +21,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from .report import claim_rows, format_interval
+from .report import claim_rows, format_each, format_interval
 
 __all__ = ['headline', 'quote_blocks', 'quote_files']
 
@@ -32,7 +32,7 @@ END = '<!-- end of mate benchmark quote -->'
 def headline(summary: dict, link: str) -> str:
     """The headline table of one experiment's report summary (an entry of `results.json`): per task and setting,
     the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
-    on fresh seeds), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
+    on fresh seeds, and how many policies the meta-strategies spread over, on average over the iterations), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
     same episodes; then each claim's verdict with its evidence; then the runs not complete when the report was written
     (left out), if any. `link`: the report's `results.md`, which the table's caption links to."""
     population = summary['team'] == 'both'
@@ -42,20 +42,24 @@ def headline(summary: dict, link: str) -> str:
                 else '') + f'; quoted by `mate benchmark quote` from [its report]({link}).', '']
     if population:
         lines += ['| task | setting | runs | final exploitability, IQM [95 % CI] | on fresh seeds, IQM [95 % CI] | '
-                  'each run (on fresh seeds when measured) |', '|---|---|---|---|---|---|']
+                  'each run (on fresh seeds when measured) | policies the meta-strategies spread over, mean over '
+                  'iterations, IQM [95 % CI]: cameras; targets |', '|---|---|---|---|---|---|---|']
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 values, fresh = entry.get('final_exploitability'), entry.get('final_exploitability_fresh')
                 each = entry.get('final_exploitability_fresh_values', entry.get('final_exploitability_values'))
+                spread = entry.get('mean_effective_policies')
+                spread = '; '.join(format_interval(spread[team]['IQM'], 2) for team in ('camera', 'target')) \
+                    if spread else '-'
                 lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
-                             f'{format_interval(fresh and fresh["IQM"], 4)} | {_each(each, 4)} |')
+                             f'{format_interval(fresh and fresh["IQM"], 4)} | {format_each(each, 4)} | {spread} |')
     else:
         lines += ['| task | setting | runs | absolute metric, IQM [95 % CI] | normalised, greedy = 1 | '
                   'each run, by seed |', '|---|---|---|---|---|---|']
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(entry["absolute"]["IQM"])} | '
-                             f'{format_interval(entry.get("normalised_greedy"), 2)} | {_each(entry.get("values"))} |')
+                             f'{format_interval(entry.get("normalised_greedy"), 2)} | {format_each(entry.get("values"))} |')
             for agent, reference in data['references'].items():
                 lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - | - |')
     if summary.get('claims'):
@@ -64,11 +68,6 @@ def headline(summary: dict, link: str) -> str:
         lines += ['', 'Not in the table (not complete when the report was written): '
                   f'{", ".join(summary["incomplete"])}.']
     return '\n'.join(lines)
-
-
-def _each(values, digits: int = 3) -> str:
-    """'0.366, 0.444, 0.049' (each run's score), or '-' without them."""
-    return ', '.join(f'{value:.{digits}f}' for value in values) if values else '-'
 
 
 def _summary(path: str, experiment: str, root: Path) -> dict:

@@ -38,7 +38,7 @@ from .directory import read_manifest
 from .jobs import by_setting, job_name
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
-__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_interval', 'summarise', 'write_report']
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each', 'format_interval', 'summarise', 'write_report']
 
 REPS = 50_000
 """Bootstrap replications of every interval."""
@@ -182,8 +182,9 @@ def summarise(results: Results, reps: int = REPS) -> dict:
         scores: dict[str, np.ndarray] = {}
         if experiment.population:
             for label in results.settings(preset):
-                lasts = [state['iterations'][-1] for (lab, p, _), state in sorted(results.populations.items())
-                         if lab == label and p == preset]
+                states = [state for (lab, p, _), state in sorted(results.populations.items())
+                          if lab == label and p == preset]
+                lasts = [state['iterations'][-1] for state in states]
                 entry = dict(runs=len(lasts))
                 for key in ('exploitability', 'exploitability_fresh'):
                     if all(last.get(key) for last in lasts):
@@ -191,13 +192,19 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                         estimates = interval_estimates({label: finals}, reps=reps)[label]
                         entry[f'final_{key}'] = {name: _interval(value) for name, value in estimates.items()}
                         entry[f'final_{key}_values'] = finals.tolist()
-                entry['final_effective_policies'] = {}
+                entry['final_effective_policies'], entry['mean_effective_policies'] = {}, {}
                 for team in ('camera', 'target'):    # how many policies each last meta-strategy spreads over
                     spread = np.array([effective_policies(last[f'{team}_strategy']) for last in lasts])
                     estimates = interval_estimates({label: spread}, reps=reps)[label]
                     entry['final_effective_policies'][team] = dict(
                         {name: _interval(value) for name, value in estimates.items()}, values=spread.tolist(),
                         pool=[len(last[f'{team}_strategy']) for last in lasts])
+                    # ... and on average over the iterations 1..N of each run (iteration 0's pool has one policy)
+                    spread = np.array([np.mean([effective_policies(record[f'{team}_strategy'])
+                                                for record in state['iterations'][1:]]) for state in states])
+                    estimates = interval_estimates({label: spread}, reps=reps)[label]
+                    entry['mean_effective_policies'][team] = dict(
+                        {name: _interval(value) for name, value in estimates.items()}, values=spread.tolist())
                 task['settings'][label] = entry
                 key = 'exploitability_fresh' if 'final_exploitability_fresh_values' in entry else 'exploitability'
                 if f'final_{key}_values' in entry:       # lower is better: scored negated
@@ -372,6 +379,11 @@ def plot_meta_strategies(results: Results, path) -> Path | None:
 # ============================================================================ files
 
 
+def format_each(values, digits: int = 3) -> str:
+    """'0.366, 0.444, 0.049' (each run's score), or '-' without them."""
+    return ', '.join(f'{value:.{digits}f}' for value in values) if values else '-'
+
+
 def format_interval(interval: dict | None, digits: int = 3) -> str:
     """'point [low, high]' of an interval of `results.json` ('-' for none)."""
     if not interval:
@@ -416,17 +428,17 @@ def markdown(summary: dict, figures: list[str]) -> str:
                 lines.append(f'| {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
                              f'{format_interval(values and values["mean"], 4)} | '
                              f'{format_interval(fresh and fresh["IQM"], 4)} |')
-            lines += ['', 'How many policies the last meta-strategies spread over (exp of their entropy: 1 for a '
-                      'pure strategy, the pool size for a uniform one; the heat maps show every iteration, colour '
-                      'from 0, dark, to 1, yellow):', '',
-                      '| setting | pool | cameras: IQM [95 % CI] | each run | targets: IQM [95 % CI] | each run |',
-                      '|---|---|---|---|---|---|']
+            lines += ['', 'How many policies the meta-strategies spread over (exp of their entropy: 1 for a pure '
+                      'strategy, the pool size for a uniform one), the last and the mean over iterations 1 to the '
+                      'last of each run; the heat maps show every iteration, colour from 0, dark, to 1, yellow:', '',
+                      '| setting | team | pool | last: IQM [95 % CI] | each run | mean over iterations: IQM [95 % CI] '
+                      '| each run |', '|---|---|---|---|---|---|---|']
             for label, entry in data['settings'].items():
-                spread = entry['final_effective_policies']
-                pools = sorted(set(spread['camera']['pool']) | set(spread['target']['pool']))
-                cells = [f'{format_interval(spread[team]["IQM"], 2)} | '
-                         f'{", ".join(f"{v:.2f}" for v in spread[team]["values"])}' for team in ('camera', 'target')]
-                lines.append(f'| {label} | {", ".join(map(str, pools))} | {cells[0]} | {cells[1]} |')
+                last, mean = entry['final_effective_policies'], entry['mean_effective_policies']
+                for team in ('camera', 'target'):
+                    lines.append(f'| {label} | {team}s | {", ".join(map(str, sorted(set(last[team]["pool"]))))} | '
+                                 f'{format_interval(last[team]["IQM"], 2)} | {format_each(last[team]["values"], 2)} | '
+                                 f'{format_interval(mean[team]["IQM"], 2)} | {format_each(mean[team]["values"], 2)} |')
             lines.append('')
             continue
         camera = summary['team'] == 'camera'

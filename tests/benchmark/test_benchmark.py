@@ -432,12 +432,19 @@ def test_population_smoke_run_and_report(tmp_path):
         assert spread['values'] == [effective_policies(s['iterations'][-1][f'{team}_strategy']) for s in states]
         assert spread['pool'] == [len(s['iterations'][-1][f'{team}_strategy']) for s in states]
         assert spread['IQM']['low'] <= spread['IQM']['point'] <= spread['IQM']['high']
-    assert 'How many policies the last meta-strategies spread over' in (report / 'results.md').read_text()
+        mean = entry['mean_effective_policies'][team]            # ... and on average over iterations 1..N
+        assert mean['values'] == pytest.approx([np.mean([effective_policies(r[f'{team}_strategy'])
+                                                         for r in s['iterations'][1:]]) for s in states])
+        assert all(1 <= value <= len(s['iterations'][-1][f'{team}_strategy'])
+                   for value, s in zip(mean['values'], states))
+    assert 'How many policies the meta-strategies spread over' in (report / 'results.md').read_text()
     from mate.benchmark.quote import headline                 # the quoted table: each run's, on fresh seeds
+    from mate.benchmark.report import format_interval
     summary = json.loads((report / 'results.json').read_text())['smoke-psro']
     row = next(line for line in headline(summary, 'results.md').splitlines() if '| PSRO-Nash |' in line)
+    spread = '; '.join(format_interval(entry['mean_effective_policies'][t]['IQM'], 2) for t in ('camera', 'target'))
     assert row.endswith(' | ' + ', '.join(f'{value:.4f}' for value in entry['final_exploitability_fresh_values'])
-                        + ' |')
+                        + f' | {spread} |')
 
 
 def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tmp_path):
