@@ -38,7 +38,8 @@ from .directory import read_manifest
 from .jobs import by_setting, job_name
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
-__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each', 'format_interval', 'summarise', 'write_report']
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'exploitability_histories', 'format_each', 'format_interval',
+           'summarise', 'write_report']
 
 REPS = 50_000
 """Bootstrap replications of every interval."""
@@ -205,6 +206,11 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                     estimates = interval_estimates({label: spread}, reps=reps)[label]
                     entry['mean_effective_policies'][team] = dict(
                         {name: _interval(value) for name, value in estimates.items()}, values=spread.tolist())
+                histories = exploitability_histories(results, label, preset)
+                if histories.shape[1]:        # the curve of the exploitability figure, IQM per iteration 1, 2, ...
+                    points, lows, highs = curve_intervals({label: histories}, reps=reps)[label]['IQM']
+                    entry['exploitability_by_iteration'] = [dict(point=float(a), low=float(b), high=float(c))
+                                                            for a, b, c in zip(points, lows, highs)]
                 task['settings'][label] = entry
                 key = 'exploitability_fresh' if 'final_exploitability_fresh_values' in entry else 'exploitability'
                 if f'final_{key}_values' in entry:       # lower is better: scored negated
@@ -316,6 +322,15 @@ def plot_curves(results: Results, path, reps: int = REPS) -> Path | None:
     return save_figure(figure, path)
 
 
+def exploitability_histories(results: Results, label: str, preset: str) -> np.ndarray:
+    """(runs, iterations): each population run's exploitability (mean of both terms) at iterations 1, 2, ... of the
+    setting `label` on `preset`, cut to the shortest run."""
+    histories = [[r['exploitability']['mean'] for r in state['iterations'] if r.get('exploitability')]
+                 for (lab, p, _), state in sorted(results.populations.items()) if lab == label and p == preset]
+    length = min(len(h) for h in histories)
+    return np.array([h[:length] for h in histories], dtype=float).reshape(len(histories), length)
+
+
 def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None:
     """Population experiments: the exploitability (mean of both terms) per iteration, IQM with its 95 % CI band over
     the runs of each setting."""
@@ -329,14 +344,11 @@ def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None
                                 squeeze=False)
     for ax, preset in zip(axes[0], experiment.presets):
         for label in results.settings(preset):
-            histories = [[r['exploitability']['mean'] for r in state['iterations'] if r.get('exploitability')]
-                         for (lab, p, _), state in sorted(results.populations.items()) if lab == label and p == preset]
-            length = min(len(h) for h in histories)
-            if length == 0:
+            histories = exploitability_histories(results, label, preset)
+            if histories.shape[1] == 0:
                 continue
-            scores = np.array([h[:length] for h in histories])
-            points, lows, highs = curve_intervals({label: scores}, reps=reps)[label]['IQM']
-            x = np.arange(1, length + 1)
+            points, lows, highs = curve_intervals({label: histories}, reps=reps)[label]['IQM']
+            x = np.arange(1, histories.shape[1] + 1)
             line, = ax.plot(x, points, marker='o', markersize=3, label=f'{label} ({len(histories)} runs)')
             ax.fill_between(x, lows, highs, alpha=0.2, color=line.get_color())
         ax.set_title(preset)
@@ -428,6 +440,11 @@ def markdown(summary: dict, figures: list[str]) -> str:
                 lines.append(f'| {label} | {entry["runs"]} | {format_interval(values and values["IQM"], 4)} | '
                              f'{format_interval(values and values["mean"], 4)} | '
                              f'{format_interval(fresh and fresh["IQM"], 4)} |')
+            lines += ['', 'The exploitability by iteration (the figure\'s curve), IQM [95 % CI]:', '']
+            for label, entry in data['settings'].items():
+                curve = entry.get('exploitability_by_iteration', [])
+                lines.append(f'* {label}: ' + ('; '.join(f'{i}: {format_interval(point, 4)}'
+                                                         for i, point in enumerate(curve, 1)) or '-'))
             lines += ['', 'How many policies the meta-strategies spread over (exp of their entropy: 1 for a pure '
                       'strategy, the pool size for a uniform one), the last and the mean over iterations 1 to the '
                       'last of each run; the heat maps show every iteration, colour from 0, dark, to 1, yellow:', '',

@@ -423,6 +423,9 @@ def test_population_smoke_run_and_report(tmp_path):
     assert entry['final_exploitability_values'] == [s['iterations'][-1]['exploitability']['mean'] for s in states]
     assert entry['final_exploitability_fresh_values'] == [s['iterations'][-1]['exploitability_fresh']['mean']
                                                           for s in states]
+    curve = entry['exploitability_by_iteration']            # the figure's curve: IQM per iteration 1..N
+    assert len(curve) == exp.iterations and curve[-1] == entry['final_exploitability']['IQM']
+    assert 'The exploitability by iteration' in (report / 'results.md').read_text()
     assert (report / 'smoke-psro-exploitability.png').exists() and not (report / 'marl_eval.json').exists()
     assert (report / 'smoke-psro-meta-strategies.png').exists()                    # Fig. 8: every run's heat maps
     from mate.learn.population.solvers import effective_policies

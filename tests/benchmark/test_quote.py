@@ -23,6 +23,23 @@ def test_the_readme_and_docs_quote_their_reports_exactly():
     assert quote_files(QUOTING, ROOT, check=True, say=lambda line: None) == []
 
 
+KEPT = sorted((ROOT / 'docs' / 'results').glob('*/benchmark/benchmark.json'))
+
+
+@pytest.mark.parametrize('manifest', KEPT, ids=[path.parts[-3] for path in KEPT])
+def test_a_report_with_its_data_committed_is_rebuilt_from_it_exactly(manifest, tmp_path):
+    """A report committed with its runs' data beside it (`docs/results/EXPERIMENT/benchmark/`: the manifest and each
+    population run's `state.json`) is what `mate benchmark report` writes from that data: every number of the
+    committed `results.json` is reproduced."""
+    report = manifest.parents[1]
+    assert main(['benchmark', 'report', str(manifest.parent), '--out', str(tmp_path)]) == 0
+    assert json.loads((tmp_path / 'results.json').read_text()) == json.loads((report / 'results.json').read_text())
+
+
+def test_some_report_keeps_its_data():
+    assert KEPT, 'no docs/results/*/benchmark/benchmark.json: the population reports keep their runs\' data there'
+
+
 @pytest.fixture()
 def report(tmp_path):
     """A copy of a committed report and a markdown file quoting it, in a scratch repository root."""
