@@ -14,7 +14,8 @@ __all__ = ['add_arguments', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,status,report,quote}', required=True)
+    commands = parser.add_subparsers(dest='benchmark_command', metavar='{list,run,status,keep,report,quote}',
+                                     required=True)
     commands.add_parser('list', help='the experiments: figure, settings, budget, seeds',
                         description='List the experiments: the figure of the paper each reproduces, its settings, '
                                     'the budget per run and the default number of seeds.')
@@ -52,6 +53,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                              'time left, PSRO iterations); or waiting; then the counts. Reads the '
                                              'files only: safe while the benchmark runs.')
     status.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
+    keep = commands.add_parser('keep', help='copy what a report reads of a benchmark directory (no policies)',
+                               description='Copy into DEST what mate benchmark report reads of the benchmark directory '
+                                           'DIR: the manifest and, of every complete job, its results, evaluations '
+                                           'and log, without policies, checkpoints or TensorBoard files (a few kB a '
+                                           'job: small enough to commit beside a report). DEST is a benchmark '
+                                           'directory report and status read; copied back to where the benchmark '
+                                           'ran, mate benchmark run goes on with the jobs not complete.')
+    keep.add_argument('dir', metavar='DIR', help='the benchmark directory (mate benchmark run --out)')
+    keep.add_argument('dest', metavar='DEST', help='where the copy goes (created; files of the same name replaced)')
     report = commands.add_parser('report', help='figures, a markdown table and marl_eval.json from benchmark '
                                                 'directories',
                                  description='Aggregate benchmark directories (of one or several experiments; an '
@@ -92,6 +102,15 @@ def run(args: argparse.Namespace, console) -> int:
         return 0
     if args.benchmark_command == 'status':
         return _status(args.dirs, say)
+    if args.benchmark_command == 'keep':
+        from .directory import keep_results
+
+        try:
+            kept = keep_results(args.dir, args.dest, say=say)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        say(f'kept {len(kept)} complete job{"s" * (len(kept) != 1)} of {args.dir} in {args.dest}')
+        return 0
     if args.benchmark_command == 'quote':
         from .quote import quote_files
 

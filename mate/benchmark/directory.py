@@ -1,6 +1,7 @@
 """A benchmark directory (`mate benchmark run --out OUT`): its manifest `OUT/benchmark.json` (the experiment, the
 budget, the seeds, every job's command line; merged by runners side by side), the reuse of another directory's
-complete jobs (`--reuse`), and what each job has done (`mate benchmark status`).
+complete jobs (`--reuse`), what each job has done (`mate benchmark status`), and a light copy of what a report
+reads (`mate benchmark keep`).
 """
 
 from __future__ import annotations
@@ -16,11 +17,12 @@ from pathlib import Path
 
 from ..progress import last_logged_row, training_rate
 from .experiments import Experiment
-from .jobs import SEED_STRIDE, Job, horizon_of
+from .experiments import experiment as experiment_named
+from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
-__all__ = ['BENCHMARK_FORMAT', 'JOB_STATES', 'PATH_OPTIONS', 'REUSED_NOTE', 'job_status', 'read_manifest', 'reusable',
-           'reuse_jobs', 'write_manifest']
+__all__ = ['BENCHMARK_FORMAT', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE', 'job_status', 'keep_results',
+           'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 
@@ -146,6 +148,39 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
             copied.append(job)
             break
     return copied
+
+
+KEPT_FILES = ('job.log', 'evaluations.jsonl', REUSED_NOTE)
+"""What `keep_results` copies of a complete job besides its result files (`Job.outputs`), when the job has them."""
+
+
+def keep_results(out, dest, say: Callable[[str], None] = print) -> list[Job]:
+    """Copy into `dest` what `mate benchmark report` reads of the benchmark directory `out`: its manifest and, of
+    every complete job, its result files (a training run's `absolute.json`, a population run's `state.json`, a
+    reference's evaluations), its periodic evaluations and its log; no policy, checkpoint or TensorBoard file (a few
+    kB to a few tens of kB a job). `dest` is then a benchmark directory `report` and `status` read as they read
+    `out`, and copied to where the benchmark ran, one `run` goes on with the jobs not complete alone. Says one line
+    per kept job; returns them. ValueError when `dest` is `out` or `out` is no benchmark directory."""
+    out, dest = Path(out), Path(dest)
+    if dest.resolve() == out.resolve():
+        raise ValueError(f'{dest} is the benchmark directory itself; keep its results in another directory')
+    manifest = read_manifest(out)
+    seeds = sorted({job['seed'] for job in manifest['jobs'] if job['seed'] is not None})
+    jobs = plan(experiment_named(manifest['experiment']), seeds, out, steps=manifest['steps'])
+    dest.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(out / 'benchmark.json', dest / 'benchmark.json')
+    kept = []
+    for job in jobs:
+        if not job.done():
+            continue
+        for path in (*job.outputs, *(job.dir / name for name in KEPT_FILES)):
+            if path.exists():
+                copy = dest / path.relative_to(out)
+                copy.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(path, copy)
+        kept.append(job)
+        say(f'{job.name}: kept in {dest / job.dir.relative_to(out)}')
+    return kept
 
 
 def _duration(seconds: float) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shlex
+import shutil
 
 import numpy as np
 import pytest
@@ -258,6 +259,34 @@ def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_p
         assert (twin is not None) == (job.kind == 'reference'), job.name
     assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'x'), '--reuse', str(tmp_path / 'none')]) == 2
     assert "--reuse: '" in capsys.readouterr().err
+
+
+def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_path, capsys):
+    """`mate benchmark keep DIR DEST`: a copy without policies or checkpoints from which the report is the same; with a
+    job's results missing in DIR, that job is left out of DEST, and `run` in the copy runs that job alone."""
+    runs, report = smoke
+    partial = tmp_path / 'partial'
+    shutil.copytree(runs, partial)
+    exp = experiment('smoke')
+    dropped = next(job for job in plan(exp, range(exp.seeds), partial) if job.kind == 'train')
+    dropped.outputs[0].unlink()                                  # this run is not complete in `partial`
+    kept_dir = tmp_path / 'kept'
+    assert main(['benchmark', 'keep', str(partial), str(kept_dir)]) == 0
+    assert f'kept {len(plan(exp, range(exp.seeds), runs)) - 1} complete jobs' in capsys.readouterr().out
+    names = {path.name for path in kept_dir.rglob('*') if path.is_file()}
+    assert names <= {'benchmark.json', 'absolute.json', 'evaluation.json', 'evaluations.jsonl', 'job.log'}
+    assert not (kept_dir / dropped.dir.relative_to(partial)).exists()
+    assert main(['benchmark', 'status', str(kept_dir)]) == 0
+    assert '1 waiting' in capsys.readouterr().out
+    # `run` in the copy runs the missing job alone (the same command: the same numbers), and the report is then the
+    # full directory's, number for number
+    assert main(['benchmark', 'run', 'smoke', '--out', str(kept_dir)]) == 0
+    out = capsys.readouterr().out
+    assert f'{len(plan(exp, range(exp.seeds), runs)) - 1} of' in out and 'running 1' in out
+    assert main(['benchmark', 'report', str(kept_dir), '--out', str(tmp_path / 'r'), '--reps', '2000']) == 0
+    assert json.loads((tmp_path / 'r' / 'results.json').read_text()) == json.loads((report / 'results.json').read_text())
+    assert main(['benchmark', 'keep', str(kept_dir), str(kept_dir)]) == 2
+    assert 'is the benchmark directory itself' in capsys.readouterr().err
 
 
 def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
