@@ -6,17 +6,17 @@
     runner.run([(function, kwargs), ...], done=lambda index, result: ..., names=['job a', ...])
     runner.close()
 
-A job is a module-level function and its keyword arguments (both picklable; a `share`d value may sit anywhere in
-the arguments, inside lists and dicts too). `done(index, result)` is called in this process exactly once per job
-that finishes, in the order they finish. A job that raises does not stop the others: `failed(name, reason)` (when
-given) hears of it at once, the jobs still running are waited for (and their `done` called), then `run` raises
-`JobFailed` naming every failed job. A `done` that returns `STOP` (a job that a signal interrupted, say) starts no
-further job: the jobs not yet started are dropped, never reported; the ones already running are waited for (on Ray,
-cancelled: each hears a KeyboardInterrupt and may stop cleanly) and `run` returns. On Ray, a job whose worker or node is lost (a node dies, a worker is killed)
-is run again, up to `retries` times, and counted once; a job that raises is never retried. After each finished
-job, `runner.timings[index]` holds its measured costs (`seconds` of its own work, `wall` from submission to result
-in this process, `fetch` of its shared arguments, the `node` it ran on). Used by `mate psro` (best responses,
-payoff entries) and `mate benchmark run` (training runs, references).
+A job is a module-level function and its keyword arguments (both picklable; a `share`d value may sit anywhere in the
+arguments, inside lists and dicts too). `done(index, result)` is called in this process exactly once per job that
+finishes, in the order they finish. A job that raises does not stop the others: `failed(name, reason)` (when given)
+hears of it at once, the jobs still running are waited for (and their `done` called), then `run` raises `JobFailed`
+naming every failed job. A `done` that returns `STOP` (a job that a signal interrupted, say) starts no further job:
+the jobs not yet started are dropped, never reported; the ones already running are waited for (on Ray, cancelled:
+each hears a KeyboardInterrupt and may stop cleanly) and `run` returns. On Ray, a job whose worker or node is lost
+(a node dies, a worker is killed) is run again, up to `retries` times, and counted once; a job that raises is never
+retried. After each finished job, `runner.timings[index]` holds its measured costs (`seconds` of its own work,
+`wall` from submission to result in this process, `fetch` of its shared arguments, the `node` it ran on). Used by
+`mate psro` (best responses, payoff entries) and `mate benchmark run` (training runs, references).
 """
 
 from __future__ import annotations

@@ -32,9 +32,10 @@ END = '<!-- end of mate benchmark quote -->'
 def headline(summary: dict, link: str) -> str:
     """The headline table of one experiment's report summary (an entry of `results.json`): per task and setting,
     the runs and the absolute metric's IQM with its 95 % CI (population experiments: the final exploitability, also
-    on fresh seeds, and how many policies the meta-strategies spread over, on average over the iterations), the normalised score (greedy = 1), each run's own score (by run seed), the references on the
-    same episodes; then each claim's verdict with its evidence; then the runs not complete when the report was written
-    (left out), if any. `link`: the report's `results.md`, which the table's caption links to."""
+    on fresh seeds, and how many policies the meta-strategies spread over, on average over the iterations), the
+    normalised score (greedy = 1), each run's own score (by run seed), the references on the same episodes; then
+    each claim's verdict with its evidence; then the runs not complete when the report was written (left out), if
+    any. `link`: the report's `results.md`, which the table's caption links to."""
     population = summary['team'] == 'both'
     unit = 'per best response' if population else 'per run'
     lines = [f'*{summary["experiment"]}* ({summary["figure"]}): {summary["steps"]:,} decision steps {unit}'
@@ -59,7 +60,8 @@ def headline(summary: dict, link: str) -> str:
         for task, data in summary['tasks'].items():
             for label, entry in data['settings'].items():
                 lines.append(f'| {task} | {label} | {entry["runs"]} | {format_interval(entry["absolute"]["IQM"])} | '
-                             f'{format_interval(entry.get("normalised_greedy"), 2)} | {format_each(entry.get("values"))} |')
+                             f'{format_interval(entry.get("normalised_greedy"), 2)} | '
+                             f'{format_each(entry.get("values"))} |')
             for agent, reference in data['references'].items():
                 lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - | - |')
     if summary.get('claims'):

@@ -38,8 +38,8 @@ from .directory import read_manifest
 from .jobs import by_setting, job_name
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 
-__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'exploitability_histories', 'format_each', 'format_interval',
-           'summarise', 'write_report']
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'exploitability_histories', 'format_each',
+           'format_interval', 'summarise', 'write_report']
 
 REPS = 50_000
 """Bootstrap replications of every interval."""
