@@ -311,15 +311,15 @@ class RayRunner(_Runner):
                 index = refs[finished[0]]
                 try:
                     outcome = ray.get(finished[0])
-                except ray.exceptions.RayTaskError as exc:          # the job raised: its own failure
+                except ray.exceptions.RayError as exc:
                     cause = getattr(exc, 'cause', None)
-                    self._failed(index, names[index], describe_error(cause if cause is not None else exc), failed)
-                    continue
-                except ray.exceptions.RayError as exc:              # lost more often than the retries allow
-                    if stopping and isinstance(exc, ray.exceptions.TaskCancelledError):
-                        continue                                    # cancelled after a STOP: dropped
+                    if stopping and ray.exceptions.TaskCancelledError in (type(exc).__mro__ + type(cause).__mro__):
+                        continue                                    # cancelled after a STOP (running or queued)
+                    if isinstance(exc, ray.exceptions.RayTaskError):   # the job raised: its own failure
+                        self._failed(index, names[index], describe_error(cause if cause is not None else exc), failed)
+                        continue
                     self._failed(index, names[index], f'lost after {self.retries} retries ({describe_error(exc)})',
-                                 failed)
+                                 failed)                            # lost more often than the retries allow
                     continue
                 if self._finished(index, outcome, time.perf_counter() - submitted[index], done) and not stopping:
                     stopping = True

@@ -78,11 +78,14 @@ def test_a_done_that_returns_stop_starts_no_further_job(workers, tmp_path):
 
 
 def test_a_stop_on_ray_cancels_the_jobs_still_pending(tmp_path):
-    """On a one-CPU Ray instance: after `done` returns STOP for the first job, the others (the second running or
-    queued, the third queued) are cancelled and never reported; `run` returns without an error."""
-    needs_extra('ray')   # the rllib extra (CI installs it)
+    """On a one-CPU Ray instance: after `done` returns STOP for the first job, the third (queued behind the second)
+    never starts nor is reported, and `run` returns without an error; the second, started as the first ended, is
+    asked to stop (a KeyboardInterrupt), and reported only if it finished anyway."""
     from mate.runners import RayRunner
 
+    ray = needs_extra('ray')
+    if ray.is_initialized():     # an instance an earlier test left: this test needs one CPU, so that jobs queue
+        ray.shutdown()
     trace = tmp_path / 'started'
     runner, reported = RayRunner(None, num_cpus=1), []
 
@@ -98,4 +101,4 @@ def test_a_stop_on_ray_cancels_the_jobs_still_pending(tmp_path):
         runner.run([job('first', 0), job('second', 30), job('third', 0)], done)
     finally:
         runner.close()
-    assert reported == [0] and 'third' not in trace.read_text().split()
+    assert reported in ([0], [0, 1]) and 'third' not in trace.read_text().split()
