@@ -313,7 +313,8 @@ class RayRunner(_Runner):
                     outcome = ray.get(finished[0])
                 except ray.exceptions.RayError as exc:
                     cause = getattr(exc, 'cause', None)
-                    if stopping and ray.exceptions.TaskCancelledError in (type(exc).__mro__ + type(cause).__mro__):
+                    cancelled = ray.exceptions.TaskCancelledError
+                    if stopping and (isinstance(exc, cancelled) or isinstance(cause, cancelled)):
                         continue                                    # cancelled after a STOP (running or queued)
                     if isinstance(exc, ray.exceptions.RayTaskError):   # the job raised: its own failure
                         self._failed(index, names[index], describe_error(cause if cause is not None else exc), failed)

@@ -331,9 +331,9 @@ def exploitability_histories(results: Results, label: str, preset: str) -> np.nd
     return np.array([h[:length] for h in histories], dtype=float).reshape(len(histories), length)
 
 
-def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None:
+def plot_exploitability(results: Results, summary: dict, path) -> Path | None:
     """Population experiments: the exploitability (mean of both terms) per iteration, IQM with its 95 % CI band over
-    the runs of each setting."""
+    the runs of each setting (`summarise`'s `exploitability_by_iteration`, drawn from `summary`)."""
     from ..plotting import pyplot, save_figure
 
     experiment = results.experiment
@@ -343,13 +343,13 @@ def plot_exploitability(results: Results, path, reps: int = REPS) -> Path | None
     figure, axes = plt.subplots(1, len(experiment.presets), figsize=(6.2 * len(experiment.presets), 4.2),
                                 squeeze=False)
     for ax, preset in zip(axes[0], experiment.presets):
-        for label in results.settings(preset):
-            histories = exploitability_histories(results, label, preset)
-            if histories.shape[1] == 0:
+        for label, entry in summary['tasks'][experiment.task(preset)]['settings'].items():
+            curve = entry.get('exploitability_by_iteration')
+            if not curve:
                 continue
-            points, lows, highs = curve_intervals({label: histories}, reps=reps)[label]['IQM']
-            x = np.arange(1, histories.shape[1] + 1)
-            line, = ax.plot(x, points, marker='o', markersize=3, label=f'{label} ({len(histories)} runs)')
+            points, lows, highs = ([point[key] for point in curve] for key in ('point', 'low', 'high'))
+            x = np.arange(1, len(curve) + 1)
+            line, = ax.plot(x, points, marker='o', markersize=3, label=f'{label} ({entry["runs"]} runs)')
             ax.fill_between(x, lows, highs, alpha=0.2, color=line.get_color())
         ax.set_title(preset)
         ax.set_xlabel('iteration')
@@ -523,7 +523,7 @@ def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[st
         summary = summarise(results, reps)
         summaries[name] = summary
         if results.experiment.population:
-            figures = [plot_exploitability(results, out / f'{name}-exploitability.png', reps),
+            figures = [plot_exploitability(results, summary, out / f'{name}-exploitability.png'),
                        plot_meta_strategies(results, out / f'{name}-meta-strategies.png')]
         else:
             figures = [plot_curves(results, out / f'{name}-curves.png', reps)]

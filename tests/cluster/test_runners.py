@@ -42,7 +42,6 @@ def test_names_must_match_the_jobs_and_errors_read_as_one_line():
     assert str(JobFailed([('a', 'E: 1'), ('b', 'E: 2')])) == '2 jobs failed: a failed: E: 1; b failed: E: 2'
 
 
-
 def _stopping_job(name: str, trace: str, pause: float = 0.0) -> str:
     """Appends `name` to the file `trace` (the jobs that started), waits `pause` seconds and returns `name`."""
     with open(trace, 'a') as file:
