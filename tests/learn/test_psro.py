@@ -338,7 +338,7 @@ def test_psro_settings_are_checked(tmp_path, capsys):
         PSROSettings(solver='minimax').validate()
     with pytest.raises(PSROError, match='br_steps must be an integer >= 1'):
         PSROSettings(br_steps=0).validate()
-    with pytest.raises(PSROError, match="target_credit must be 'team' or 'own'"):
+    with pytest.raises(PSROError, match='target_credit must be one of team, own'):
         PSROSettings(target_credit='difference').validate()
     assert PSROSettings(target_credit='own').same_experiment(PSROSettings()) == ['target_credit']  # no resume
     assert main(['psro', '--address', 'local', '--workers', '2', '--out', str(tmp_path / 'x')]) == 2

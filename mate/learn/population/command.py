@@ -11,12 +11,14 @@ import signal
 from pathlib import Path
 
 from ...arguments import CommandError, non_negative_int, positive_int, resolving_arguments
+from .jobs import TARGET_CREDITS
+from .solvers import SOLVERS
 
 __all__ = ['add_arguments', 'run']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--solver', choices=('nash', 'uniform', 'last'), default='nash',
+    parser.add_argument('--solver', choices=tuple(SOLVERS), default='nash',
                         help='meta-solver: nash (PSRO-Nash, zero-sum LP), uniform (fictitious self-play, the initial '
                              'policy included) or last (self-play: the newest policies); default nash')
     parser.add_argument('--config', '--cfg', default='MATE-2v4-0',
@@ -35,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--initial-cameras', default='random', metavar='AGENT',
                         help='first member of the camera pool: random, greedy or pretrained:NAME (default random)')
     parser.add_argument('--initial-targets', default='random', metavar='AGENT', help='as --initial-cameras')
-    parser.add_argument('--target-credit', choices=('team', 'own'), default='team',
+    parser.add_argument('--target-credit', choices=TARGET_CREDITS, default='team',
                         help="the target best responses' reward: team (the team's, as the paper) or own (each "
                              "target's own part of it, which learns on MATE-4v8-0 where the team's does not); "
                              'default team')

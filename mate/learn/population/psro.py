@@ -37,6 +37,7 @@ import numpy as np
 from ...progress import logged_steps
 from ...runners import STOP, LocalRunner, RayRunner
 from ..evaluation import EVALUATION_SEEDS
+from .jobs import TARGET_CREDITS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
 __all__ = ['JOB_LOG', 'LocalRunner', 'PROGRESS_EVERY', 'PSROError', 'PSROSettings', 'RayRunner', 'STATE_FORMAT',
@@ -79,8 +80,8 @@ class PSROSettings:
     def validate(self) -> PSROSettings:
         if self.solver not in SOLVERS:
             raise PSROError(f'unknown solver {self.solver!r}; choose one of {", ".join(SOLVERS)}')
-        if self.target_credit not in ('team', 'own'):
-            raise PSROError(f"target_credit must be 'team' or 'own', got {self.target_credit!r}")
+        if self.target_credit not in TARGET_CREDITS:
+            raise PSROError(f'target_credit must be one of {", ".join(TARGET_CREDITS)}, got {self.target_credit!r}')
         for name, minimum in (('iterations', 0), ('br_steps', 1), ('eval_episodes', 1), ('num_envs', 1), ('seed', 0)):
             value = getattr(self, name)
             if not isinstance(value, int) or value < minimum:
