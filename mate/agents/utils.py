@@ -278,20 +278,12 @@ class TargetStatePublic(StateBase):
         return bool(self.values[3])
 
 
-class TargetStatePrivate(StateBase):
-    """A target's own state: public part, step size, capacity, goal bits (cargo weight per destination
+class TargetStatePrivate(TargetStatePublic):
+    """A target's own state: the public part plus step size, capacity, goal bits (cargo weight per destination
     warehouse) and empty bits (warehouses seen without cargo)."""
 
     DIM = TARGET_STATE_DIM_PRIVATE
     __slots__ = ()
-
-    @property
-    def sight_range(self) -> float:
-        return self.values[2]
-
-    @property
-    def is_loaded(self) -> bool:
-        return bool(self.values[3])
 
     @property
     def step_size(self) -> float:
