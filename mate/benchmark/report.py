@@ -396,16 +396,23 @@ def plot_meta_strategies(results: Results, path) -> Path | None:
 # ============================================================================ files
 
 
+def format_number(value: float, digits: int = 3) -> str:
+    """`value` with `digits` decimals; one that rounds to zero is '0.000', never '-0.000'."""
+    text = f'{value:.{digits}f}'
+    return text[1:] if text.startswith('-') and float(text) == 0 else text
+
+
 def format_each(values, digits: int = 3) -> str:
     """'0.366, 0.444, 0.049' (each run's score), or '-' without them."""
-    return ', '.join(f'{value:.{digits}f}' for value in values) if values else '-'
+    return ', '.join(format_number(value, digits) for value in values) if values else '-'
 
 
 def format_interval(interval: dict | None, digits: int = 3) -> str:
     """'point [low, high]' of an interval of `results.json` ('-' for none)."""
     if not interval:
         return '-'
-    return f'{interval["point"]:.{digits}f} [{interval["low"]:.{digits}f}, {interval["high"]:.{digits}f}]'
+    point, low, high = (format_number(interval[key], digits) for key in ('point', 'low', 'high'))
+    return f'{point} [{low}, {high}]'
 
 
 def claim_rows(claims: list[dict]) -> list[str]:
@@ -413,7 +420,7 @@ def claim_rows(claims: list[dict]) -> list[str]:
     rows = ['| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
     for claim in claims:
         evidence = '-' if 'point' not in claim else \
-            f'{claim["statistic"]}: {claim["point"]:.3f} [{claim["low"]:.3f}, {claim["high"]:.3f}]'
+            f'{claim["statistic"]}: {format_interval(claim)}'
         rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
     return rows
 

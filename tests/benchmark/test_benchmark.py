@@ -472,12 +472,19 @@ def test_population_smoke_run_and_report(tmp_path):
                    for value, s in zip(mean['values'], states))
     assert 'How many policies the meta-strategies spread over' in (report / 'results.md').read_text()
     from mate.benchmark.quote import headline                 # the quoted table: each run's, on fresh seeds
-    from mate.benchmark.report import format_interval
+    from mate.benchmark.report import format_each, format_interval
     summary = json.loads((report / 'results.json').read_text())['smoke-psro']
     row = next(line for line in headline(summary, 'results.md').splitlines() if '| PSRO-Nash |' in line)
     spread = '; '.join(format_interval(entry['mean_effective_policies'][t]['IQM'], 2) for t in ('camera', 'target'))
-    assert row.endswith(' | ' + ', '.join(f'{value:.4f}' for value in entry['final_exploitability_fresh_values'])
-                        + f' | {spread} |')
+    assert row.endswith(' | ' + format_each(entry['final_exploitability_fresh_values'], 4) + f' | {spread} |')
+
+
+def test_report_numbers_that_round_to_zero_carry_no_minus_sign():
+    from mate.benchmark.report import format_each, format_interval, format_number
+    assert format_number(-0.00004, 4) == '0.0000' and format_number(-0.0004) == '0.000'
+    assert format_number(-0.0006) == '-0.001' and format_number(0.12345, 2) == '0.12'
+    assert format_each([-1e-9, -0.25]) == '0.000, -0.250'
+    assert format_interval(dict(point=-1e-5, low=-0.0751, high=0.1329)) == '0.000 [-0.075, 0.133]'
 
 
 def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tmp_path):
