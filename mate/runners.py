@@ -118,6 +118,12 @@ class _Runner:
     """What every runner shares: job names, failures collected while the other jobs go on, timings."""
 
     timings: list
+    workers: int
+
+    @property
+    def parallel(self) -> int:
+        """How many jobs run at once (`workers`; Ray's runner counts its cluster's CPUs)."""
+        return self.workers
 
     def share(self, value):
         """A handle on `value` for the jobs' arguments: the value itself here (each job receives its own copy)."""
@@ -188,10 +194,6 @@ class LocalRunner(_Runner):
 
             self.pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context('spawn'))
 
-    @property
-    def parallel(self) -> int:
-        return self.workers
-
     def run(self, jobs: list[tuple[Callable, dict]], done: Callable[[int, object], None],
             names: list[str] | None = None, failed: Callable[[str, str], None] | None = None,
             gpu_share: float = 1.0) -> None:
@@ -229,10 +231,6 @@ class ThreadRunner(_Runner):
         self.workers = int(workers)
         self.pool = ThreadPoolExecutor(self.workers)
         self.timings = []
-
-    @property
-    def parallel(self) -> int:
-        return self.workers
 
     def run(self, jobs: list[tuple[Callable, dict]], done: Callable[[int, object], None],
             names: list[str] | None = None, failed: Callable[[str, str], None] | None = None,
