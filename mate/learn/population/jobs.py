@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ['TARGET_CREDITS', 'best_response', 'member_team', 'payoff_entries', 'policy_from_bytes', 'rescaled_schedules']
+__all__ = ['TARGET_CREDITS', 'best_response', 'member_team', 'payoff_entries', 'policy_from_bytes',
+           'rescaled_schedules']
 
 TARGET_CREDITS = ('team', 'own')
 """The rewards a target best response can train on: 'team', the team's (the spec's), or 'own', each target's own
