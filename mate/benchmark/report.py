@@ -291,11 +291,6 @@ def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, 
 # ============================================================================ figures
 
 
-def _count(number: int, noun: str) -> str:
-    """'1 run', '5 runs'."""
-    return f'{number} {noun}' + ('' if number == 1 else 's')
-
-
 def plot_curves(results: Results, path, reps: int = REPS) -> Path | None:
     """Periodic evaluations against decision steps: IQM with its 95 % CI band per setting, one panel per task, the
     references' evaluation scores as dashed lines. None when no run has an evaluation."""
@@ -314,7 +309,8 @@ def plot_curves(results: Results, path, reps: int = REPS) -> Path | None:
             scores = np.array([[np.mean(e) for e in r.evaluations[:length]] for r in runs])
             steps = np.mean([r.steps[:length] for r in runs], axis=0)
             points, lows, highs = curve_intervals({label: scores}, reps=reps)[label]['IQM']
-            line, = ax.plot(steps, points, marker='o', markersize=3, label=f'{label} ({_count(len(runs), "run")})')
+            line, = ax.plot(steps, points, marker='o', markersize=3,
+                            label=f'{label} ({len(runs)} run{"s" * (len(runs) != 1)})')
             ax.fill_between(steps, lows, highs, alpha=0.2, color=line.get_color())
         for agent, value in _reference_means(results, preset, 'evaluation').items():
             ax.axhline(value, linestyle='--', linewidth=1, color='gray' if agent != 'upper-bound' else 'black')
@@ -354,7 +350,8 @@ def plot_exploitability(results: Results, summary: dict, path) -> Path | None:
                 continue
             points, lows, highs = ([point[key] for point in curve] for key in ('point', 'low', 'high'))
             x = np.arange(1, len(curve) + 1)
-            line, = ax.plot(x, points, marker='o', markersize=3, label=f'{label} ({_count(entry["runs"], "run")})')
+            line, = ax.plot(x, points, marker='o', markersize=3,
+                            label=f'{label} ({entry["runs"]} run{"s" * (entry["runs"] != 1)})')
             ax.fill_between(x, lows, highs, alpha=0.2, color=line.get_color())
         ax.set_title(preset)
         ax.set_xlabel('iteration')
