@@ -21,7 +21,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from .report import claim_rows, format_each, format_interval
+from .report import claim_rows, format_each, format_interval, format_number
 
 __all__ = ['headline', 'quote_blocks', 'quote_files']
 
@@ -63,7 +63,7 @@ def headline(summary: dict, link: str) -> str:
                              f'{format_interval(entry.get("normalised_greedy"), 2)} | '
                              f'{format_each(entry.get("values"))} |')
             for agent, reference in data['references'].items():
-                lines.append(f'| {task} | *{agent}* (reference) | - | {reference["absolute"]:.3f} | - | - |')
+                lines.append(f'| {task} | *{agent}* (reference) | - | {format_number(reference["absolute"])} | - | - |')
     if summary.get('claims'):
         lines += ['', *claim_rows(summary['claims'])]
     if summary.get('incomplete'):

@@ -279,7 +279,7 @@ def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, 
             point, low, high = interval_estimates({setting: scores[setting]}, reps=reps)[setting]['IQM']
             above, below = low > references[reference], high < references[reference]
             holds, fails = (above, below) if setting == claim.better else (below, above)
-            verdict.update(statistic=f'IQM of {setting} against {reference} {references[reference]:.3f}',
+            verdict.update(statistic=f'IQM of {setting} against {reference} {format_number(references[reference])}',
                            point=point, low=low, high=high,
                            verdict='confirmed' if holds else 'refuted' if fails else 'unresolved')
         else:
@@ -479,7 +479,8 @@ def markdown(summary: dict, figures: list[str]) -> str:
                 row += f' {format_interval(entry.get("normalised_upper-bound"), 2)} |'
             lines.append(row)
         for agent, reference in data['references'].items():
-            row = f'| *{agent}* (reference) | - | {reference["absolute"]:.3f} | | {reference["evaluation"]:.3f} | | '
+            row = (f'| *{agent}* (reference) | - | {format_number(reference["absolute"])} | | '
+                   f'{format_number(reference["evaluation"])} | | ')
             lines.append(row + (' |' if camera else ''))
         lines.append('')
         if data['improvement']:
