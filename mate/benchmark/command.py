@@ -31,6 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument('name', metavar='NAME', help='the experiment (mate benchmark list)')
     run.add_argument('--seeds', default=None, help="run seeds, e.g. '0-4' or '0,2,5' (default: the experiment's, "
                                                    '0-4 for the figures)')
+    run.add_argument('--presets', default=None,
+                     help="only these of the experiment's games, e.g. 'MATE-4v8-0' (default: all; the directory "
+                          'takes the others later)')
     run.add_argument('--out', default=None, help='the benchmark directory (default runs/benchmark/NAME)')
     run.add_argument('--steps', type=positive_int, default=None,
                      help="decision steps per training run (PSRO: per best response); default the experiment's "
@@ -139,7 +142,8 @@ def _status(dirs: list[str], say) -> int:
             experiment = experiment_named(manifest['experiment'])
         except ValueError as exc:
             raise CommandError(str(exc)) from None
-        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'])
+        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'],
+                    presets={job['preset'] for job in manifest['jobs']})     # (run --presets: some games)
         counts = dict.fromkeys(JOB_STATES, 0)
         say(f'{folder}: {experiment.name}, seeds {",".join(map(str, manifest["seeds"]))}, '
             f'{manifest["steps"]:,} decision steps per run')
@@ -168,12 +172,13 @@ def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
     from .experiments import experiment as experiment_named
     from .directory import reuse_jobs, write_manifest
-    from .jobs import parse_seeds, plan
+    from .jobs import parse_presets, parse_seeds, plan
     from .runner import run_jobs, stop_children
 
     try:
         experiment = experiment_named(args.name)
         seeds = parse_seeds(args.seeds) if args.seeds else list(range(experiment.seeds))
+        presets = parse_presets(args.presets, experiment) if args.presets else list(experiment.presets)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     if args.address and args.jobs is not None:
@@ -186,7 +191,7 @@ def _run(args: argparse.Namespace, say) -> int:
     threads = args.threads or max(1, cores // jobs)
     out = Path(args.out or f'runs/benchmark/{experiment.name}')
     steps = args.steps or experiment.steps
-    planned = plan(experiment, seeds, out, steps=steps, threads=threads)
+    planned = plan(experiment, seeds, out, steps=steps, threads=threads, presets=presets)
     try:
         write_manifest(experiment, planned, out, steps, seeds)
     except ValueError as exc:
@@ -197,8 +202,9 @@ def _run(args: argparse.Namespace, say) -> int:
             log.write(line + '\n')
 
     where = f'Ray ({args.address})' if args.address else f'{jobs} job{"s" * (jobs > 1)} at a time on this machine'
-    say_and_log(f'benchmark {experiment.name}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps per run, '
-                f'{threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
+    games = '' if presets == list(experiment.presets) else f' on {", ".join(presets)}'
+    say_and_log(f'benchmark {experiment.name}{games}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps '
+                f'per run, {threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
     reuse_jobs(planned, out, args.reuse, say=say_and_log)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     runner = None

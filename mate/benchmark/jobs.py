@@ -34,7 +34,8 @@ from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .experiments import Experiment, Setting
 
-__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'parse_seeds', 'plan']
+__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'parse_presets', 'parse_seeds',
+           'plan']
 
 SEED_STRIDE = 1000
 """Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
@@ -130,6 +131,17 @@ def parse_seeds(text: str) -> list[int]:
     return sorted(set(seeds))
 
 
+def parse_presets(text: str, experiment: Experiment) -> list[str]:
+    """Games of `experiment` from 'MATE-4v8-0' or 'MATE-2v4-0,MATE-4v8-0' (`mate benchmark run --presets`), in the
+    experiment's order; ValueError naming the experiment's games otherwise."""
+    names = [name.strip() for name in str(text).split(',') if name.strip()]
+    unknown = [name for name in names if name not in experiment.presets]
+    if not names or unknown:
+        what = f'{unknown[0]!r} is not one of them' if unknown else f'none given in {text!r}'
+        raise ValueError(f'--presets: the games of {experiment.name} are {", ".join(experiment.presets)}; {what}')
+    return [preset for preset in experiment.presets if preset in names]
+
+
 def horizon_of(experiment: Experiment) -> int | None:
     """Env steps per training (and evaluation) episode: the experiment's, or the trainer's default of 500 decisions
     at the paper's frame skip of the team (None for a population experiment: `mate psro` sets its own)."""
@@ -172,16 +184,18 @@ def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Jo
     return Job('reference', agent, preset, None, folder, tuple(commands), tuple(outputs), TEAM_METRIC[experiment.team])
 
 
-def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1) -> list[Job]:
+def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1,
+         presets: Iterable[str] | None = None) -> list[Job]:
     """Every job of `experiment` for the run seeds `seeds` in the directory `out`: the references first, then each
     (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
-    `threads`: torch threads per training run."""
+    `threads`: torch threads per training run; `presets`: only these of the experiment's games (None: all)."""
     out = Path(out)
     steps = int(steps or experiment.steps)
+    games = experiment.presets if presets is None else [p for p in experiment.presets if p in set(presets)]
     jobs = [] if experiment.population else [
-        _reference(experiment, agent, preset, out) for preset in experiment.presets for agent in experiment.references]
+        _reference(experiment, agent, preset, out) for preset in games for agent in experiment.references]
     for seed in seeds:
-        for preset in experiment.presets:
+        for preset in games:
             for setting in experiment.settings:
                 jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
                             else _training(experiment, setting, preset, seed, steps, out, threads))

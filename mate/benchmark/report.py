@@ -441,6 +441,10 @@ def markdown(summary: dict, figures: list[str]) -> str:
         lines += [f'![{summary["experiment"]}]({figure})', '']
     for task, data in summary['tasks'].items():
         lines += [f'### {task}', '']
+        if not data['settings'] and not data['references']:
+            lines += ['No runs of this game in the benchmark directories (`mate benchmark run --presets` ran '
+                      'others).', '']
+            continue
         if population:
             lines += ['| setting | runs | final exploitability IQM [95 % CI] | mean [95 % CI] | on fresh seeds: IQM '
                       '[95 % CI] |', '|---|---|---|---|---|']

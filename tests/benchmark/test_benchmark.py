@@ -11,7 +11,7 @@ import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
 from mate.benchmark.directory import REUSED_NOTE, job_status, reusable, write_manifest
-from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_seeds, plan
+from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -172,6 +172,39 @@ def test_parse_seeds():
     for bad, words in (('a', "'0-4'"), ('2-x', "'0-4'"), (str(MAX_SEED + 1), f'0..{MAX_SEED}')):
         with pytest.raises(ValueError, match=words):
             parse_seeds(bad)
+
+
+def test_presets_restrict_the_plan_to_some_games(tmp_path, capsys):
+    """`--presets MATE-4v8-0` plans that game's references and runs only, in the experiment's order, and `status`
+    lists the games of the directory; an unknown or empty list names the experiment's games."""
+    fig6 = experiment('fig6-observability')
+    assert parse_presets('MATE-4v8-0, MATE-2v4-0', fig6) == ['MATE-2v4-0', 'MATE-4v8-0']
+    for bad, words in (('MATE-4v8-9', "'MATE-4v8-9' is not one of them"), (',', 'none given')):
+        with pytest.raises(ValueError, match=f'MATE-2v4-0, MATE-4v8-0; {words}'):
+            parse_presets(bad, fig6)
+    every = plan(fig6, [0, 1], tmp_path)
+    some = plan(fig6, [0, 1], tmp_path, presets=['MATE-4v8-0'])
+    assert some == [job for job in every if job.preset == 'MATE-4v8-0']
+    assert len(some) == len(fig6.references) + 2 * len(fig6.settings)
+    write_manifest(fig6, some, tmp_path, fig6.steps, [0, 1])
+    assert main(['benchmark', 'status', str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f'fig6-observability: 0 done, 0 running, 0 started, {len(some)} waiting of {len(some)} jobs'
+    assert not [line for line in lines if 'MATE-2v4-0' in line], lines
+
+
+def test_a_report_says_which_games_have_no_runs():
+    """A directory run with `--presets` holds some games only: the report says so of the others instead of an empty
+    table."""
+    from mate.benchmark.report import markdown
+
+    empty = dict(settings={}, references={}, improvement={})
+    summary = dict(experiment='fig6-observability', figure='Fig. 6', team='target', steps=100, paper_steps=100,
+                   iterations=0, eval_every=50, eval_episodes=2, claim='a claim', claims=[], incomplete=[],
+                   tasks={'MATE-2v4-0 targets': empty})
+    text = markdown(summary, [])
+    assert '### MATE-2v4-0 targets\n\nNo runs of this game in the benchmark directories' in text
+    assert '| setting |' not in text
 
 
 def test_slugs_and_tasks():
