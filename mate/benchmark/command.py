@@ -32,8 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument('--seeds', default=None, help="run seeds, e.g. '0-4' or '0,2,5' (default: the experiment's, "
                                                    '0-4 for the figures)')
     run.add_argument('--presets', default=None,
-                     help="only these of the experiment's games, e.g. 'MATE-4v8-0' (default: all; the directory "
-                          'takes the others later)')
+                     help="only these of the experiment's games, e.g. 'MATE-4v8-0' (default: all; a later run on "
+                          'the same --out may add the others)')
     run.add_argument('--out', default=None, help='the benchmark directory (default runs/benchmark/NAME)')
     run.add_argument('--steps', type=positive_int, default=None,
                      help="decision steps per training run (PSRO: per best response); default the experiment's "

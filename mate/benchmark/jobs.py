@@ -191,7 +191,8 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     `threads`: torch threads per training run; `presets`: only these of the experiment's games (None: all)."""
     out = Path(out)
     steps = int(steps or experiment.steps)
-    games = experiment.presets if presets is None else [p for p in experiment.presets if p in set(presets)]
+    wanted = set(experiment.presets if presets is None else presets)
+    games = [preset for preset in experiment.presets if preset in wanted]
     jobs = [] if experiment.population else [
         _reference(experiment, agent, preset, out) for preset in games for agent in experiment.references]
     for seed in seeds:
