@@ -49,6 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="copy a missing job from the benchmark directory DIR of another experiment when that "
                           'directory holds it complete, run with the very same command lines (e.g. fig5\'s MAPPO '
                           "runs from fig6's); repeatable")
+    run.add_argument('--extend', action='append', default=[], metavar='DIR',
+                     help='continue a missing training job from the benchmark directory DIR of a smaller --steps when '
+                          'that directory holds it complete, run with otherwise the same command lines (the 10 M runs '
+                          'from the 2 M ones, exactly as if run from the start); repeatable')
     status = commands.add_parser('status', help='what each job of benchmark directories has done',
                                  description='One line per job of each benchmark directory (mate benchmark run '
                                              '--out): done with what it measured; running (with its runner) or '
@@ -171,7 +175,7 @@ def _list(say) -> int:
 def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
     from .experiments import experiment as experiment_named
-    from .directory import reuse_jobs, write_manifest
+    from .directory import extend_jobs, reuse_jobs, write_manifest
     from .jobs import parse_presets, parse_seeds, plan
     from .runner import run_jobs, stop_children
 
@@ -183,9 +187,11 @@ def _run(args: argparse.Namespace, say) -> int:
         raise CommandError(str(exc)) from None
     if args.address and args.jobs is not None:
         raise CommandError('--jobs is for this machine; with --address Ray places the jobs')
-    missing = [folder for folder in args.reuse if not Path(folder).is_dir()]
-    if missing:
-        raise CommandError(f'--reuse: {missing[0]!r} is not a directory (a benchmark directory of mate benchmark run)')
+    for option, folders in (('--reuse', args.reuse), ('--extend', args.extend)):
+        missing = [folder for folder in folders if not Path(folder).is_dir()]
+        if missing:
+            raise CommandError(f'{option}: {missing[0]!r} is not a directory (a benchmark directory of mate benchmark '
+                               'run)')
     cores = os.cpu_count() or 1
     jobs = args.jobs or max(1, cores // (args.threads or 2))
     threads = args.threads or max(1, cores // jobs)
@@ -206,6 +212,7 @@ def _run(args: argparse.Namespace, say) -> int:
     say_and_log(f'benchmark {experiment.name}{games}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps '
                 f'per run, {threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
     reuse_jobs(planned, out, args.reuse, say=say_and_log)
+    extend_jobs(planned, out, args.extend, say=say_and_log)
     previous = signal.signal(signal.SIGTERM, _interrupt)
     runner = None
     try:

@@ -1,11 +1,12 @@
 """A benchmark directory (`mate benchmark run --out OUT`): its manifest `OUT/benchmark.json` (the experiment, the
 budget, the seeds, every job's command line; merged by runners side by side), the reuse of another directory's
-complete jobs (`--reuse`), what each job has done (`mate benchmark status`), and a light copy of what a report
-reads (`mate benchmark keep`).
+complete jobs (`--reuse`) and the continuation of its shorter runs (`--extend`), what each job has done (`mate
+benchmark status`), and a light copy of what a report reads (`mate benchmark keep`).
 """
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import os
@@ -22,7 +23,7 @@ from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
 __all__ = ['BENCHMARK_FORMAT', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE', 'job_status', 'keep_results',
-           'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
+           'EXTENDED_NOTE', 'extend_jobs', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 
@@ -81,36 +82,49 @@ PATH_OPTIONS = ('--run-dir', '--json', '--out')
 """The options of a job's command lines whose values are paths inside the benchmark directory."""
 REUSED_NOTE = 'reused.txt'
 """The file a reused job's directory gets: where it was copied from, and why that is the same job."""
+EXTENDED_NOTE = 'extended.txt'
+"""The file a job continued from a shorter run (`--extend`) gets: where the run was copied from, at which budget."""
 
 
 _PATH_VALUE = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
+_STEPS_VALUE = re.compile(r'(?<!\S)(--steps) (\d+)')
 
 
-def _masked(line: str) -> tuple[str, set[Path]]:
-    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>'; and those paths,
-    resolved from the current directory (as the benchmark command that wrote them ran: reuse from the same working
-    directory)."""
+def _masked(line: str, budget: bool = False) -> tuple[str, set[Path], set[int]]:
+    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>' (and with `budget`,
+    the value of `--steps` by '<STEPS>'); those paths, resolved from the current directory (as the benchmark command
+    that wrote them ran: reuse from the same working directory); and the `--steps` values masked."""
     paths = {Path(match.group(2)).resolve() for match in _PATH_VALUE.finditer(line)}
-    return _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line), paths
+    line = _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line)
+    if not budget:
+        return line, paths, set()
+    steps = {int(match.group(2)) for match in _STEPS_VALUE.finditer(line)}
+    return _STEPS_VALUE.sub(lambda match: f'{match.group(1)} <STEPS>', line), paths, steps
 
 
-def _logged_commands(log: Path) -> tuple[set[str], set[Path]]:
+def _logged_commands(log: Path, budget: bool = False) -> tuple[set[str], set[Path], set[int]]:
     """The distinct command lines a job's log ran ('$ mate ...' lines, written by `run_command`; a resumed run logs
-    its line once per session), `_masked`; and all their paths."""
-    lines, paths = set(), set()
+    its line once per session), `_masked`; and all their paths and budgets."""
+    lines, paths, steps = set(), set(), set()
     for line in log.read_text(errors='replace').splitlines():
         if line.startswith('$ mate '):
-            masked, found = _masked(line[len('$ mate '):])
+            masked, found, budgets = _masked(line[len('$ mate '):], budget)
             lines.add(masked)
             paths |= found
-    return lines, paths
+            steps |= budgets
+    return lines, paths, steps
 
 
-def reusable(job: Job, out, source) -> Path | None:
+def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     """The directory of the same job in the benchmark directory `source`, when it can stand for `job` of `out`:
     it is complete there and its log ran exactly `job`'s command lines (every option, seed, budget, evaluation
     and thread count), with `source` where `out` is; None otherwise. Experiments that share a setting (fig5's
-    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command."""
+    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command.
+
+    With `shorter`, the twin must instead be a `mate train` run complete at a smaller budget whose log ran the same
+    command lines but for `--steps`: its checkpoint is where a run of `job`'s budget is at that step (the
+    schedules count steps from 0, not in fractions of the budget) provided it stopped at an iteration where a run of
+    `job`'s budget evaluates too (`_ends_on_an_evaluation`), and `extend_jobs` continues it."""
     out, source = Path(out).resolve(), Path(source).resolve()
     folder = source / job.dir.resolve().relative_to(out)
     twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
@@ -118,19 +132,42 @@ def reusable(job: Job, out, source) -> Path | None:
     log = folder / 'job.log'
     if not twin.done() or not log.exists():
         return None
-    expected, wanted_paths = set(), set()
+    if shorter and not (job.kind == 'train' and job.commands[0][0] == 'train' and (folder / 'checkpoint.pt').exists()):
+        return None
+    expected, wanted_paths, wanted_steps = set(), set(), set()
     for command in job.commands:
-        line, paths = _masked(' '.join(command))      # as `run_command` logs it
+        line, paths, steps = _masked(' '.join(command), shorter)      # as `run_command` logs it
         expected.add(line)
         wanted_paths |= {source / path.relative_to(out) for path in paths}
-    logged, logged_paths = _logged_commands(log)
-    return folder if logged == expected and logged_paths == wanted_paths else None
+        wanted_steps |= steps
+    logged, logged_paths, logged_steps = _logged_commands(log, shorter)
+    if logged != expected or logged_paths != wanted_paths:
+        return None
+    if not shorter:
+        return folder
+    command = job.commands[0]
+    every = int(command[command.index('--eval-every') + 1]) if '--eval-every' in command else 0
+    return folder if max(logged_steps) < min(wanted_steps) and _ends_on_an_evaluation(folder, every) else None
+
+
+def _ends_on_an_evaluation(folder: Path, every: int) -> bool:
+    """Whether the complete run in `folder` stopped at an iteration where a longer run evaluates too (the first
+    iteration at or past a multiple of `every` decision steps; 0: no periodic evaluation): a run evaluates at its
+    last iteration whatever its step, and an evaluation a longer run does not make would stay in its record and
+    might stand as its best policy."""
+    with open(folder / 'progress.csv') as file:
+        steps = [int(row['env_steps']) for row in csv.DictReader(file)]
+    if not every or not steps:
+        return bool(steps)
+    before = steps[-2] if len(steps) > 1 else 0
+    return steps[-1] // every > before // every
 
 
 def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
     """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
     is `reusable` (the first found), unless the job's directory already holds something besides a runner's lock
-    (a run in progress is never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
+    (a run in progress is never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns
+    them."""
     copied = []
     for job in jobs:
         if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
@@ -150,7 +187,36 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
     return copied
 
 
-KEPT_FILES = ('job.log', 'evaluations.jsonl', REUSED_NOTE)
+def extend_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
+    """Copy into `out`, for every training job of `jobs` with nothing of it there yet, its run in one of the benchmark
+    directories `sources` (the first found) that is complete at a smaller budget and otherwise ran the same command
+    lines (`reusable` with `shorter`), less its result files and final policy: the job then resumes from that run's
+    last checkpoint and trains on to its own budget, exactly as if it had run from the start (the schedules count
+    decision steps from 0). Its directory gets an `EXTENDED_NOTE`. Says one line per copied job; returns them."""
+    copied = []
+    for job in jobs:
+        if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
+                                                   for path in job.dir.iterdir())):
+            continue
+        for source in sources:
+            folder = reusable(job, out, source, shorter=True)
+            if folder is None:
+                continue
+            results = {path.name for path in job.outputs} | {'final.pt', 'job.log', REUSED_NOTE, EXTENDED_NOTE}
+            shutil.copytree(folder, job.dir, dirs_exist_ok=True,
+                            ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER, *results))
+            steps = last_logged_row(folder)['env_steps']
+            (job.dir / EXTENDED_NOTE).write_text(
+                f'continued from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that run ran the same command '
+                f'lines with a smaller --steps and stopped complete at {int(steps):,} decision steps\n')
+            say(f'{job.name}: continues {folder} from {int(steps):,} decision steps (the same command lines but '
+                '--steps)')
+            copied.append(job)
+            break
+    return copied
+
+
+KEPT_FILES = ('job.log', 'evaluations.jsonl', REUSED_NOTE, EXTENDED_NOTE)
 """What `keep_results` copies of a complete job besides its result files (`Job.outputs`), when the job has them."""
 
 
@@ -197,11 +263,13 @@ JOB_STATES = ('done', 'running', 'started', 'waiting')
 
 def job_status(job: Job, steps: int) -> tuple[str, str]:
     """(state, line) of a job of a benchmark directory whose runs train `steps` decision steps: 'done' with what
-    it measured ('reused' when copied by --reuse); 'running' (a runner runs it now: `job_runner`) or 'started' (part
-    done, no runner now) with how far it is (a training run's logged decision steps and the time left at its rate
-    so far, a population run's iterations, a reference's evaluations); or 'waiting'."""
+    it measured ('reused' when copied by --reuse, 'continued' when by --extend); 'running' (a runner runs it now:
+    `job_runner`) or 'started' (part done, no runner now) with how far it is (a training run's logged decision
+    steps and the time left at its rate so far, a population run's iterations, a reference's evaluations); or
+    'waiting'."""
     if job.done():
-        reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else ''
+        reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else \
+            ' (continued from a shorter run)' if (job.dir / EXTENDED_NOTE).exists() else ''
         return 'done', f'{job.name}: done{job.measured()}{reused}'
     runner = job_runner(job)
     progress = _progress(job, steps, running=runner is not None)

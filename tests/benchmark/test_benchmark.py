@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shlex
 import shutil
@@ -10,7 +11,8 @@ import numpy as np
 import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.directory import REUSED_NOTE, job_status, reusable, write_manifest
+from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _ends_on_an_evaluation, job_status, reusable,
+                                      write_manifest)
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
@@ -292,6 +294,68 @@ def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_p
         assert (twin is not None) == (job.kind == 'reference'), job.name
     assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'x'), '--reuse', str(tmp_path / 'none')]) == 2
     assert "--reuse: '" in capsys.readouterr().err
+
+
+def _trained(folder):
+    """A run directory's logged rows without the machine's timing columns, its evaluations and its absolute metric."""
+    import csv
+
+    from mate.learn.run import TIMING_COLUMNS
+
+    with open(folder / 'progress.csv') as file:
+        rows = [{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(file)]
+    return rows, (folder / 'evaluations.jsonl').read_text(), json.loads((folder / 'absolute.json').read_text())
+
+
+def test_extend_continues_a_shorter_run_to_the_same_numbers_as_a_fresh_run(smoke, tmp_path, capsys):
+    """`--extend DIR`: a training job of a larger budget continues DIR's run of the same command lines but --steps
+    from its last checkpoint, and ends with the very numbers a run of that budget from the start has; the result
+    files are its own, and a reference, a run of another setting or one that ended on an evaluation the longer run
+    does not make is not continued."""
+    exp = experiment('smoke')
+    shorter, longer, fresh = tmp_path / 'shorter', tmp_path / 'longer', tmp_path / 'fresh'
+    short, steps = 3 * exp.eval_every, 5 * exp.eval_every     # the smoke budget or more: the same interval
+    assert short >= exp.steps and exp.eval_interval(short) == exp.eval_interval(steps)
+    one = ['benchmark', 'run', 'smoke', '--seeds', '0', '--threads', '1', '--steps']
+    assert main([*one, str(short), '--out', str(shorter)]) == 0
+    assert main([*one, str(steps), '--out', str(longer), '--extend', str(shorter)]) == 0
+    out = capsys.readouterr().out
+    assert out.count(': continues ') == len(exp.settings) and 'reused from' not in out
+    assert main([*one, str(steps), '--out', str(fresh)]) == 0
+    capsys.readouterr()
+    for job in plan(exp, [0], longer, steps=steps, threads=1):
+        if job.kind != 'train':
+            assert not (job.dir / EXTENDED_NOTE).exists()
+            continue
+        note = (job.dir / EXTENDED_NOTE).read_text()
+        assert f'{(shorter / job.dir.relative_to(longer)).resolve()}' in note and f'{short:,} decision' in note
+        rows, evaluations, absolute = _trained(job.dir)
+        assert int(rows[-1]['env_steps']) >= steps
+        assert (rows, evaluations, absolute) == _trained(fresh / job.dir.relative_to(longer))
+        assert job_status(job, steps)[1].endswith('(continued from a shorter run)')
+    # the same budget is --reuse's job; another setting's command lines are not a shorter run; the smoke runs stop
+    # at 200 decisions, between two evaluations of a longer run, so they are not either
+    runs, _ = smoke
+    assert exp.steps % exp.eval_every
+    for job in plan(exp, [0], tmp_path / 'x', steps=short, threads=1):
+        assert reusable(job, tmp_path / 'x', shorter, shorter=True) is None
+    for job in plan(exp, [0], tmp_path / 'y', steps=steps, threads=1):
+        if job.kind == 'train':
+            twin = (shorter / job.dir.relative_to(tmp_path / 'y')).resolve()
+            assert reusable(job, tmp_path / 'y', shorter, shorter=True) == twin
+            other = 'ippo' if job.dir.name.startswith('mappo') else 'mappo'
+            renamed = dataclasses.replace(job, dir=job.dir.with_name(other + job.dir.name.split('po', 1)[1]))
+            assert reusable(renamed, tmp_path / 'y', shorter, shorter=True) is None
+            assert _ends_on_an_evaluation(twin, exp.eval_every)
+    manifest = json.loads((runs / 'benchmark.json').read_text())
+    threads = int(_option(next(j for j in manifest['jobs'] if j['kind'] == 'train')['commands'][0], '--threads'))
+    for job in plan(exp, [0], tmp_path / 'w', steps=steps, threads=threads):
+        if job.kind == 'train':
+            twin = runs / job.dir.relative_to(tmp_path / 'w')
+            assert reusable(job, tmp_path / 'w', runs, shorter=True) is None
+            assert not _ends_on_an_evaluation(twin, exp.eval_every)
+    assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'z'), '--extend', str(tmp_path / 'none')]) == 2
+    assert "--extend: '" in capsys.readouterr().err
 
 
 def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_path, capsys):
