@@ -163,56 +163,54 @@ def _ends_on_an_evaluation(folder: Path, every: int) -> bool:
     return steps[-1] // every > before // every
 
 
-def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
-    """Copy into `out` every job of `jobs` not done there whose twin in one of the benchmark directories `sources`
-    is `reusable` (the first found), unless the job's directory already holds something besides a runner's lock
-    (a run in progress is never replaced); its directory gets a `REUSED_NOTE`. Says one line per copied job; returns
-    them."""
-    copied = []
+def _twins(jobs: list[Job], out, sources: Sequence, shorter: bool):
+    """(job, folder) for every job of `jobs` with nothing of it in `out` yet (a directory holding something besides
+    a runner's lock is a run in progress, never replaced) and a twin in one of the benchmark directories `sources`
+    (the first found): `reusable`, with `shorter` as given."""
     for job in jobs:
         if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
                                                    for path in job.dir.iterdir())):
             continue
-        for source in sources:
-            folder = reusable(job, out, source)
-            if folder is None:
-                continue
-            shutil.copytree(folder, job.dir, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER))
-            (job.dir / REUSED_NOTE).write_text(
-                f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that job ran the same command lines '
-                f'(its directory in place of this one)\n')
-            say(f'{job.name}: reused from {folder} (the same command lines)')
-            copied.append(job)
-            break
+        folder = next((found for source in sources if (found := reusable(job, out, source, shorter)) is not None),
+                      None)
+        if folder is not None:
+            yield job, folder
+
+
+def _copy(folder: Path, dest: Path, note_name: str, note: str, leave_out: Sequence[str] = ()) -> None:
+    """Copy the job directory `folder` to `dest` (but a runner's lock and `leave_out`) and write `note` in
+    `dest / note_name`."""
+    shutil.copytree(folder, dest, dirs_exist_ok=True, ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER, *leave_out))
+    (dest / note_name).write_text(note + '\n')
+
+
+def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
+    """Copy into `out` every job of `jobs` not there yet whose twin in one of the benchmark directories `sources`
+    is `reusable`; its directory gets a `REUSED_NOTE`. Says one line per copied job; returns them."""
+    copied = []
+    for job, folder in _twins(jobs, out, sources, shorter=False):
+        _copy(folder, job.dir, REUSED_NOTE, f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that '
+                                            'job ran the same command lines (its directory in place of this one)')
+        say(f'{job.name}: reused from {folder} (the same command lines)')
+        copied.append(job)
     return copied
 
 
 def extend_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
-    """Copy into `out`, for every training job of `jobs` with nothing of it there yet, its run in one of the benchmark
-    directories `sources` (the first found) that is complete at a smaller budget and otherwise ran the same command
-    lines (`reusable` with `shorter`), less its result files and final policy: the job then resumes from that run's
-    last checkpoint and trains on to its own budget, exactly as if it had run from the start (the schedules count
-    decision steps from 0). Its directory gets an `EXTENDED_NOTE`. Says one line per copied job; returns them."""
+    """Copy into `out`, for every training job of `jobs` not there yet, its run in one of the benchmark directories
+    `sources` that is complete at a smaller budget and otherwise ran the same command lines (`reusable` with
+    `shorter`), less its result files, final policy and log (the note names where the log is): the job then resumes
+    from that run's last checkpoint and trains on to its own budget, exactly as if it had run from the start (the
+    schedules count decision steps from 0). Its directory gets an `EXTENDED_NOTE`. Says one line per copied job;
+    returns them."""
     copied = []
-    for job in jobs:
-        if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
-                                                   for path in job.dir.iterdir())):
-            continue
-        for source in sources:
-            folder = reusable(job, out, source, shorter=True)
-            if folder is None:
-                continue
-            results = {path.name for path in job.outputs} | {'final.pt', 'job.log', REUSED_NOTE, EXTENDED_NOTE}
-            shutil.copytree(folder, job.dir, dirs_exist_ok=True,
-                            ignore=shutil.ignore_patterns(JOB_LOCK, JOB_RUNNER, *results))
-            steps = last_logged_row(folder)['env_steps']
-            (job.dir / EXTENDED_NOTE).write_text(
-                f'continued from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that run ran the same command '
-                f'lines with a smaller --steps and stopped complete at {int(steps):,} decision steps\n')
-            say(f'{job.name}: continues {folder} from {int(steps):,} decision steps (the same command lines but '
-                '--steps)')
-            copied.append(job)
-            break
+    for job, folder in _twins(jobs, out, sources, shorter=True):
+        steps = int(last_logged_row(folder)['env_steps'])
+        _copy(folder, job.dir, EXTENDED_NOTE, f'continued from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: '
+              f'that run ran the same command lines with a smaller --steps and stopped complete at {steps:,} decision '
+              'steps', leave_out=(*(path.name for path in job.outputs), 'final.pt', 'job.log', REUSED_NOTE))
+        say(f'{job.name}: continues {folder} from {steps:,} decision steps (the same command lines but --steps)')
+        copied.append(job)
     return copied
 
 
