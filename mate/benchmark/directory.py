@@ -22,8 +22,8 @@ from .experiments import experiment as experiment_named
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
-__all__ = ['BENCHMARK_FORMAT', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE', 'job_status', 'keep_results',
-           'EXTENDED_NOTE', 'extend_jobs', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
+__all__ = ['BENCHMARK_FORMAT', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE', 'extend_jobs',
+           'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 
