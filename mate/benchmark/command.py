@@ -56,8 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     status = commands.add_parser('status', help='what each job of benchmark directories has done',
                                  description='One line per job of each benchmark directory (mate benchmark run '
                                              '--out): done with what it measured; running (with its runner) or '
-                                             'started (no runner now) with how far it is (decision steps and the '
-                                             'time left, PSRO iterations); or waiting; then the counts. Reads the '
+                                             'started (no runner now) with how far it is (decision steps, the last '
+                                             'evaluation and the time left; PSRO iterations); or waiting; then the counts. Reads the '
                                              'files only: safe while the benchmark runs.')
     status.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
     keep = commands.add_parser('keep', help='copy what a report reads of a benchmark directory (no policies)',

@@ -22,8 +22,8 @@ from .experiments import experiment as experiment_named
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
-__all__ = ['BENCHMARK_FORMAT', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE', 'extend_jobs',
-           'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
+__all__ = ['BENCHMARK_FORMAT', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE',
+           'extend_jobs', 'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
 
 BENCHMARK_FORMAT = 'mate.benchmark/1'
 
@@ -264,7 +264,7 @@ def job_status(job: Job, steps: int) -> tuple[str, str]:
     it measured ('reused' when copied by --reuse, 'continued' when by --extend); 'running' (a runner runs it now:
     `job_runner`) or 'started' (part done, no runner now) with how far it is (a training run's logged decision
     steps and the time left at its rate so far, a population run's iterations, a reference's evaluations); or
-    'waiting'."""
+    'waiting'. A training run's line also has its last periodic evaluation."""
     if job.done():
         reused = ' (reused)' if (job.dir / REUSED_NOTE).exists() else \
             ' (continued from a shorter run)' if (job.dir / EXTENDED_NOTE).exists() else ''
@@ -276,6 +276,15 @@ def job_status(job: Job, steps: int) -> tuple[str, str]:
     if progress is not None:
         return 'started', f'{job.name}: {progress}'
     return 'waiting', f'{job.name}: waiting'
+
+
+def _last_evaluation(folder: Path) -> str:
+    """'; evaluated coverage_rate 0.612 at 1,500,000': the last periodic evaluation of the training run in `folder`
+    (its `evaluations.jsonl`), or '' before the first."""
+    path = folder / 'evaluations.jsonl'
+    lines = path.read_text().split('\n') if path.exists() else []
+    last = next((json.loads(line) for line in reversed(lines) if line.strip()), None)
+    return '' if last is None else f'; evaluated {last["metric"]} {last["mean"]:.3f} at {last["env_steps"]:,}'
 
 
 def _progress(job: Job, steps: int, running: bool) -> str | None:
@@ -290,7 +299,7 @@ def _progress(job: Job, steps: int, running: bool) -> str | None:
     if row is None:
         return None
     logged, rate = int(row['env_steps']), training_rate(row)
-    text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)'
+    text = f'{logged:,} of {steps:,} decision steps ({100 * min(logged, steps) // steps} %)' + _last_evaluation(job.dir)
     if rate and logged < steps:
         return f'{text}; {_duration((steps - logged) / rate)} left at its rate so far ({rate:,.0f} steps/s)'
     if logged >= steps:

@@ -411,6 +411,12 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
                                          'rate so far (40 steps/s)')
     assert job_status(run, 300_080)[1].endswith('about 2 h 05 min left at its rate so far (40 steps/s)')
     assert 'under a minute left' in job_status(run, 100)[1]
+    # with a periodic evaluation logged: its metric and step (the last one)
+    (run.dir / 'evaluations.jsonl').write_text(''.join(json.dumps(dict(env_steps=40 * i, metric='coverage_rate',
+                                                                        mean=0.1 * i)) + '\n' for i in (1, 2)))
+    assert job_status(run, 5_000)[1] == (f'{run.name}: 80 of 5,000 decision steps (1 %); evaluated coverage_rate '
+                                         '0.200 at 80; about 2 min left at its rate so far (40 steps/s)')
+    (run.dir / 'evaluations.jsonl').unlink()
     (run.dir / 'progress.csv').write_text(f'iteration,env_steps\n1,{exp.steps}\n')
     assert job_status(run, exp.steps)[1].endswith('its absolute metric is missing: run again')
     assert main(['benchmark', 'status', str(fresh)]) == 0
