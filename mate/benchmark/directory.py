@@ -124,7 +124,8 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     With `shorter`, the twin must instead be a `mate train` run complete at a smaller budget whose log ran the same
     command lines but for `--steps`: its checkpoint is where a run of `job`'s budget is at that step (the
     schedules count steps from 0, not in fractions of the budget) provided it stopped at an iteration where a run of
-    `job`'s budget evaluates too (`_ends_on_an_evaluation`), and `extend_jobs` continues it."""
+    `job`'s budget evaluates too (`_ends_on_an_evaluation`) and did not cut its last iteration short for its budget
+    (`_cuts_its_last_iteration`), and `extend_jobs` continues it."""
     out, source = Path(out).resolve(), Path(source).resolve()
     folder = source / job.dir.resolve().relative_to(out)
     twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
@@ -145,9 +146,24 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
         return None
     if not shorter:
         return folder
-    command = job.commands[0]
+    command, budget = job.commands[0], max(logged_steps)
     every = int(command[command.index('--eval-every') + 1]) if '--eval-every' in command else 0
-    return folder if max(logged_steps) < min(wanted_steps) and _ends_on_an_evaluation(folder, every) else None
+    if budget >= min(wanted_steps) or _cuts_its_last_iteration(command, budget):
+        return None
+    return folder if _ends_on_an_evaluation(folder, every) else None
+
+
+def _cuts_its_last_iteration(command: Sequence[str], steps: int) -> bool:
+    """Whether the `mate train` command line `command` run for `steps` decision steps ends its last iteration early:
+    the trainers that log a row every `report_every` decision steps (IQL, QMIX, MA-TD3) end one at the budget too,
+    a row (and from there on, other iterations) a longer run does not have; the rollout trainers' iterations all have
+    the same size, and the last one goes past the budget."""
+    from ..learn.command import trainer_parser
+
+    parser, _, config_class = trainer_parser(command[1])
+    given = getattr(parser.parse_args(list(command[2:])), 'report_every', None)
+    report_every = given if given is not None else getattr(config_class, 'report_every', None)
+    return bool(report_every) and steps % report_every != 0
 
 
 def _ends_on_an_evaluation(folder: Path, every: int) -> bool:

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _ends_on_an_evaluation, job_status, reusable,
-                                      write_manifest)
+from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _cuts_its_last_iteration, _ends_on_an_evaluation,
+                                      job_status, reusable, write_manifest)
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
@@ -354,6 +354,11 @@ def test_extend_continues_a_shorter_run_to_the_same_numbers_as_a_fresh_run(smoke
             twin = runs / job.dir.relative_to(tmp_path / 'w')
             assert reusable(job, tmp_path / 'w', runs, shorter=True) is None
             assert not _ends_on_an_evaluation(twin, exp.eval_every)
+    # IQL, QMIX and MA-TD3 log a row every --report-every decisions and cut one short at a budget off that grid
+    assert _cuts_its_last_iteration(('train', 'iql', '--report-every', '40'), 140)
+    assert not _cuts_its_last_iteration(('train', 'iql', '--report-every', '40'), 160)
+    assert _cuts_its_last_iteration(('train', 'matd3', '--team', 'camera'), 2_000_000)       # its default: 5,120
+    assert not _cuts_its_last_iteration(('train', 'mappo', '--team', 'target'), 2_000_001)
     assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'z'), '--extend', str(tmp_path / 'none')]) == 2
     assert "--extend: '" in capsys.readouterr().err
 
