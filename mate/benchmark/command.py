@@ -57,8 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                  description='One line per job of each benchmark directory (mate benchmark run '
                                              '--out): done with what it measured; running (with its runner) or '
                                              'started (no runner now) with how far it is (decision steps, the last '
-                                             'evaluation and the time left; PSRO iterations); or waiting; then the counts. Reads the '
-                                             'files only: safe while the benchmark runs.')
+                                             'evaluation and the time left; PSRO iterations); or waiting; then the '
+                                             'counts. Reads the files only: safe while the benchmark runs.')
     status.add_argument('dirs', nargs='+', metavar='DIR', help='benchmark directories (mate benchmark run --out)')
     keep = commands.add_parser('keep', help='copy what a report reads of a benchmark directory (no policies)',
                                description='Copy into DEST what mate benchmark report reads of the benchmark directory '

@@ -147,10 +147,19 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     if not shorter:
         return folder
     command, budget = job.commands[0], max(logged_steps)
-    every = int(command[command.index('--eval-every') + 1]) if '--eval-every' in command else 0
     if budget >= min(wanted_steps) or _cuts_its_last_iteration(command, budget):
         return None
-    return folder if _ends_on_an_evaluation(folder, every) else None
+    return folder if _ends_on_an_evaluation(folder, _trainer_setting(command, 'eval_every') or 0) else None
+
+
+def _trainer_setting(command: Sequence[str], name: str):
+    """The value of the config field `name` (None when the trainer has none) in the `mate train` command line
+    `command`: as given, else the trainer's default (parsed by the trainer's own parser)."""
+    from ..learn.command import trainer_parser
+
+    parser, _, config_class = trainer_parser(command[1])
+    given = getattr(parser.parse_args(list(command[2:])), name, None)
+    return given if given is not None else getattr(config_class, name, None)
 
 
 def _cuts_its_last_iteration(command: Sequence[str], steps: int) -> bool:
@@ -158,11 +167,7 @@ def _cuts_its_last_iteration(command: Sequence[str], steps: int) -> bool:
     the trainers that log a row every `report_every` decision steps (IQL, QMIX, MA-TD3) end one at the budget too,
     a row (and from there on, other iterations) a longer run does not have; the rollout trainers' iterations all have
     the same size, and the last one goes past the budget."""
-    from ..learn.command import trainer_parser
-
-    parser, _, config_class = trainer_parser(command[1])
-    given = getattr(parser.parse_args(list(command[2:])), 'report_every', None)
-    report_every = given if given is not None else getattr(config_class, 'report_every', None)
+    report_every = _trainer_setting(command, 'report_every')
     return bool(report_every) and steps % report_every != 0
 
 
