@@ -34,6 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     run.add_argument('--presets', default=None,
                      help="only these of the experiment's games, e.g. 'MATE-4v8-0' (default: all; a later run on "
                           'the same --out may add the others)')
+    run.add_argument('--settings', default=None,
+                     help="only these of the experiment's settings, by label or file-name slug, e.g. "
+                          "'IPPO,MAPPO+TarMAC' or 'ippo,mappo-tarmac' (default: all; a later run on the same --out may "
+                          'add the others)')
     run.add_argument('--out', default=None, help='the benchmark directory (default runs/benchmark/NAME)')
     run.add_argument('--steps', type=positive_int, default=None,
                      help="decision steps per training run (PSRO: per best response); default the experiment's "
@@ -146,8 +150,9 @@ def _status(dirs: list[str], say) -> int:
             experiment = experiment_named(manifest['experiment'])
         except ValueError as exc:
             raise CommandError(str(exc)) from None
-        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'],
-                    presets={job['preset'] for job in manifest['jobs']})     # (run --presets: some games)
+        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'],   # (run --presets, --settings:
+                    presets={job['preset'] for job in manifest['jobs']},       # some games, some settings)
+                    settings={job['label'] for job in manifest['jobs'] if job['kind'] != 'reference'})
         counts = dict.fromkeys(JOB_STATES, 0)
         say(f'{folder}: {experiment.name}, seeds {",".join(map(str, manifest["seeds"]))}, '
             f'{manifest["steps"]:,} decision steps per run')
@@ -176,13 +181,14 @@ def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
     from .experiments import experiment as experiment_named
     from .directory import extend_jobs, reuse_jobs, write_manifest
-    from .jobs import parse_presets, parse_seeds, plan
+    from .jobs import parse_presets, parse_seeds, parse_settings, plan
     from .runner import run_jobs, stop_children
 
     try:
         experiment = experiment_named(args.name)
         seeds = parse_seeds(args.seeds) if args.seeds else list(range(experiment.seeds))
         presets = parse_presets(args.presets, experiment) if args.presets else list(experiment.presets)
+        settings = parse_settings(args.settings, experiment) if args.settings else None
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     if args.address and args.jobs is not None:
@@ -197,7 +203,7 @@ def _run(args: argparse.Namespace, say) -> int:
     threads = args.threads or max(1, cores // jobs)
     out = Path(args.out or f'runs/benchmark/{experiment.name}')
     steps = args.steps or experiment.steps
-    planned = plan(experiment, seeds, out, steps=steps, threads=threads, presets=presets)
+    planned = plan(experiment, seeds, out, steps=steps, threads=threads, presets=presets, settings=settings)
     try:
         write_manifest(experiment, planned, out, steps, seeds)
     except ValueError as exc:
@@ -209,6 +215,7 @@ def _run(args: argparse.Namespace, say) -> int:
 
     where = f'Ray ({args.address})' if args.address else f'{jobs} job{"s" * (jobs > 1)} at a time on this machine'
     games = '' if presets == list(experiment.presets) else f' on {", ".join(presets)}'
+    games += '' if settings is None else f' ({", ".join(settings)} only)'
     say_and_log(f'benchmark {experiment.name}{games}: seeds {",".join(map(str, seeds))}, {steps:,} decision steps '
                 f'per run, {threads} thread{"s" * (threads > 1)} per run, on {where} -> {out}')
     reuse_jobs(planned, out, args.reuse, say=say_and_log)

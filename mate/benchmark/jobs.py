@@ -35,7 +35,7 @@ from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from .experiments import Experiment, Setting
 
 __all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'parse_presets', 'parse_seeds',
-           'plan']
+           'parse_settings', 'plan']
 
 SEED_STRIDE = 1000
 """Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
@@ -134,12 +134,29 @@ def parse_seeds(text: str) -> list[int]:
 def parse_presets(text: str, experiment: Experiment) -> list[str]:
     """Games of `experiment` from 'MATE-4v8-0' or 'MATE-2v4-0,MATE-4v8-0' (`mate benchmark run --presets`), in the
     experiment's order; ValueError naming the experiment's games otherwise."""
-    names = [name.strip() for name in str(text).split(',') if name.strip()]
-    unknown = [name for name in names if name not in experiment.presets]
-    if not names or unknown:
-        what = f'{unknown[0]!r} is not one of them' if unknown else f'none given in {text!r}'
-        raise ValueError(f'--presets: the games of {experiment.name} are {", ".join(experiment.presets)}; {what}')
-    return [preset for preset in experiment.presets if preset in names]
+    return _subset('--presets', 'games', text, experiment, list(experiment.presets))
+
+
+def parse_settings(text: str, experiment: Experiment) -> list[str]:
+    """Labels of `experiment`'s settings from their labels or file-name slugs, comma-separated ('IPPO,MAPPO+TarMAC'
+    or 'ippo,mappo-tarmac'; `mate benchmark run --settings`), in the experiment's order; ValueError naming the
+    experiment's settings otherwise."""
+    slugs = {setting.slug: setting.label for setting in experiment.settings}
+    return _subset('--settings', 'settings', text, experiment, [s.label for s in experiment.settings], slugs)
+
+
+def _subset(option: str, what: str, text: str, experiment: Experiment, names: list[str],
+            aliases: dict[str, str] | None = None) -> list[str]:
+    """The names of `names` listed in `text` (comma-separated; `aliases` maps other spellings to names), in the
+    order of `names`."""
+    aliases = aliases or {}
+    given = [part.strip() for part in str(text).split(',') if part.strip()]
+    unknown = [part for part in given if part not in names and part not in aliases]
+    if not given or unknown:
+        problem = f'{unknown[0]!r} is not one of them' if unknown else f'none given in {text!r}'
+        raise ValueError(f'{option}: the {what} of {experiment.name} are {", ".join(names)}; {problem}')
+    chosen = {aliases.get(part, part) for part in given}
+    return [name for name in names if name in chosen]
 
 
 def horizon_of(experiment: Experiment) -> int | None:
@@ -185,19 +202,22 @@ def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Jo
 
 
 def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1,
-         presets: Iterable[str] | None = None) -> list[Job]:
+         presets: Iterable[str] | None = None, settings: Iterable[str] | None = None) -> list[Job]:
     """Every job of `experiment` for the run seeds `seeds` in the directory `out`: the references first, then each
     (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
-    `threads`: torch threads per training run; `presets`: only these of the experiment's games (None: all)."""
+    `threads`: torch threads per training run; `presets`: only these of the experiment's games, `settings` only the
+    settings of these labels (None: all)."""
     out = Path(out)
     steps = int(steps or experiment.steps)
     wanted = set(experiment.presets if presets is None else presets)
     games = [preset for preset in experiment.presets if preset in wanted]
+    labels = None if settings is None else set(settings)
+    chosen = [setting for setting in experiment.settings if labels is None or setting.label in labels]
     jobs = [] if experiment.population else [
         _reference(experiment, agent, preset, out) for preset in games for agent in experiment.references]
     for seed in seeds:
         for preset in games:
-            for setting in experiment.settings:
+            for setting in chosen:
                 jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
                             else _training(experiment, setting, preset, seed, steps, out, threads))
     return jobs

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import shlex
 import shutil
 
@@ -13,7 +14,7 @@ import pytest
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
 from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _cuts_its_last_iteration, _ends_on_an_evaluation,
                                       job_status, reusable, write_manifest)
-from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, plan
+from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, parse_settings, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -193,6 +194,29 @@ def test_presets_restrict_the_plan_to_some_games(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[-1] == f'fig6-observability: 0 done, 0 running, 0 started, {len(some)} waiting of {len(some)} jobs'
     assert not [line for line in lines if 'MATE-2v4-0' in line], lines
+
+
+def test_settings_restrict_the_plan_to_some_settings(tmp_path, capsys):
+    """`--settings` takes labels or slugs: it plans the references and those settings' runs only, in the
+    experiment's order, and `status` lists the settings of the directory; an unknown or empty list names the
+    experiment's settings."""
+    fig5 = experiment('fig5-targets-comm')
+    assert parse_settings('mappo-i2c, IPPO,MAPPO+TarMAC', fig5) == ['IPPO', 'MAPPO+TarMAC', 'MAPPO+I2C']
+    for bad, words in (('I2C', "'I2C' is not one of them"), (' , ', 'none given')):
+        with pytest.raises(ValueError, match=re.escape(f'--settings: the settings of fig5-targets-comm are MAPPO, '
+                                                       f'IPPO, MAPPO+TarMAC, IPPO+TarMAC, MAPPO+I2C; {words}')):
+            parse_settings(bad, fig5)
+    every = plan(fig5, [0, 1], tmp_path)
+    some = plan(fig5, [0, 1], tmp_path, settings=['IPPO', 'IPPO+TarMAC'])
+    assert some == [job for job in every if job.kind == 'reference' or job.label in ('IPPO', 'IPPO+TarMAC')]
+    assert len(some) == len(fig5.references) + 2 * 2
+    write_manifest(fig5, some, tmp_path, fig5.steps, [0, 1])
+    assert main(['benchmark', 'status', str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f'fig5-targets-comm: 0 done, 0 running, 0 started, {len(some)} waiting of {len(some)} jobs'
+    assert not [line for line in lines if 'MAPPO' in line], lines
+    assert main(['benchmark', 'run', 'fig5-targets-comm', '--settings', 'I2C', '--out', str(tmp_path)]) == 2
+    assert "--settings: the settings of fig5-targets-comm are MAPPO, IPPO" in capsys.readouterr().err
 
 
 def test_a_report_says_which_games_have_no_runs():
