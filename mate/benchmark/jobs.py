@@ -211,8 +211,8 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     steps = int(steps or experiment.steps)
     wanted = set(experiment.presets if presets is None else presets)
     games = [preset for preset in experiment.presets if preset in wanted]
-    labels = None if settings is None else set(settings)
-    chosen = [setting for setting in experiment.settings if labels is None or setting.label in labels]
+    labels = {setting.label for setting in experiment.settings} if settings is None else set(settings)
+    chosen = [setting for setting in experiment.settings if setting.label in labels]
     jobs = [] if experiment.population else [
         _reference(experiment, agent, preset, out) for preset in games for agent in experiment.references]
     for seed in seeds:
