@@ -56,11 +56,11 @@ def test_shipped_policy_beats_the_greedy_agent(name):
 
 
 @pytest.mark.slow
-def test_the_4v8_0_targets_play_well_off_the_floor():
-    """pretrained:mappo-target-4v8-0 (MAPPO-AS, each target rewarded with its own part of the team reward): on
-    seeds 0-19 against the greedy cameras, batched, far above random targets (the floor where team-reward MAPPO
-    stays) and level with the greedy targets (docs/results/pretrained/mappo-target-4v8-0.md: 0.352 against 0.327
-    on 320 fresh episodes)."""
+def test_the_4v8_0_targets_beat_the_greedy_targets():
+    """pretrained:mappo-target-4v8-0 (MAPPO at 10 M decisions, each target rewarded with its own part of the team
+    reward): on seeds 0-19 against the greedy cameras, batched, far above random targets (the floor where
+    team-reward MAPPO stays) and above the greedy targets (docs/results/pretrained/mappo-target-4v8-0-seeds-0-19.md:
+    0.382 against 0.329, paired +0.053 [0.035, 0.072]; on 320 fresh episodes 0.384 against 0.327)."""
     from mate.learn.evaluation import evaluate_policy
     from mate.teams import GreedyTeam, RandomTeam, play_batch
 
@@ -73,4 +73,4 @@ def test_the_4v8_0_targets_play_well_off_the_floor():
         results, _ = play_batch('MATE-4v8-0', GreedyTeam('camera', 20, (4, 8, 0), seed=0), targets, episodes=20,
                                 seed=0, max_episode_steps=5000)
         scores[name] = np.mean([r.normalized_target_return for r in results])
-    assert learned > scores['random'] + 0.3 and learned > scores['greedy'] - 0.05, (learned, scores)
+    assert learned > scores['random'] + 0.3 and learned > scores['greedy'], (learned, scores)
