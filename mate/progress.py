@@ -192,6 +192,26 @@ def training_rate(row: dict[str, str]) -> float | None:
     return int(row['env_steps']) / seconds if seconds > 0 else None
 
 
+def last_lines(path, window: int = 8192) -> list[str] | None:
+    """The complete lines (each ended by a newline; a last line still being written is left out) at the end of the
+    text file `path`, read from the file's end: `window` bytes, widened until they hold a whole line or the whole
+    file; None when there is no such file."""
+    try:
+        with open(path, 'rb') as f:
+            size = f.seek(0, os.SEEK_END)
+            while True:
+                start = max(size - window, 0)
+                f.seek(start)
+                complete = f.read(size - start).split(b'\n')[:-1]
+                if start > 0:
+                    complete = complete[1:]           # it may begin mid-line
+                if complete or start == 0:
+                    return [line.decode('utf-8', 'replace') for line in complete]
+                window *= 4
+    except FileNotFoundError:
+        return None
+
+
 def last_logged_row(run_dir) -> dict[str, str] | None:
     """The last complete row of `run_dir/progress.csv` ({column: text}, with an `env_steps` count), read from
     the file's end; None when there is none yet."""
@@ -199,17 +219,14 @@ def last_logged_row(run_dir) -> dict[str, str] | None:
     try:
         with open(path, 'rb') as f:
             header = f.readline().decode('utf-8', 'replace').rstrip('\r\n').split(',')
-            f.seek(0, os.SEEK_END)
-            f.seek(max(f.tell() - 8192, 0))
-            tail = f.read().decode('utf-8', 'replace')
     except FileNotFoundError:
         return None
+    rows = last_lines(path) or []
     if 'env_steps' not in header:
         return None
-    rows = tail.split('\n')[:-1]          # complete lines only: the last one may be half written
     column = header.index('env_steps')
     for line in reversed(rows):
-        fields = line.split(',')
+        fields = line.rstrip('\r').split(',')
         if len(fields) == len(header) and fields[column].isdigit():
             return dict(zip(header, fields))
     return None

@@ -1,12 +1,13 @@
 """The progress bar of `mate evaluate` / `mate train` (mate.progress): the count never passes the total, and
-the count and the remaining time stay visible in a narrow terminal (the status text is cut first)."""
+the count and the remaining time stay visible in a narrow terminal (the status text is cut first); the log
+readers read whole lines from a file's end."""
 
 import io
 
 import pytest
 from rich.console import Console
 
-from mate.progress import ProgressLine, displayed_count, progress_bar
+from mate.progress import ProgressLine, displayed_count, last_lines, progress_bar
 
 STATUS = '2,345 steps/s  coverage 0.575  return 123.4  entropy 1.23'
 
@@ -79,3 +80,17 @@ def test_a_terminal_gets_the_bar():
         assert not line.plain
         line.update(advance=5, status='x')
     assert 'evaluating' in out.getvalue() and '5/10' in out.getvalue()
+
+
+def test_last_lines_reads_whole_lines_from_the_end_of_a_file(tmp_path):
+    path = tmp_path / 'evaluations.jsonl'
+    assert last_lines(path) is None                                      # no file
+    path.write_text('')
+    assert last_lines(path) == []
+    long = [f'{k}:' + 'x' * 20_000 for k in range(3)]                    # each line longer than the first window
+    path.write_text('\n'.join(long) + '\n' + '{"half written')
+    lines = last_lines(path, window=1024)
+    assert lines and lines[-1] == long[-1]                               # widened until a whole line fits
+    assert all(line in long for line in lines)                           # no line cut at the window's start
+    path.write_text('a\nb\n')
+    assert last_lines(path, window=1024) == ['a', 'b']                   # the whole file when it is short

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import os
 import re
@@ -16,7 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..progress import last_logged_row, training_rate
+from ..progress import last_lines, last_logged_row, training_rate
 from .experiments import Experiment
 from .experiments import experiment as experiment_named
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
@@ -152,12 +153,19 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     return folder if _ends_on_an_evaluation(folder, _trainer_setting(command, 'eval_every') or 0) else None
 
 
+@functools.cache
+def _trainer_parser(name: str):
+    """(parser, config class) of `mate train NAME`, built once per process (a job asks it for several settings)."""
+    from ..learn.command import trainer_parser
+
+    parser, _, config_class = trainer_parser(name)
+    return parser, config_class
+
+
 def _trainer_setting(command: Sequence[str], name: str):
     """The value of the config field `name` (None when the trainer has none) in the `mate train` command line
     `command`: as given, else the trainer's default (parsed by the trainer's own parser)."""
-    from ..learn.command import trainer_parser
-
-    parser, _, config_class = trainer_parser(command[1])
+    parser, config_class = _trainer_parser(command[1])
     given = getattr(parser.parse_args(list(command[2:])), name, None)
     return given if given is not None else getattr(config_class, name, None)
 
@@ -302,8 +310,7 @@ def job_status(job: Job, steps: int) -> tuple[str, str]:
 def _last_evaluation(folder: Path) -> str:
     """'; evaluated coverage_rate 0.612 at 1,500,000': the last periodic evaluation of the training run in `folder`
     (its `evaluations.jsonl`), or '' before the first."""
-    path = folder / 'evaluations.jsonl'
-    lines = path.read_text().split('\n') if path.exists() else []
+    lines = last_lines(folder / 'evaluations.jsonl') or []            # from the file's end: one line a few kB
     last = next((json.loads(line) for line in reversed(lines) if line.strip()), None)
     return '' if last is None else f'; evaluated {last["metric"]} {last["mean"]:.3f} at {last["env_steps"]:,}'
 
