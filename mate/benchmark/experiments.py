@@ -9,6 +9,8 @@
     fig7-psro            PSRO-Nash, fictitious self-play and self-play on MATE-2v4-0: exploitability
     fig8-psro-4v8-0      PSRO-Nash on MATE-4v8-0 (>= 10 iterations): exploitability and meta-strategies
     diag-targets-4v8-0   short diagnostic runs of MAPPO targets on MATE-4v8-0 (one change each)
+    critic-targets-4v8-0 MAPPO's critic and IPPO's on MATE-4v8-0 targets
+    credit-targets-2v4-0 MAPPO targets on MATE-2v4-0 with their own parts of the team reward or the team reward
     witness-rllib-targets   RLlib's PPO beside mate's IPPO, MATE-2v4-0 targets (an independent implementation)
     witness-rllib-cameras   the same for flat MATE-4v8-9 cameras
 
@@ -257,6 +259,19 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
         claims=(Claim("the agent's own observation beside the state helps MAPPO's critic", 'MAPPO-AS', 'MAPPO'),
                 Claim('MAPPO-AS targets score above the greedy targets', 'MAPPO-AS', 'greedy'),
                 Claim('MAPPO-AS and IPPO targets agree', 'MAPPO-AS', 'IPPO', kind='agree'))),
+    Experiment(
+        'credit-targets-2v4-0', "diagnostics: MAPPO targets on MATE-2v4-0 with their own rewards or the team's",
+        'target', ('MATE-2v4-0',),
+        (Setting('MAPPO', 'mappo', OWN), Setting('MAPPO team reward', 'mappo'),
+         Setting('MAPPO full obs. team reward', 'mappo', ('--full-observability',))),
+        steps=10_000_000,        # fig6-observability's budget and evaluations: its MAPPO runs are reused
+        claim="each target's own part of the team reward, which lifts MAPPO targets off the floor of MATE-4v8-0, "
+              'helps them on MATE-2v4-0 too',
+        claims=(Claim("each target's own part of the team reward helps on MATE-2v4-0", 'MAPPO', 'MAPPO team reward'),
+                Claim('MAPPO targets with the team reward score above the greedy targets', 'MAPPO team reward',
+                      'greedy'),
+                Claim('full observability helps the targets with the team reward (Fig. 6 with the paper\'s reward)',
+                      'MAPPO full obs. team reward', 'MAPPO team reward'))),
     _witness('target', 'MATE-2v4-0', 'MATE-2v4-0 targets', references=('random', 'greedy')),
     _witness('camera', 'MATE-4v8-9', 'flat MATE-4v8-9 cameras', references=CAMERA_REFERENCES),
     Experiment(
