@@ -143,7 +143,8 @@ OWN = ('--credit', 'own')
 """The target learners of the figures' experiments are rewarded with each target's own part of the team reward (its
 tracking penalty and deliveries, which sum to the team's): with the team reward alone, MAPPO targets on MATE-4v8-0
 score -0.075, -0.060 and 0.133 over 1 M decisions in three seeds (random -0.09), with their own parts 0.253, 0.249
-and 0.262 (greedy 0.33; `diag-targets-4v8-0`, docs/results.md). The paper's learners used the team reward."""
+and 0.262 (greedy 0.33; `diag-targets-4v8-0`, docs/results.md). The paper's learners used the team reward. On
+MATE-2v4-0 the team reward is the better one (`credit-targets-2v4-0`); the figures keep one setting for both games."""
 OWN_PSRO = ('--target-credit', 'own')
 """The population experiments' target best responses are rewarded as the figures' target learners are (`OWN`): the
 team reward the paper used leaves MAPPO targets on the floor of MATE-4v8-0, and a population whose target best
