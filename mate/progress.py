@@ -221,11 +221,10 @@ def last_logged_row(run_dir) -> dict[str, str] | None:
             header = f.readline().decode('utf-8', 'replace').rstrip('\r\n').split(',')
     except FileNotFoundError:
         return None
-    rows = last_lines(path) or []
     if 'env_steps' not in header:
         return None
     column = header.index('env_steps')
-    for line in reversed(rows):
+    for line in reversed(last_lines(path) or []):
         fields = line.rstrip('\r').split(',')
         if len(fields) == len(header) and fields[column].isdigit():
             return dict(zip(header, fields))
