@@ -128,10 +128,8 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     `job`'s budget evaluates too (`_ends_on_an_evaluation`) and did not cut its last iteration short for its budget
     (`_cuts_its_last_iteration`), and `extend_jobs` continues it."""
     out, source = Path(out).resolve(), Path(source).resolve()
-    folder = source / job.dir.resolve().relative_to(out)
-    twin = dataclasses.replace(job, dir=folder, outputs=tuple(source / p.resolve().relative_to(out)
-                                                               for p in job.outputs))
-    log = folder / 'job.log'
+    twin = _twin(job, out, source)
+    folder, log = twin.dir, twin.dir / 'job.log'
     if not twin.done() or not log.exists():
         return None
     if shorter and not (job.kind == 'train' and job.commands[0][0] == 'train' and (folder / 'checkpoint.pt').exists()):
@@ -151,6 +149,14 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     if budget >= min(wanted_steps) or _cuts_its_last_iteration(command, budget):
         return None
     return folder if _ends_on_an_evaluation(folder, _trainer_setting(command, 'eval_every') or 0) else None
+
+
+def _twin(job: Job, out, source) -> Job:
+    """`job` of the benchmark directory `out` as it is in the benchmark directory `source` (its folder and result
+    files there)."""
+    out, source = Path(out).resolve(), Path(source).resolve()
+    return dataclasses.replace(job, dir=source / job.dir.resolve().relative_to(out),
+                               outputs=tuple(source / path.resolve().relative_to(out) for path in job.outputs))
 
 
 @functools.cache
@@ -197,13 +203,17 @@ def _twins(jobs: list[Job], out, sources: Sequence, shorter: bool):
     a runner's lock is a run in progress, never replaced) and a twin in one of the benchmark directories `sources`
     (the first found): `reusable`, with `shorter` as given."""
     for job in jobs:
-        if job.done() or (job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER)
-                                                   for path in job.dir.iterdir())):
+        if job.done() or _in_progress(job):
             continue
         folder = next((found for source in sources if (found := reusable(job, out, source, shorter)) is not None),
                       None)
         if folder is not None:
             yield job, folder
+
+
+def _in_progress(job: Job) -> bool:
+    """Whether `job`'s directory holds something besides a runner's lock: a run in progress, never replaced."""
+    return job.dir.exists() and any(path.name not in (JOB_LOCK, JOB_RUNNER) for path in job.dir.iterdir())
 
 
 def _copy(folder: Path, dest: Path, note_name: str, note: str, leave_out: Sequence[str] = ()) -> None:
@@ -222,7 +232,40 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
                                             'job ran the same command lines (its directory in place of this one)')
         say(f'{job.name}: reused from {folder} (the same command lines)')
         copied.append(job)
+    for job in jobs:
+        if job.done() or _in_progress(job):
+            continue
+        for source in sources:
+            if (ran_in := _ran_elsewhere(job, out, source)) is not None:
+                say(f'{job.name}: not taken from {_twin(job, out, source).dir}: it ran the same command lines in '
+                    f'{ran_in}, and a kept copy stands for a run only at the path it ran in (copy it there and give '
+                    'that path to --reuse)')
+                break
     return copied
+
+
+def _ran_elsewhere(job: Job, out, source) -> Path | None:
+    """Where the complete twin of `job` in the benchmark directory `source` ran, when it ran `job`'s very command
+    lines but for their paths, in a directory other than `source` (a `keep_results` copy moved away from where
+    it ran, which `reusable` cannot take); None otherwise."""
+    out, source = Path(out).resolve(), Path(source).resolve()
+    twin = _twin(job, out, source)
+    log = twin.dir / 'job.log'
+    if not twin.done() or not log.exists():
+        return None
+    expected = {_masked(' '.join(command))[0] for command in job.commands}
+    logged, logged_paths, _ = _logged_commands(log)
+    if logged != expected or not logged_paths:
+        return None
+    wanted = {source / path.relative_to(out) for command in job.commands for path in _masked(' '.join(command))[1]}
+    if logged_paths == wanted:
+        return None
+    depth = len(job.dir.resolve().relative_to(out).parts)             # 'runs/NAME': the benchmark directory 2 up
+    for path in sorted(logged_paths):
+        for ancestor in (path, *path.parents):
+            if ancestor.name == job.dir.name and len(ancestor.parents) >= depth:
+                return ancestor.parents[depth - 1]
+    return Path(os.path.commonpath([str(path) for path in logged_paths]))
 
 
 def extend_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:

@@ -13,7 +13,7 @@ import pytest
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
 from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _cuts_its_last_iteration, _ends_on_an_evaluation,
-                                      job_status, reusable, write_manifest)
+                                      job_status, reusable, reuse_jobs, write_manifest)
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, parse_settings, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
@@ -414,6 +414,28 @@ def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_
     assert rebuilt == full
     assert main(['benchmark', 'keep', str(kept_dir), str(kept_dir)]) == 2
     assert 'is the benchmark directory itself' in capsys.readouterr().err
+
+
+def test_reuse_from_a_kept_copy_elsewhere_says_where_its_jobs_ran(smoke, tmp_path):
+    """A kept copy (`mate benchmark keep`) holds its jobs' logs with the paths they ran at, so `--reuse` takes its
+    jobs only at that path: from anywhere else none is copied and each is named with the directory it ran in (the
+    runner would otherwise train them again without a word); from where they ran, all are taken."""
+    runs, _ = smoke
+    kept = tmp_path / 'kept'
+    assert main(['benchmark', 'keep', str(runs), str(kept)]) == 0
+    exp = experiment('smoke')
+    other = tmp_path / 'other'
+    log = next((runs / 'runs').glob('*/job.log')).read_text()
+    threads = int(re.search(r'--threads (\d+)', log).group(1))           # the fixture's: the machine's cores
+    jobs = plan(exp, range(exp.seeds), other, threads=threads)
+    said = []
+    assert reuse_jobs(jobs, other, [kept], say=said.append) == []
+    assert len(said) == len(jobs)
+    assert all('not taken from' in line and f'ran the same command lines in {runs.resolve()},' in line
+               for line in said), said[:2]
+    said.clear()
+    assert len(reuse_jobs(jobs, other, [runs], say=said.append)) == len(jobs)
+    assert not any('not taken' in line for line in said)
 
 
 def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
