@@ -134,12 +134,7 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
         return None
     if shorter and not (job.kind == 'train' and job.commands[0][0] == 'train' and (folder / 'checkpoint.pt').exists()):
         return None
-    expected, wanted_paths, wanted_steps = set(), set(), set()
-    for command in job.commands:
-        line, paths, steps = _masked(' '.join(command), shorter)      # as `run_command` logs it
-        expected.add(line)
-        wanted_paths |= {source / path.relative_to(out) for path in paths}
-        wanted_steps |= steps
+    expected, wanted_paths, wanted_steps = _wanted_commands(job, out, source, shorter)
     logged, logged_paths, logged_steps = _logged_commands(log, shorter)
     if logged != expected or logged_paths != wanted_paths:
         return None
@@ -149,6 +144,18 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     if budget >= min(wanted_steps) or _cuts_its_last_iteration(command, budget):
         return None
     return folder if _ends_on_an_evaluation(folder, _trainer_setting(command, 'eval_every') or 0) else None
+
+
+def _wanted_commands(job: Job, out: Path, source: Path, budget: bool = False) -> tuple[set[str], set[Path], set[int]]:
+    """`job`'s command lines as its twin in `source` would have logged them (`_masked`, with `budget` as given): the
+    masked lines, their paths moved from `out` to `source`, and their budgets."""
+    lines, paths, steps = set(), set(), set()
+    for command in job.commands:
+        line, found, budgets = _masked(' '.join(command), budget)     # as `run_command` logs it
+        lines.add(line)
+        paths |= {source / path.relative_to(out) for path in found}
+        steps |= budgets
+    return lines, paths, steps
 
 
 def _twin(job: Job, out, source) -> Job:
@@ -253,12 +260,9 @@ def _ran_elsewhere(job: Job, out, source) -> Path | None:
     log = twin.dir / 'job.log'
     if not twin.done() or not log.exists():
         return None
-    expected = {_masked(' '.join(command))[0] for command in job.commands}
+    expected, wanted, _ = _wanted_commands(job, out, source)
     logged, logged_paths, _ = _logged_commands(log)
-    if logged != expected or not logged_paths:
-        return None
-    wanted = {source / path.relative_to(out) for command in job.commands for path in _masked(' '.join(command))[1]}
-    if logged_paths == wanted:
+    if logged != expected or not logged_paths or logged_paths == wanted:
         return None
     depth = len(job.dir.resolve().relative_to(out).parts)             # 'runs/NAME': the benchmark directory 2 up
     for path in sorted(logged_paths):
