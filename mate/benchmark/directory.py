@@ -128,10 +128,10 @@ def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     `job`'s budget evaluates too (`_ends_on_an_evaluation`) and did not cut its last iteration short for its budget
     (`_cuts_its_last_iteration`), and `extend_jobs` continues it."""
     out, source = Path(out).resolve(), Path(source).resolve()
-    twin = _twin(job, out, source)
-    folder, log = twin.dir, twin.dir / 'job.log'
-    if not twin.done() or not log.exists():
+    twin = _complete_twin(job, out, source)
+    if twin is None:
         return None
+    folder, log = twin.dir, twin.dir / 'job.log'
     if shorter and not (job.kind == 'train' and job.commands[0][0] == 'train' and (folder / 'checkpoint.pt').exists()):
         return None
     expected, wanted_paths, wanted_steps = _wanted_commands(job, out, source, shorter)
@@ -164,6 +164,13 @@ def _twin(job: Job, out, source) -> Job:
     out, source = Path(out).resolve(), Path(source).resolve()
     return dataclasses.replace(job, dir=source / job.dir.resolve().relative_to(out),
                                outputs=tuple(source / path.resolve().relative_to(out) for path in job.outputs))
+
+
+def _complete_twin(job: Job, out, source) -> Job | None:
+    """`_twin(job, out, source)` when it is done and has its command log (`job.log`), the two things a twin must have
+    before its command lines are compared with `job`'s; None otherwise."""
+    twin = _twin(job, out, source)
+    return twin if twin.done() and (twin.dir / 'job.log').exists() else None
 
 
 @functools.cache
@@ -256,12 +263,10 @@ def _ran_elsewhere(job: Job, out, source) -> Path | None:
     lines but for their paths, in a directory other than `source` (a `keep_results` copy moved away from where
     it ran, which `reusable` cannot take); None otherwise."""
     out, source = Path(out).resolve(), Path(source).resolve()
-    twin = _twin(job, out, source)
-    log = twin.dir / 'job.log'
-    if not twin.done() or not log.exists():
+    if (twin := _complete_twin(job, out, source)) is None:
         return None
     expected, wanted, _ = _wanted_commands(job, out, source)
-    logged, logged_paths, _ = _logged_commands(log)
+    logged, logged_paths, _ = _logged_commands(twin.dir / 'job.log')
     if logged != expected or not logged_paths or logged_paths == wanted:
         return None
     depth = len(job.dir.resolve().relative_to(out).parts)             # 'runs/NAME': the benchmark directory 2 up
