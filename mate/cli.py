@@ -76,6 +76,7 @@ def _evaluate(args: argparse.Namespace) -> int:
     from .progress import ProgressLine
     from .registration import make
 
+    require_torch_agents((args.camera_agent, args.target_agent))
     batched, reason = _evaluation_path(args)
     if batched:
         return _evaluate_batched(args)
@@ -151,7 +152,7 @@ def _say_true_state(args: argparse.Namespace) -> None:
 
 def _policy_device(args: argparse.Namespace):
     """The torch device of `mate evaluate --device` for batched policies ('cpu' when no policy plays: no torch)."""
-    from .learn.device import parse_device, resolve_device
+    from .learn.device import parse_device, resolve_device   # imports no torch
 
     parse_device(args.device)
     agents = (args.camera_agent, args.target_agent)
@@ -160,11 +161,34 @@ def _policy_device(args: argparse.Namespace):
     return resolve_device(args.device)
 
 
-def _recorder(args: argparse.Namespace):
-    from . import evaluate as ev
+DEFAULT_GIF = 'mate-evaluate.gif'
+"""Where `mate evaluate` saves the first episode when no --save-gif is given (and the render extra is installed)."""
 
+
+def require_torch_agents(agents) -> None:
+    """A one-line error when trained policies (`checkpoint:PATH`, `pretrained:NAME`) are asked for without torch."""
+    from .extras import require
+
+    for agent in agents:
+        if agent.partition(':')[0] in ('checkpoint', 'pretrained'):
+            require('train', f'the agent {agent}')
+
+
+def _recorder(args: argparse.Namespace):
+    """The frame recorder of the first episode, or None when nothing is recorded. Without the render extra the
+    default GIF is left out with a note, while an explicit --save-gif or --save-video is a one-line error."""
+    from . import evaluate as ev
+    from .extras import missing, require
+
+    if args.save_gif is None:
+        args.save_gif = DEFAULT_GIF
+        if not args.no_render and missing('render'):
+            console.print("no GIF of the first episode: rendering needs the render extra (pip install "
+                          "'mate[render]'); --no-render says nothing", soft_wrap=True, highlight=False)
+            args.save_gif = ''
     if args.no_render or not (args.save_gif or args.save_video):
         return None
+    require('render', '--save-gif' if args.save_gif else '--save-video')
     return ev.FrameRecorder(args.frame_size, args.frame_every, hud=not args.no_hud,
                             max_episode_steps=args.max_episode_steps)
 
@@ -335,19 +359,28 @@ def _rllib_train(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    from .extras import require
     from .learn import command
+
+    require('train', 'mate train')
 
     return command.run(args, console)
 
 
 def _psro(args: argparse.Namespace) -> int:
+    from .extras import require
     from .learn.population import command
+
+    require('train', 'mate psro')
 
     return command.run(args, console)
 
 
 def _benchmark(args: argparse.Namespace) -> int:
     from .benchmark import command
+    from .extras import require
+
+    require('train', 'mate benchmark')   # its jobs train, its reports need scipy's statistics and matplotlib
 
     return command.run(args, console)
 
@@ -406,8 +439,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help='with --render-communication: draw requests orange dashed, replies purple solid and '
                                'broadcasts dashed in the team colour (default: blue camera / red target arrows)')
     evaluate.add_argument('--no-render', action='store_true', help='record nothing (no GIF, no video)')
-    evaluate.add_argument('--save-gif', default='mate-evaluate.gif', metavar='PATH',
-                          help='GIF of the first episode (default mate-evaluate.gif; empty string: none)')
+    evaluate.add_argument('--save-gif', default=None, metavar='PATH',
+                          help=f'GIF of the first episode (default {DEFAULT_GIF} when the render extra is installed; '
+                               'empty string: none)')
     evaluate.add_argument('--save-video', default=None, metavar='PATH', help='MP4 of the first episode')
     evaluate.add_argument('--frame-size', type=number(int, minimum=16), default=600,
                           help='recorded frame size in pixels, at least 16 (default 600)')

@@ -16,7 +16,6 @@ the extended pools (spec training.md §5.5).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linprog
 
 __all__ = ['SOLVERS', 'effective_policies', 'exploitability', 'last_strategies', 'meta_strategies', 'solve_zero_sum',
            'uniform_strategies']
@@ -46,6 +45,8 @@ def _maximin(matrix: np.ndarray) -> np.ndarray:
 
     maximise v  s.t.  v - (matrix.T @ p)_j <= 0 for every column j,  sum(p) = 1,  p >= 0.
     """
+    from scipy.optimize import linprog   # here, so that `mate psro -h` and the parser need no scipy
+
     rows, columns = matrix.shape
     cost = np.zeros(rows + 1)
     cost[-1] = -1.0
