@@ -22,7 +22,9 @@ from .constants import *  # noqa: F403  (the original re-exports its constants a
 from .core.snapshot import SnapshotError
 from .env import MultiAgentTracking
 from .messages import Message, MessageChannel, Team
+from .protocol import PolicyScore, score_policy
 from .registration import WrapperSpec, make, make_environment, registered_ids
+from .team_vector import SingleTeamVecEnv, make_team_vec
 from .spaces import (camera_coordinate_mask_of, camera_observation_indices_of, camera_observation_slices_of,
                      camera_observation_space_of, coordinate_mask_of, observation_indices_of, observation_slices_of,
                      observation_space_of, state_space_of, target_coordinate_mask_of, target_observation_indices_of,

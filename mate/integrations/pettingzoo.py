@@ -28,6 +28,14 @@ configuration's `max_episode_steps` or after `max_cycles` steps, whichever comes
 `agents` is empty until the next reset.
 
 Rendering: `render_mode` is passed to the single env and `render()` delegates to it.
+
+One team against a built-in opponent: `parallel_env(..., opponent='greedy', team='camera')` makes only that team's
+agents (`camera_0 ..`), and plays the other team inside with a batched team of `mate.teams` (an agent name with a
+batched form, or a factory `f(num_envs, counts, seed)` as `mate.SingleTeamVecEnv` takes). `reset(seed=s)` seeds the
+opponent with s too, so the game is the one `mate.SingleTeamVecEnv`, `mate evaluate --seed s` and the `MultiCamera`
+wrapper play for that seed. `reward` chooses the agents' rewards as `mate.SingleTeamVecEnv` does: 'team' (the team
+reward, repeated), 'coverage' (cameras), or per agent, 'own' (targets: each target's own part of the team reward)
+and 'difference' (cameras: each camera's marginal share of the coverage rate).
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from ..env import MultiAgentTracking, agent_action
+from ..messages import Team
 
 __all__ = ['MateParallelEnv', 'parallel_env', 'env', 'raw_env']
 
@@ -56,15 +65,22 @@ class MateParallelEnv(ParallelEnv):
     }
 
     def __init__(self, config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
-                 **overrides: Any) -> None:
+                 opponent=None, team: str | None = None, reward: str = 'team', **overrides: Any) -> None:
         if max_cycles is not None and (not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1):
             raise ValueError(f'max_cycles must be a positive integer or None, got {max_cycles!r}')
+        if opponent is None and (team is not None or reward != 'team'):
+            raise ValueError('team and reward choose the side played against an opponent: give opponent too '
+                             "(e.g. opponent='greedy')")
         self.env = MultiAgentTracking(config, render_mode=render_mode, **overrides)
         self.render_mode = render_mode
         self.max_cycles = max_cycles
         nc, nt = self.env.num_cameras, self.env.num_targets
         self.camera_agents = [f'camera_{i}' for i in range(nc)]
         self.target_agents = [f'target_{i}' for i in range(nt)]
+        self.opponent = None if opponent is None else _Opponent(self.env, opponent, team or 'camera', reward)
+        if self.opponent is not None:
+            self.camera_agents, self.target_agents = ((self.camera_agents, []) if self.opponent.team is Team.CAMERA
+                                                      else ([], self.target_agents))
         self.possible_agents = self.camera_agents + self.target_agents
         self.agents: list[str] = []
         self._index = {agent: i for i, agent in enumerate(self.camera_agents)}
@@ -88,6 +104,8 @@ class MateParallelEnv(ParallelEnv):
         (camera_obs, target_obs), (camera_infos, target_infos) = self.env.reset(seed=seed, options=options)
         self.agents = list(self.possible_agents)
         self.num_cycles = 0
+        if self.opponent is not None:
+            self.opponent.reset(seed, camera_obs, target_obs)
         return self._per_agent(camera_obs, target_obs), self._per_agent(camera_infos, target_infos)
 
     def step(self, actions: dict[str, Any]):
@@ -102,6 +120,8 @@ class MateParallelEnv(ParallelEnv):
                 raise ValueError(f'unknown agent {agent!r}; the agents are {", ".join(self.possible_agents)}')
             team = self._camera_actions if agent.startswith('camera_') else self._target_actions
             team[self._index[agent]] = self._agent_action(agent, action)
+        if self.opponent is not None:
+            self.opponent.act(self._camera_actions, self._target_actions)
         (camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, infos = self.env.step(
             (self._camera_actions, self._target_actions))
         self.num_cycles += 1
@@ -109,6 +129,10 @@ class MateParallelEnv(ParallelEnv):
         observations = self._per_agent(camera_obs, target_obs)
         rewards = {**dict.fromkeys(self.camera_agents, float(camera_reward)),
                    **dict.fromkeys(self.target_agents, float(target_reward))}
+        if self.opponent is not None:
+            rewards = dict(zip(self.possible_agents, self.opponent.observed(
+                camera_obs, target_obs, camera_reward if self.camera_agents else target_reward, infos).tolist(),
+                               strict=True))
         terminations = dict.fromkeys(self.possible_agents, bool(terminated))
         truncations = dict.fromkeys(self.possible_agents, bool(truncated) and not terminated)
         infos = self._per_agent(*infos)
@@ -121,8 +145,8 @@ class MateParallelEnv(ParallelEnv):
         return agent_action(agent, action, self.action_spaces[agent].shape)
 
     def _per_agent(self, camera_values, target_values) -> dict[str, Any]:
-        out = dict(zip(self.camera_agents, camera_values, strict=True))
-        out.update(zip(self.target_agents, target_values, strict=True))
+        out = dict(zip(self.camera_agents, camera_values, strict=len(self.camera_agents) > 0))
+        out.update(zip(self.target_agents, target_values, strict=len(self.target_agents) > 0))
         return out
 
     def state(self) -> np.ndarray:
@@ -138,10 +162,64 @@ class MateParallelEnv(ParallelEnv):
         return 'mate_v0'
 
 
+class _Opponent:
+    """The other team of a one-team PettingZoo env: a batched team of one row that acts inside `step`, and the
+    own agents' rewards of the chosen kind."""
+
+    def __init__(self, env: MultiAgentTracking, opponent, team, reward: str) -> None:
+        from ..team_vector import REWARDS, opponent_factory
+        from ..teams.protocol import as_team
+
+        self.env, self.team, self.reward = env, as_team(team), reward
+        name = self.team.name.lower()
+        if reward not in REWARDS[name]:
+            raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+        self.counts = (env.num_cameras, env.num_targets, env.num_obstacles)
+        self.factory = opponent_factory(opponent, self.team)
+        self.players = self.factory(1, self.counts, None)
+        self._other_obs = None
+        self._before = None
+
+    def _other(self, camera_obs, target_obs) -> np.ndarray:
+        return (target_obs if self.team is Team.CAMERA else camera_obs)[None]
+
+    def reset(self, seed, camera_obs, target_obs) -> None:
+        if seed is not None:
+            self.players = self.factory(1, self.counts, int(seed))
+        self._other_obs = self._other(camera_obs, target_obs)
+        self.players.reset(self._other_obs, np.ones(1, dtype=bool))
+
+    def act(self, camera_actions: np.ndarray, target_actions: np.ndarray) -> None:
+        """Write the opponents' actions into their team's row of the joint action."""
+        other = self.players.act(self._other_obs)[0]
+        (target_actions if self.team is Team.CAMERA else camera_actions)[:] = other
+        world = self.env._world
+        self._before = (world.target_bounty[0].copy(), world.target_freight[0].copy())
+
+    def observed(self, camera_obs, target_obs, team_reward: float, infos) -> np.ndarray:
+        """The own agents' rewards (N,) of the step just played (`team_reward`: the own team's); keeps the
+        opponents' observations."""
+        from ..team_vector import difference_rewards, own_rewards
+
+        self._other_obs = self._other(camera_obs, target_obs)
+        world = self.env._world
+        own_infos = infos[0] if self.team is Team.CAMERA else infos[1]
+        count = len(own_infos)
+        if self.reward == 'team':
+            return np.full(count, float(team_reward))
+        if self.reward == 'coverage':
+            return np.full(count, float(own_infos[0]['coverage_rate']))
+        if self.reward == 'difference':
+            return difference_rewards(world.camera_target_view_mask[0])
+        bounty, freight = self._before
+        return own_rewards(bounty, freight, world.camera_target_view_mask[0].any(axis=0), world.target_done[0])
+
+
 def parallel_env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,
-                 **overrides: Any) -> MateParallelEnv:
-    """MATE under PettingZoo's Parallel API (see the module docstring)."""
-    return MateParallelEnv(config, render_mode=render_mode, max_cycles=max_cycles, **overrides)
+                 opponent=None, team: str | None = None, reward: str = 'team', **overrides: Any) -> MateParallelEnv:
+    """MATE under PettingZoo's Parallel API (see the module docstring); with `opponent`, one team's agents only."""
+    return MateParallelEnv(config, render_mode=render_mode, max_cycles=max_cycles, opponent=opponent, team=team,
+                           reward=reward, **overrides)
 
 
 class _CheckedParallelToAEC(parallel_to_aec_wrapper):

@@ -44,6 +44,8 @@ from ..agents.utils import normalize_observation
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..options import option
+from ..protocol import PAPER_SETTINGS
+from ..team_vector import difference_rewards, own_rewards
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory, camera_sightings
@@ -58,13 +60,6 @@ rate ('difference'); a target's own part of the team's raw reward ('own')."""
 CAMERA_REWARDS = ('coverage', 'mixed')
 """What a camera team is rewarded with per env step: the coverage rate (the paper's cooperative runs), or
 0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, spec training.md §5.1)."""
-PAPER_SETTINGS = {
-    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5),
-    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10),
-}
-"""Paper defaults per trained team (spec training.md §0): preset and frame skip (horizon: 500 decisions)."""
-
-
 def game_of(config: str | None, team: str) -> tuple[str, str | None]:
     """(env_id, config path) of a `--config` value: a registered preset name (with or without '-v0'), a YAML/JSON
     path, or None for the paper preset of `team`. A bad name or file raises `ConfigError` listing the presets."""
@@ -143,36 +138,6 @@ class TeamEnvConfig:
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
     """The population players' camera reward (spec training.md §5.1) from one env step's (B,) arrays."""
     return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
-
-
-def own_rewards(bounty: np.ndarray, freight: np.ndarray, tracked: np.ndarray, delivered: np.ndarray) -> np.ndarray:
-    """Each target's own part of one env step's raw target-team reward (spec environment.md §4.6), (B, Nt).
-
-    Args:
-        bounty, freight: (B, Nt) each target's remaining bounty and freight before the step.
-        tracked: (B, Nt) whether some camera tracks the target at the step.
-        delivered: (B, Nt) whether the target delivered its cargo at the step (`target_done`).
-
-    A tracked target that still carries bounty costs 1; a delivery pays the freight plus the bounty left after
-    this step's decay. Summed over the targets: the team's dense reward of the step.
-    """
-    penalty = (tracked & (bounty > 0)).astype(np.float64)
-    paid = np.where(delivered, freight + np.maximum(bounty - tracked, 0), 0)
-    return paid - penalty
-
-
-def difference_rewards(sees: np.ndarray) -> np.ndarray:
-    """Each camera's marginal contribution to the coverage rate (the *difference reward*).
-
-    `sees` (..., Nc, Nt) bool: camera c tracks target t (the flags of the cameras' raw observations).
-    Returns (..., Nc) float64: the coverage rate minus the coverage rate the other cameras would give
-    without camera c, i.e. the share of the Nt targets that camera c alone tracks. A camera changes
-    its own difference reward exactly as much as it changes the team's coverage rate, while the other
-    cameras' sightings, which it does not control, no longer enter its reward.
-    """
-    sees = np.asarray(sees, dtype=bool)
-    watchers = sees.sum(axis=-2, keepdims=True)                       # (..., 1, Nt) cameras tracking each target
-    return (sees & (watchers == 1)).sum(axis=-1) / sees.shape[-1]
 
 
 def compress(x: np.ndarray) -> np.ndarray:

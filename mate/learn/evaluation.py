@@ -29,19 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .spec import PolicySpec
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'EVALUATION_SEEDS', 'Evaluator', 'TEAM_METRIC', 'evaluate_policy',
            'read_evaluations']
-
-EVALUATION_SEEDS = 1_000_000
-"""First env seed of the periodic evaluation episodes."""
-ABSOLUTE_SEEDS = 2_000_000
-"""First env seed of the final evaluation of the best policy (the absolute metric)."""
-ABSOLUTE_FACTOR = 10
-"""The absolute metric plays this many times the periodic evaluation's episodes."""
-TEAM_METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}
-"""The metric a team is scored by (the paper's Fig. 4 and Figs. 5-6)."""
 
 
 def evaluate_policy(policy, episodes: int, first_seed: int, max_episode_steps: int | None = None,

@@ -6,10 +6,13 @@ SingleTarget) exposes one agent and drives its teammates with agents as well. Op
 are `mate.agents` objects: they observe, talk through the wrapped env (`group_step`), and act inside
 `step`.
 
-Randomness: when the entities are shuffled every episode (`env.shuffle_entities`), the agents are
-shuffled too, with the unwrapped env's `np_random` (seeded by `reset(seed=...)`); a seeded reset also
-reseeds the agent prototypes and every agent with child seeds from that generator. The env's own
-episode stream is never touched, so the same seed gives the same episode with or without these wrappers.
+Randomness: a seeded reset `reset(seed=s)` seeds the opponents' prototype with s and makes the opponents its
+fresh copies (`prototype.spawn(N)`), in slot order, as `mate evaluate` seeds the agents of its episode with seed s:
+the same seed gives the same game here, in `mate.SingleTeamVecEnv`, the PettingZoo adapters with an opponent and
+`mate evaluate` (with the greedy agents: the greedy batched teams play the same draws). A reset without a seed lets
+the opponents go on with their streams. The teammates of `SingleCamera`/`SingleTarget` (and the controlled slot,
+when the env shuffles its entities) are drawn from the unwrapped env's `np_random`. The env's own episode stream is
+never touched, so the same seed gives the same episode with or without these wrappers.
 """
 
 from __future__ import annotations
@@ -133,6 +136,12 @@ class SingleTeamHelper(MateWrapper):
             raise TypeError(f'{wrapper}: {argument} must be a {_AGENT_BASES[team].__name__} instance '
                             f'(an agent of team {team.name}), got {agent!r}')
 
+    def _seed_opponents(self, seed: int | None) -> None:
+        """On a seeded reset: the opponents' prototype seeded with `seed`, the opponents its fresh copies."""
+        if seed is not None:
+            self.opponent_agent.seed(seed)
+            self.opponent_agents = self.opponent_agent.spawn(self.num_opponents)
+
     def _seed_agents(self, *agents) -> list[int]:
         """Reseed `agents` in turn with child seeds drawn from the env's `np_random`; returns the seeds."""
         rng = self.env.unwrapped.np_random
@@ -169,8 +178,7 @@ class SingleTeamMultiAgent(SingleTeamHelper):
         self._check_agent(opponent_agent, self.opponent_team, f'{self.opponent_team.name.lower()}_agent',
                           type(self).__name__)
         self.opponent_agent = opponent_agent
-        self.opponent_agents_ordered = opponent_agent.spawn(self.num_opponents)
-        self.opponent_agents = list(self.opponent_agents_ordered)
+        self.opponent_agents = opponent_agent.spawn(self.num_opponents)
         self.action_space = self.teammate_joint_action_space
         self.observation_space = self.teammate_joint_observation_space
         self.opponent_observation = None
@@ -181,9 +189,7 @@ class SingleTeamMultiAgent(SingleTeamHelper):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, infos = self.env.reset(seed=seed, options=options)
-        if seed is not None:
-            self._seed_agents(self.opponent_agent, *self.opponent_agents_ordered)
-        self.opponent_agents = self._shuffled(self.opponent_agents_ordered)
+        self._seed_opponents(seed)
         self.opponent_observation, self.opponent_infos = self.opponent(observation), None
         group_reset(self.opponent_agents, self.opponent_observation)
         return self.own(observation), TeamInfos(self.own(infos))
@@ -229,9 +235,8 @@ class SingleTeamSingleAgent(SingleTeamHelper):
         self._check_agent(opponent_agent, self.opponent_team, f'{self.opponent_team.name.lower()}_agent', wrapper)
         self.teammate_agent, self.opponent_agent = teammate_agent, opponent_agent
         self.teammate_agents_ordered = teammate_agent.spawn(self.num_teammates - 1)
-        self.opponent_agents_ordered = opponent_agent.spawn(self.num_opponents)
         self.teammate_agents = list(self.teammate_agents_ordered)
-        self.opponent_agents = list(self.opponent_agents_ordered)
+        self.opponent_agents = opponent_agent.spawn(self.num_opponents)
         self.action_space = self.teammate_action_space
         self.observation_space = self.teammate_observation_space
         self.index = self.num_teammates - 1
@@ -248,9 +253,8 @@ class SingleTeamSingleAgent(SingleTeamHelper):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, infos = self.env.reset(seed=seed, options=options)
         if seed is not None:
-            self._seed_agents(self.teammate_agent, self.opponent_agent,
-                              *self.teammate_agents_ordered, *self.opponent_agents_ordered)
-        self.opponent_agents = self._shuffled(self.opponent_agents_ordered)
+            self._seed_agents(self.teammate_agent, *self.teammate_agents_ordered)
+        self._seed_opponents(seed)
         self.opponent_observation, self.opponent_infos = self.opponent(observation), None
         group_reset(self.opponent_agents, self.opponent_observation)
 

@@ -1,0 +1,267 @@
+"""The benchmark's evaluation protocol for any policy: held-out seeds, the absolute metric, references on the same games.
+
+    import mate
+
+    def policy(observations):                     # (B, N, D) float64 raw observations -> (B, N, 2) actions
+        return np.zeros((*observations.shape[:2], 2))
+
+    score = mate.score_policy(policy, team='camera')                # MATE-4v8-9 against the greedy targets
+    print(score)                                  # the absolute metric beside the references', one line each
+    score.absolute_mean, score.reference_means    # 0.29..., {'random': 0.28, 'greedy': 0.61, 'upper-bound': 0.85}
+
+It is the protocol `mate benchmark` scores its own learners with (Agarwal et al. 2021; Gorsane et al. 2022):
+
+* **evaluation episodes**: `episodes` games on env seeds `EVALUATION_SEEDS`, `EVALUATION_SEEDS + 1`, ..., the seeds
+  every periodic evaluation of every benchmark run plays (`evaluate`: call it during training for a curve);
+* **the absolute metric**: `ABSOLUTE_FACTOR` x `episodes` games on seeds `ABSOLUTE_SEEDS`, ... (never trained on,
+  never used to choose a policy), the number a benchmark table reports;
+* **the references** (random and greedy, and for cameras the upper-bound controller that sees the true state) on
+  the very same games, against the same opponent.
+
+Each game is one episode cut at `max_episode_steps` env steps (default `horizon(team)`: the benchmark's 500 decisions
+at the paper's frame skip, 2,500 env steps for cameras, 5,000 for targets), against the other team's `opponent`
+('greedy' by default), seeded as the env: row i of a batch is the game `mate evaluate --seed S` plays as its episode
+i. The metric is the team's: the coverage rate for cameras, the normalised target return for targets
+(`TEAM_METRIC`).
+
+A policy is one of:
+
+* a callable `policy(observations) -> actions`: raw observations (B, N, D) float64 of the team's N agents in B
+  games (the layouts of `mate.spaces`; `mate.SingleTeamVecEnv` gives the same arrays), actions (B, N, 2) in the
+  env's units (cameras: rotation and zoom in degrees, targets: a displacement), called once per env step;
+* a batched team of `mate.teams`' protocol (`reset(observations, rows)`, `act(observations)`), given as a factory
+  `team_factory(num_envs, counts, seed)` since the protocol plays batches of different sizes;
+* a built-in agent name of `mate evaluate` with a batched form ('random', 'greedy', 'upper-bound',
+  'pretrained:NAME', 'checkpoint:PATH'; the last two need the train extra).
+
+`run_dir`: the run files `mate benchmark report` reads: `evaluations.jsonl` (one line per evaluation, at
+`env_steps` decisions) and `absolute.json` (the absolute metric's episodes), in the format of `mate train`'s runs,
+and `references.json` (the references' episodes, for the user; a benchmark directory plays its own reference jobs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .teams.protocol import as_team
+
+__all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'PAPER_SETTINGS', 'PolicyScore',
+           'REFERENCES', 'TEAM_METRIC', 'evaluate', 'horizon', 'paper_config', 'score_policy']
+
+EVALUATION_SEEDS = 1_000_000
+"""First env seed of the periodic evaluation episodes."""
+ABSOLUTE_SEEDS = 2_000_000
+"""First env seed of the final evaluation of the best policy (the absolute metric)."""
+ABSOLUTE_FACTOR = 10
+"""The absolute metric plays this many times the periodic evaluation's episodes."""
+TEAM_METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}
+"""The metric a team is scored by (the paper's Fig. 4 and Figs. 5-6)."""
+PAPER_SETTINGS = {
+    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5),
+    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10),
+}
+"""The paper's game and frame skip per trained team (a training episode: 500 decisions)."""
+REFERENCES = {'camera': ('random', 'greedy', 'upper-bound'), 'target': ('random', 'greedy')}
+"""The rule teams the benchmark plays as references on the evaluation games, per team."""
+DEFAULT_EPISODES = 32
+"""Episodes of one evaluation (the benchmark's `eval_episodes`); the absolute metric plays ten times as many."""
+
+
+def horizon(team) -> int:
+    """Env steps per episode of the protocol for `team` ('camera' or 'target'): 500 decisions at the paper's frame
+    skip (2,500 for cameras, 5,000 for targets)."""
+    return 500 * PAPER_SETTINGS[as_team(team).name.lower()]['frame_skip']
+
+
+def paper_config(team) -> str:
+    """The paper's preset for `team`: 'MATE-4v8-9' for cameras, 'MATE-2v4-0' for targets."""
+    return PAPER_SETTINGS[as_team(team).name.lower()]['env_id'].removesuffix('-v0')
+
+
+class CallableTeam:
+    """A batched team (`mate.teams` protocol) that asks `policy(observations) -> actions` at every env step.
+
+    Args:
+        policy: (B, N, D) float64 raw observations -> (B, N, 2) actions in env units.
+        team: 'camera' or 'target'.
+        num_envs: B. An answer of another shape, or with NaN or inf, raises ValueError naming the expected shape.
+    """
+
+    def __init__(self, policy: Callable, team, num_envs: int) -> None:
+        self.policy, self.team, self.num_envs = policy, as_team(team), int(num_envs)
+
+    def reset(self, observation: np.ndarray, rows: np.ndarray) -> None:
+        """Nothing to do: a callable policy keeps no state between steps (a stateful one is a batched team)."""
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        actions = np.asarray(self.policy(observation), dtype=np.float64)
+        expected = (*observation.shape[:2], 2)
+        if actions.shape != expected:
+            raise ValueError(f'the policy answered actions of shape {actions.shape} for observations of shape '
+                             f'{observation.shape}; expected {expected} (games, agents, 2)')
+        if not np.isfinite(actions).all():
+            raise ValueError('the policy answered NaN or inf actions; every action must be finite')
+        return actions
+
+
+@dataclasses.dataclass
+class PolicyScore:
+    """What `score_policy` measured: every episode of every part, and the means.
+
+    Attributes:
+        team, config, metric: the team scored, its game, and the metric (`TEAM_METRIC`).
+        evaluation: the policy's evaluation episodes (one dict each: `mate.teams.EpisodeSummary` fields).
+        absolute: its absolute-metric episodes.
+        references: reference name -> {'evaluation': episodes, 'absolute': episodes} on the same games.
+    """
+
+    team: str
+    config: str
+    metric: str
+    evaluation: list[dict]
+    absolute: list[dict]
+    references: dict[str, dict[str, list[dict]]]
+
+    def _mean(self, episodes: list[dict]) -> float:
+        return float(np.mean([episode[self.metric] for episode in episodes]))
+
+    @property
+    def evaluation_mean(self) -> float:
+        """The mean metric over the evaluation episodes."""
+        return self._mean(self.evaluation)
+
+    @property
+    def absolute_mean(self) -> float:
+        """The absolute metric: the mean metric over the absolute episodes."""
+        return self._mean(self.absolute)
+
+    @property
+    def reference_means(self) -> dict[str, float]:
+        """Each reference's mean metric over the absolute episodes."""
+        return {name: self._mean(parts['absolute']) for name, parts in self.references.items()}
+
+    def normalised(self, reference: str = 'greedy') -> float:
+        """The absolute metric rescaled so that random scores 0 and `reference` 1 (the benchmark's normalised
+        score); needs both references."""
+        means = self.reference_means
+        if 'random' not in means or reference not in means:
+            raise ValueError(f"normalised scores need the 'random' and {reference!r} references; this score has "
+                             f'{", ".join(means) or "none"}')
+        return (self.absolute_mean - means['random']) / (means[reference] - means['random'])
+
+    def __str__(self) -> str:
+        lines = [f'{self.team}s on {self.config}, {self.metric} (absolute metric, {len(self.absolute)} held-out '
+                 f'episodes): policy {self.absolute_mean:.3f}']
+        lines += [f'  {name} {mean:.3f}' for name, mean in self.reference_means.items()]
+        return '\n'.join(lines)
+
+
+def _play(policy, team_factory, team: str, config: str, episodes: int, first_seed: int, max_episode_steps: int,
+          opponent: str, device: str) -> list[dict]:
+    """`episodes` games on seeds first_seed, ... of the policy (or of `team_factory`) against `opponent`."""
+    from .teams import play_batch
+
+    own = _team_factory(policy, team_factory, team, first_seed, device)
+    other = _team_factory(opponent, None, 'target' if team == 'camera' else 'camera', first_seed, device)
+    cameras, targets = (own, other) if team == 'camera' else (other, own)
+    results, _ = play_batch(config, cameras, targets, episodes, seed=first_seed, max_episode_steps=max_episode_steps)
+    return [dataclasses.asdict(result) for result in results]
+
+
+def _team_factory(policy, team_factory, team: str, seed: int, device: str) -> Callable:
+    """A factory f(num_envs, counts) of the team that plays `policy` (play_batch's form of a team)."""
+    if team_factory is not None:
+        return lambda num_envs, counts: team_factory(num_envs, counts, seed)
+    if isinstance(policy, str):
+        from .evaluate import has_batched_team
+        from .teams import RULE_TEAMS, make_team
+
+        if policy in RULE_TEAMS:
+            return lambda num_envs, counts: make_team(policy, team, num_envs, counts, seed=seed)
+        if not has_batched_team(policy):
+            raise ValueError(f'{policy!r} has no batched form; give one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
+                             'checkpoint:PATH, a callable or a team_factory')
+        from .extras import missing
+        if missing('train'):
+            raise ValueError(f"{policy} needs the train extra: pip install 'mate[train]'")
+        from .learn.policy import make_team as make_policy_team
+
+        return lambda num_envs, counts: make_policy_team(policy, team, num_envs, counts, seed=seed, device=device)
+    if not callable(policy):
+        raise TypeError(f'policy must be a callable (observations -> actions), an agent name or None with a '
+                        f'team_factory; got {type(policy).__name__}')
+    return lambda num_envs, counts: CallableTeam(policy, team, num_envs)
+
+
+def _settings(team, config, episodes, max_episode_steps) -> tuple[str, str, int, int]:
+    team = as_team(team).name.lower()
+    config = paper_config(team) if config is None else str(config)
+    if not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f'episodes must be a positive integer, got {episodes!r}')
+    steps = horizon(team) if max_episode_steps is None else max_episode_steps
+    if not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f'max_episode_steps must be a positive integer, got {max_episode_steps!r}')
+    return team, config, int(episodes), int(steps)
+
+
+def evaluate(policy=None, team='camera', config: str | None = None, *, team_factory: Callable | None = None,
+             episodes: int = DEFAULT_EPISODES, max_episode_steps: int | None = None, opponent: str = 'greedy',
+             run_dir=None, env_steps: int = 0, iteration: int | None = None, device: str = 'cpu') -> list[dict]:
+    """One periodic evaluation of the protocol: `episodes` games on seeds `EVALUATION_SEEDS`, ...; returns one dict
+    per episode. With `run_dir`, appends the evaluation (at `env_steps` decision steps) to its `evaluations.jsonl`,
+    the line `mate train` writes, so that `mate benchmark report` draws the curve. `config` None: the paper's preset
+    of the team (`paper_config`)."""
+    team, config, episodes, steps = _settings(team, config, episodes, max_episode_steps)
+    played = _play(policy, team_factory, team, config, episodes, EVALUATION_SEEDS, steps, opponent, device)
+    if run_dir is not None:
+        metric = TEAM_METRIC[team]
+        record = dict(iteration=int(env_steps if iteration is None else iteration), env_steps=int(env_steps),
+                      metric=metric, mean=float(np.mean([e[metric] for e in played])),
+                      seeds=[EVALUATION_SEEDS, EVALUATION_SEEDS + episodes - 1], episodes=played)
+        folder = Path(run_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(folder / 'evaluations.jsonl', 'a') as file:
+            file.write(json.dumps(record) + '\n')
+    return played
+
+
+def score_policy(policy=None, team='camera', config: str | None = None, *, team_factory: Callable | None = None,
+                 episodes: int = DEFAULT_EPISODES, max_episode_steps: int | None = None, opponent: str = 'greedy',
+                 references: Sequence[str] | None = None, run_dir=None, env_steps: int = 0,
+                 device: str = 'cpu') -> PolicyScore:
+    """Score a policy as the benchmark scores its learners (module docstring): an evaluation on `episodes` games, the
+    absolute metric on `ABSOLUTE_FACTOR` x `episodes` other held-out games, and the `references` (default
+    `REFERENCES[team]`; () for none) on the same games. With `run_dir`, writes the run files `mate benchmark report`
+    reads (an evaluation line at `env_steps` unless `evaluations.jsonl` has one there already, `absolute.json`,
+    `references.json`). ValueError for a bad team, count or name; the policy's own errors pass through."""
+    team, config, episodes, steps = _settings(team, config, episodes, max_episode_steps)
+    references = REFERENCES[team] if references is None else tuple(references)
+    folder = None if run_dir is None else Path(run_dir)
+    logged = [] if folder is None or not (folder / 'evaluations.jsonl').exists() else [
+        json.loads(line) for line in (folder / 'evaluations.jsonl').read_text().splitlines() if line.strip()]
+    if any(record['env_steps'] == env_steps for record in logged):
+        evaluation = next(record['episodes'] for record in logged if record['env_steps'] == env_steps)
+    else:
+        evaluation = evaluate(policy, team, config, team_factory=team_factory, episodes=episodes,
+                              max_episode_steps=steps, opponent=opponent, run_dir=folder, env_steps=env_steps,
+                              device=device)
+    count = ABSOLUTE_FACTOR * episodes
+    absolute = _play(policy, team_factory, team, config, count, ABSOLUTE_SEEDS, steps, opponent, device)
+    played = {name: {part: _play(name, None, team, config, n, first, steps, opponent, device)
+                     for part, n, first in (('evaluation', episodes, EVALUATION_SEEDS),
+                                            ('absolute', count, ABSOLUTE_SEEDS))}
+              for name in references}
+    score = PolicyScore(team, config, TEAM_METRIC[team], evaluation, absolute, played)
+    if folder is not None:
+        metric = TEAM_METRIC[team]
+        record = dict(metric=metric, mean=score.absolute_mean,
+                      best_evaluation=score._mean(evaluation), seeds=[ABSOLUTE_SEEDS, ABSOLUTE_SEEDS + count - 1],
+                      episodes=absolute)
+        (folder / 'absolute.json').write_text(json.dumps(record, indent=1))
+        (folder / 'references.json').write_text(json.dumps(dict(metric=metric, references=played), indent=1))
+    return score

@@ -1,0 +1,292 @@
+"""`SingleTeamVecEnv`: B games of one team, the other team played inside by a batched team (greedy by default).
+
+    import mate
+
+    envs = mate.make_team_vec('MATE-4v8-9', team='camera', num_envs=64)           # the cameras vs greedy targets
+    observations, infos = envs.reset(seed=0)                                       # (64, 4, D) float64
+    for _ in range(1000):
+        observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
+        if '_episode' in infos:                                                    # some games ended at this step
+            print(infos['episode']['coverage_rate'][infos['_episode']])
+
+What a researcher's own algorithm steps (CleanRL-style files, `examples/own_policy_ppo.py`), torch-free. It follows
+Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
+
+* **spaces**: `single_observation_space` Box(N, D) and `observation_space` Box(B, N, D) of the team's raw
+  observations (the layouts of `mate.spaces`, in `observation_dtype`); `single_action_space` Box(N, 2) and
+  `action_space` Box(B, N, 2), float64: cameras (rotation, zoom) in degrees, targets a displacement (dx, dy). The
+  bounds are the largest any agent of the game has; the core clips each agent's action to its own step limits, as
+  the two-team env does. Actions of another shape raise ValueError (nothing is reshaped).
+* **rewards** (`reward`): 'team', the team's dense reward of the config, (B,) (camera reward = -target reward);
+  'coverage' (cameras), the coverage rate of the step, (B,), the reward the paper trains cameras on; 'own'
+  (targets), each target's own part of the team reward (its tracking penalty and deliveries; they sum to the
+  team's), (B, N); 'difference' (cameras), each camera's marginal share of the coverage rate, (B, N).
+* **autoreset**: Gymnasium 1.x's `next_step` by default (the step after game i ended ignores its actions, starts its
+  next episode and returns reward 0, terminated = truncated = False), or `same_step` (`infos['final_obs']` holds
+  the ended episodes' last observations); the opponent starts its episode where the game does.
+* **infos**: a dict of (B,) arrays (`coverage_rate`, `real_coverage_rate`, `mean_transport_rate`,
+  `num_delivered_cargoes`, `episode_step`); on a step where games end, `infos['episode']` holds each ended
+  game's statistics with the mask `infos['_episode']` (Gymnasium's `RecordEpisodeStatistics` form): `r` the
+  summed reward of the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps,
+  `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end), `camera_return` and
+  `target_return` (the config's team rewards summed), `normalized_target_return` (the target return divided by
+  the preset's largest one: the targets' benchmark metric), `delivered_cargoes`.
+
+**Seeding**: `reset(seed=s)` seeds game i with s + i and the opponent's row i with s + i too, so game i is the
+episode `mate evaluate --seed s` plays as its episode i (and `mate.score_policy`, the PettingZoo adapters and the
+`MultiCamera`/`MultiTarget` wrappers with a greedy opponent play, for the same seed); `reset()` without a seed
+continues every stream.
+
+**Opponents** (`opponent`): a built-in agent name with a batched form ('greedy', 'random'; 'pretrained:NAME' and
+'checkpoint:PATH' with the train extra), or a factory `f(num_envs, counts, seed)` of
+any batched team of the `mate.teams` protocol (counts: (Nc, Nt, No)); a seeded reset builds it anew with that seed.
+
+Differences from `gymnasium.vector.VectorEnv`: no `render`; `call`/`get_attr` are not provided (one process holds
+all B games); per-agent rewards are (B, N).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import VectorEnv
+
+from .messages import Team
+from .teams.protocol import as_team
+from .vector import INFO_KEYS, AutoresetMode, make_vec
+
+__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'own_rewards']
+
+REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
+"""The reward kinds of each team (module docstring)."""
+EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
+                'normalized_target_return', 'delivered_cargoes')
+"""The statistics of `infos['episode']`."""
+
+
+def own_rewards(bounty: np.ndarray, freight: np.ndarray, tracked: np.ndarray, delivered: np.ndarray) -> np.ndarray:
+    """Each target's own part of one env step's raw target-team reward, (B, Nt) float64.
+
+    Args:
+        bounty, freight: (B, Nt) each target's remaining bounty and freight before the step.
+        tracked: (B, Nt) whether some camera tracks the target at the step.
+        delivered: (B, Nt) whether the target delivered its cargo at the step (`target_done`).
+
+    A tracked target that still carries bounty costs 1; a delivery pays the freight plus the bounty left after
+    this step's decay. Summed over the targets: the team's dense reward of the step.
+    """
+    penalty = (tracked & (bounty > 0)).astype(np.float64)
+    paid = np.where(delivered, freight + np.maximum(bounty - tracked, 0), 0)
+    return paid - penalty
+
+
+def difference_rewards(sees: np.ndarray) -> np.ndarray:
+    """Each camera's marginal contribution to the coverage rate (the *difference reward*).
+
+    `sees` (..., Nc, Nt) bool: camera c tracks target t. Returns (..., Nc) float64: the coverage rate minus the
+    coverage rate the other cameras would give without camera c, i.e. the share of the Nt targets that camera c
+    alone tracks.
+    """
+    sees = np.asarray(sees, dtype=bool)
+    watchers = sees.sum(axis=-2, keepdims=True)                       # (..., 1, Nt) cameras tracking each target
+    return (sees & (watchers == 1)).sum(axis=-1) / sees.shape[-1]
+
+
+def opponent_factory(opponent, team: Team):
+    """A factory f(num_envs, counts, seed) of the team that plays against `team` (module docstring)."""
+    other = Team.TARGET if team is Team.CAMERA else Team.CAMERA
+    if callable(opponent) and not isinstance(opponent, str):
+        return opponent
+    if not isinstance(opponent, str):
+        raise TypeError(f'opponent must be an agent name or a factory f(num_envs, counts, seed); got {opponent!r}')
+    from .teams import RULE_TEAMS, make_team
+
+    if opponent == 'upper-bound':
+        raise ValueError('the upper-bound cameras read the true state of a whole batch; they are a reference of '
+                         'mate.score_policy, not an opponent of the single-team env')
+    if opponent in RULE_TEAMS:
+        make_team(opponent, other, 1, (1, 1, 0))   # an unknown name or a wrong team fails now, with the usual line
+        return lambda num_envs, counts, seed: make_team(opponent, other, num_envs, counts, seed=seed)
+    if opponent.partition(':')[0] not in ('pretrained', 'checkpoint'):
+        raise ValueError(f'unknown opponent {opponent!r}: use one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
+                         'checkpoint:PATH or a factory f(num_envs, counts, seed)')
+    from .extras import missing
+    if missing('train'):
+        raise ValueError(f"the opponent {opponent} needs the train extra: pip install 'mate[train]'")
+    from .learn.policy import make_team as make_policy_team
+
+    return lambda num_envs, counts, seed: make_policy_team(opponent, other, num_envs, counts, seed=seed)
+
+
+class SingleTeamVecEnv(VectorEnv):
+    """B games of one team against a batched opponent, as a Gymnasium `VectorEnv` (module docstring).
+
+    Args:
+        config: a preset name, a YAML/JSON path or a dict (None: the paper's game of the team, MATE-4v8-9 for
+            cameras, MATE-2v4-0 for targets).
+        team: 'camera' or 'target', the team the caller plays.
+        num_envs: B.
+        opponent: the other team: an agent name or a factory f(num_envs, counts, seed).
+        reward: 'team', 'coverage' (cameras), 'own' (targets) or 'difference' (cameras).
+        max_episode_steps: the episodes' step cap (None: the config's).
+        observation_dtype: np.float64 or np.float32.
+        autoreset_mode: 'next_step' (default) or 'same_step'.
+        **overrides: config keys (deep-merged, as for `mate.make_vec`).
+    """
+
+    metadata = {'render_modes': [], 'autoreset_mode': AutoresetMode.NEXT_STEP}
+
+    def __init__(self, config: Any = None, team='camera', num_envs: int = 1, *, opponent='greedy',
+                 reward: str = 'team', max_episode_steps: int | None = None, observation_dtype=np.float64,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **overrides) -> None:
+        from .protocol import paper_config
+
+        self.team = as_team(team)
+        name = self.team.name.lower()
+        if reward not in REWARDS[name]:
+            raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+        if max_episode_steps is not None:
+            if not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
+                raise ValueError(f'max_episode_steps must be a positive integer or None, got {max_episode_steps!r}')
+            overrides['max_episode_steps'] = int(max_episode_steps)
+        self.config = paper_config(self.team) if config is None else config
+        self.reward_kind = reward
+        self.vec = make_vec('MultiAgentTracking-v0', num_envs=num_envs, config=self.config,
+                            observation_dtype=observation_dtype, autoreset_mode=autoreset_mode, **overrides)
+        if self.vec.autoreset_mode is AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode must be 'next_step' or 'same_step' (play_batch plays without autoreset)")
+        self.metadata = {'render_modes': [], 'autoreset_mode': self.vec.autoreset_mode}
+        self.num_envs = self.vec.num_envs
+        self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
+        self.num_agents = self.counts[0] if self.team is Team.CAMERA else self.counts[1]
+        if self.num_agents < 1:
+            raise ValueError(f'the game has no {name}s to play')
+        self._own = 0 if self.team is Team.CAMERA else 1
+        self.single_observation_space = self.vec.single_observation_space[self._own]
+        self.observation_space = self.vec.observation_space[self._own]
+        joint = self.vec.single_action_space[self._own]
+        self.single_action_space = spaces.Box(joint.low, joint.high, dtype=np.float64)
+        self.action_space = spaces.Box(np.broadcast_to(joint.low, (self.num_envs, *joint.shape)),
+                                       np.broadcast_to(joint.high, (self.num_envs, *joint.shape)), dtype=np.float64)
+        self._make_opponent = opponent_factory(opponent, self.team)
+        self.opponent = self._make_opponent(self.num_envs, self.counts, None)
+        self._max_reward = float(self.vec.params.max_target_team_episode_reward)
+        self._sums = {key: np.zeros(self.num_envs) for key in EPISODE_KEYS}
+        self._other_obs = None
+        self._pending = np.zeros(self.num_envs, dtype=bool)    # next_step: rows that restart at the next step
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start new episodes in every game; returns (observations (B, N, D), infos). `seed` s: game i and the
+        opponent's row i are seeded s + i; None continues their streams."""
+        if seed is not None:
+            if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+                raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
+            self.opponent = self._make_opponent(self.num_envs, self.counts, int(seed))
+        observations, infos = self.vec.reset(seed=seed, options=options)
+        self._other_obs = observations[1 - self._own]
+        self.opponent.reset(self._other_obs, np.ones(self.num_envs, dtype=bool))
+        for values in self._sums.values():
+            values[:] = 0.0
+        self._pending[:] = False
+        return observations[self._own], infos
+
+    def _joint(self, actions: np.ndarray) -> tuple:
+        other = self.opponent.act(self._other_obs)
+        return (actions, other) if self.team is Team.CAMERA else (other, actions)
+
+    def _checked(self, actions) -> np.ndarray:
+        actions = np.asarray(actions)
+        expected = (self.num_envs, self.num_agents, 2)
+        if actions.shape != expected:
+            raise ValueError(f'{self.team.name.lower()} actions must have shape {expected} (games, agents, 2), got '
+                             f'{actions.shape}')
+        return actions
+
+    def step(self, actions):
+        """One env step of every game with the team's `actions` (B, N, 2); returns (observations, rewards,
+        terminations, truncations, infos) (module docstring)."""
+        if self._other_obs is None:
+            raise RuntimeError('SingleTeamVecEnv: call reset() before step()')
+        actions = self._checked(actions)
+        world = self.vec.world
+        if self.reward_kind == 'own':     # what a delivery pays is read before the step that changes it
+            bounty, freight = world.target_bounty.copy(), world.target_freight.copy()
+        restarting = self._pending.copy()
+        observations, team_rewards, terminations, truncations, infos = self.vec.step(self._joint(actions))
+        self._other_obs = observations[1 - self._own]
+        rewards = self._rewards(team_rewards, infos, bounty if self.reward_kind == 'own' else None,
+                                freight if self.reward_kind == 'own' else None)
+        live = ~restarting
+        if self.reward_kind in ('own', 'difference'):
+            rewards = np.where(live[:, None], rewards, 0.0)
+        ended = live & (terminations | truncations)
+        self._accumulate(live, rewards, team_rewards, infos)
+        if ended.any():
+            infos['episode'], infos['_episode'] = self._episode_statistics(ended), ended
+        if self.vec.autoreset_mode is AutoresetMode.NEXT_STEP:
+            if restarting.any():
+                self.opponent.reset(self._other_obs, restarting)
+            self._pending = ended
+        elif ended.any():                 # same_step: the ended games already show their next episode
+            self.opponent.reset(self._other_obs, ended)
+        if 'final_obs' in infos:
+            infos['final_obs'] = np.array([None if pair is None else pair[self._own] for pair in infos['final_obs']],
+                                          dtype=object)
+        return observations[self._own], rewards, terminations, truncations, infos
+
+    def _rewards(self, team_rewards, infos, bounty, freight) -> np.ndarray:
+        world = self.vec.world
+        if self.reward_kind == 'team':
+            return np.array(team_rewards[self._own], dtype=np.float64)
+        if self.reward_kind == 'coverage':
+            return np.array(infos['coverage_rate'], dtype=np.float64)
+        if self.reward_kind == 'difference':
+            return difference_rewards(world.camera_target_view_mask)
+        return own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1), world.target_done)
+
+    def _accumulate(self, live, rewards, team_rewards, infos) -> None:
+        steps = {'r': rewards if rewards.ndim == 1 else rewards.sum(axis=1), 'l': 1.0,
+                 'coverage_rate': infos['coverage_rate'], 'real_coverage_rate': infos['real_coverage_rate'],
+                 'camera_return': team_rewards[0], 'target_return': team_rewards[1]}
+        for key, value in steps.items():
+            self._sums[key] += np.where(live, value, 0.0)
+        for key, info in (('transport_rate', 'mean_transport_rate'), ('delivered_cargoes', 'num_delivered_cargoes')):
+            self._sums[key] = np.where(live, infos[info], self._sums[key])    # the game's running figures
+
+    def _episode_statistics(self, ended) -> dict:
+        sums, length = self._sums, np.maximum(self._sums['l'], 1.0)
+        stats = {key: np.where(ended, sums[key], 0.0) for key in ('r', 'camera_return', 'target_return')}
+        stats['l'] = np.where(ended, sums['l'], 0).astype(np.int64)
+        for key in ('coverage_rate', 'real_coverage_rate'):
+            stats[key] = np.where(ended, sums[key] / length, 0.0)
+        stats['transport_rate'] = np.where(ended, sums['transport_rate'], 0.0)
+        stats['normalized_target_return'] = np.where(ended, sums['target_return'] / self._max_reward, 0.0)
+        stats['delivered_cargoes'] = np.where(ended, sums['delivered_cargoes'], 0).astype(np.int64)
+        for values in sums.values():
+            values[ended] = 0.0
+        return stats
+
+    # ------------------------------------------------------------------ extras
+    def state(self) -> np.ndarray:
+        """(B, S) the global state of every game (`mate.make_vec`'s `state()`), e.g. for a centralised critic."""
+        return self.vec.state()
+
+    @property
+    def single_state_space(self) -> spaces.Box:
+        return self.vec.single_state_space
+
+    def close(self, **kwargs) -> None:
+        if hasattr(self, 'vec'):          # not when the constructor refused its arguments
+            self.vec.close()
+
+    def __repr__(self) -> str:
+        return (f'SingleTeamVecEnv({self.team.name.lower()}s of {self.config!r} vs {type(self.opponent).__name__}, '
+                f'num_envs={self.num_envs}, reward={self.reward_kind!r})')
+
+
+def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, **kwargs) -> SingleTeamVecEnv:
+    """`SingleTeamVecEnv(config, team, num_envs, **kwargs)`: B games of `team` against a batched opponent."""
+    return SingleTeamVecEnv(config, team, num_envs, **kwargs)

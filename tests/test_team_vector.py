@@ -1,0 +1,146 @@
+"""The public single-team env (`mate.SingleTeamVecEnv`) and the promise that one seed gives one game through every
+single-team entry point: the vector env, `play_batch` (as `mate evaluate` and `mate.score_policy` play), the
+PettingZoo adapter with an opponent and the `MultiCamera` / `MultiTarget` wrappers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mate
+from mate.agents.group import group_reset, group_step
+from mate.teams import GreedyTeam, play_batch
+
+CAP = 150
+
+
+def greedy(team, seed):
+    return lambda num_envs, counts: GreedyTeam(team, num_envs, counts, seed=seed)
+
+
+def first_episodes(envs, team_of, seed):
+    """Each row's first-episode statistics of `envs` (reset with `seed`) with the greedy team `team_of` playing."""
+    observations, _ = envs.reset(seed=seed)
+    players = team_of(envs.num_envs, envs.counts)
+    players.reset(observations, np.ones(envs.num_envs, dtype=bool))
+    found = {}
+    while len(found) < envs.num_envs:
+        observations, rewards, terminations, truncations, infos = envs.step(players.act(observations))
+        if '_episode' in infos:
+            for i in np.flatnonzero(infos['_episode']):
+                found.setdefault(int(i), {key: values[i] for key, values in infos['episode'].items()})
+    return [found[i] for i in range(envs.num_envs)]
+
+
+@pytest.mark.parametrize('team, config', [('camera', 'MATE-4v8-9'), ('target', 'MATE-2v4-0')])
+def test_rows_are_the_games_of_play_batch(team, config):
+    envs = mate.make_team_vec(config, team, 3, max_episode_steps=CAP)
+    stats = first_episodes(envs, greedy(team, 7), seed=7)
+    results, _ = play_batch(config, greedy('camera', 7), greedy('target', 7), 3, seed=7, max_episode_steps=CAP)
+    for row, result in zip(stats, results, strict=True):
+        assert row['l'] == result.episode_length
+        assert row['coverage_rate'] == pytest.approx(result.coverage_rate, abs=1e-12)
+        assert row['normalized_target_return'] == pytest.approx(result.normalized_target_return, abs=1e-12)
+        assert row['delivered_cargoes'] == result.delivered_cargoes
+        own_return = result.camera_return if team == 'camera' else result.target_return
+        assert row['r'] == pytest.approx(own_return, abs=1e-9)      # the 'team' reward summed
+
+
+def test_spaces_shapes_and_bad_actions():
+    envs = mate.make_team_vec('MATE-4v8-9', 'camera', 4)
+    observations, infos = envs.reset(seed=0)
+    assert observations.shape == (4, 4, envs.single_observation_space.shape[1]) == envs.observation_space.shape
+    assert envs.action_space.shape == (4, 4, 2) and envs.single_action_space.shape == (4, 2)
+    assert envs.state().shape == (4, envs.single_state_space.shape[0])
+    with pytest.raises(ValueError, match=r'shape \(4, 4, 2\)'):
+        envs.step(np.zeros((4, 8)))
+    with pytest.raises(ValueError, match="one of the camera team's"):
+        mate.make_team_vec('MATE-4v8-9', 'camera', 2, reward='own')
+    with pytest.raises(ValueError, match='unknown opponent'):
+        mate.make_team_vec('MATE-4v8-9', 'camera', 2, opponent='smart')
+
+
+def test_next_step_autoreset_restarts_the_opponent_and_pays_nothing():
+    envs = mate.make_team_vec('MATE-2v4-0', 'target', 2, max_episode_steps=5, reward='own')
+    observations, _ = envs.reset(seed=1)
+    for _ in range(5):
+        observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
+    assert truncations.all() and infos['_episode'].all() and (infos['episode']['l'] == 5).all()
+    observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
+    assert rewards.shape == (2, 4) and (rewards == 0).all() and not truncations.any()
+    assert (infos['episode_step'] == 0).all()
+
+
+def test_per_agent_rewards_sum_to_the_team_reward():
+    team = mate.make_team_vec('MATE-2v4-0', 'target', 2, reward='team')
+    own = mate.make_team_vec('MATE-2v4-0', 'target', 2, reward='own')
+    cover = mate.make_team_vec('MATE-4v8-9', 'camera', 2, reward='coverage')
+    difference = mate.make_team_vec('MATE-4v8-9', 'camera', 2, reward='difference')
+    for envs in (team, own, cover, difference):
+        envs.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        targets = rng.uniform(-20, 20, size=(2, 4, 2))
+        cameras = rng.uniform(-5, 5, size=(2, 4, 2))
+        np.testing.assert_allclose(own.step(targets)[1].sum(axis=1), team.step(targets)[1], atol=1e-9)
+        covered, infos = cover.step(cameras)[1::3]
+        shares = difference.step(cameras)[1]
+        assert (shares.sum(axis=1) <= covered + 1e-12).all() and (shares >= 0).all()
+        np.testing.assert_array_equal(covered, infos['coverage_rate'])
+
+
+@pytest.mark.parametrize('team', ['camera', 'target'])
+def test_one_seed_one_game_through_every_single_team_entry_point(team):
+    """Greedy agents of `team` against the greedy opponents: the vector env, the MultiCamera/MultiTarget wrapper and
+    the PettingZoo adapter with an opponent play the same game for seed 11 (the episode of `mate evaluate`)."""
+    pytest.importorskip('pettingzoo', reason='needs the pettingzoo extra')
+    from mate.integrations import pettingzoo as mate_pz
+
+    config, seed = ('MATE-4v8-9', 11) if team == 'camera' else ('MATE-2v4-0', 11)
+    vector = first_episodes(mate.make_team_vec(config, team, 1, max_episode_steps=CAP), greedy(team, seed), seed)[0]
+    agent = mate.GreedyCameraAgent if team == 'camera' else mate.GreedyTargetAgent
+    other = mate.GreedyTargetAgent if team == 'camera' else mate.GreedyCameraAgent
+    wrapper = mate.MultiCamera if team == 'camera' else mate.MultiTarget
+    keyword = 'target_agent' if team == 'camera' else 'camera_agent'
+    env = mate.make('MultiAgentTracking-v0', config=config, max_episode_steps=CAP,
+                    wrappers=[mate.WrapperSpec(wrapper, **{keyword: other(seed=123)})])
+    observation, infos = env.reset(seed=seed)
+    players = agent(seed=seed).spawn(len(observation))
+    group_reset(players, observation)
+    coverage, length, done = [], 0, False
+    while not done:
+        observation, reward, terminated, truncated, infos = env.step(group_step(env, players, observation, infos))
+        coverage.append(infos[0]['coverage_rate'])
+        length, done = length + 1, terminated or truncated
+    assert (length, float(np.mean(coverage))) == (vector['l'], pytest.approx(vector['coverage_rate'], abs=1e-12))
+
+    zoo = mate_pz.parallel_env(config=config, opponent='greedy', team=team, max_episode_steps=CAP)
+    observations, _ = zoo.reset(seed=seed)
+    players = GreedyTeam(team, 1, (zoo.env.num_cameras, zoo.env.num_targets, zoo.env.num_obstacles), seed=seed)
+    players.reset(np.stack([observations[a] for a in zoo.agents])[None], np.ones(1, dtype=bool))
+    coverage, total = [], 0.0
+    while zoo.agents:
+        actions = players.act(np.stack([observations[a] for a in zoo.agents])[None])[0]
+        observations, rewards, terminations, truncations, infos = zoo.step(dict(zip(zoo.agents, actions)))
+        coverage.append(next(iter(infos.values()))['coverage_rate'])
+        total += next(iter(rewards.values()))
+    assert (len(coverage), float(np.mean(coverage))) == (vector['l'], pytest.approx(vector['coverage_rate'],
+                                                                                   abs=1e-12))
+    assert total == pytest.approx(vector['r'], abs=1e-9)
+
+
+def test_pettingzoo_opponent_rewards_and_agents():
+    pytest.importorskip('pettingzoo', reason='needs the pettingzoo extra')
+    from mate.integrations import pettingzoo as mate_pz
+
+    zoo = mate_pz.parallel_env(config='MATE-2v4-0', opponent='greedy', team='target', reward='own')
+    observations, _ = zoo.reset(seed=0)
+    assert zoo.agents == [f'target_{i}' for i in range(4)]
+    totals = []
+    for _ in range(30):
+        actions = {agent: zoo.action_space(agent).sample() for agent in zoo.agents}
+        observations, rewards, *_ = zoo.step(actions)
+        totals.append(sum(rewards.values()))
+    assert any(total != 0 for total in totals)
+    with pytest.raises(ValueError, match='give opponent too'):
+        mate_pz.parallel_env(team='camera')
