@@ -269,6 +269,28 @@ class SingleTeamVecEnv(VectorEnv):
             values[ended] = 0.0
         return stats
 
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict:
+        """Everything the games' future depends on, as plain data: the vector env's state (worlds and random
+        streams), the opponent's (`state_dict()` of the `mate.teams` teams and trained policies), the episodes'
+        running sums and the rows waiting for their autoreset. `load_state_dict` on an env made alike continues
+        exactly."""
+        if not hasattr(self.opponent, 'state_dict'):
+            raise TypeError(f'the opponent {type(self.opponent).__name__} has no state_dict(): its state cannot be '
+                            'saved')
+        return dict(vec=self.vec.state_dict(), opponent=self.opponent.state_dict(), pending=self._pending.copy(),
+                    sums={key: values.copy() for key, values in self._sums.items()})
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (taken from an env of the same game, size and opponent kind;
+        `pending` and `sums` may be left out: none pending, zero sums)."""
+        self.vec.load_state_dict(state['vec'])
+        self.opponent.load_state_dict(state['opponent'])
+        self._other_obs = self.vec.observations[1 - self._own]
+        self._pending[:] = state.get('pending', False)
+        for key, values in self._sums.items():
+            values[:] = state.get('sums', {}).get(key, 0.0)
+
     # ------------------------------------------------------------------ extras
     def state(self) -> np.ndarray:
         """(B, S) the global state of every game (`mate.make_vec`'s `state()`), e.g. for a centralised critic."""

@@ -144,3 +144,24 @@ def test_pettingzoo_opponent_rewards_and_agents():
     assert any(total != 0 for total in totals)
     with pytest.raises(ValueError, match='give opponent too'):
         mate_pz.parallel_env(team='camera')
+
+
+def test_state_dict_continues_exactly():
+    rng = np.random.default_rng(4)
+    actions = rng.uniform(-30, 30, size=(40, 3, 4, 2))
+    envs = mate.make_team_vec('MATE-2v4-0', 'target', 3, max_episode_steps=15, reward='own')
+    envs.reset(seed=9)
+    for step in range(20):
+        envs.step(actions[step])
+    saved = envs.state_dict()
+    later = [[np.copy(part) if isinstance(part, np.ndarray) else part for part in envs.step(actions[step])]
+             for step in range(20, 40)]    # copies: the observations are the env's buffers, overwritten in place
+    again = mate.make_team_vec('MATE-2v4-0', 'target', 3, max_episode_steps=15, reward='own')
+    again.load_state_dict(saved)
+    for step, (observations, rewards, terminations, truncations, infos) in zip(range(20, 40), later):
+        replay = again.step(actions[step])
+        np.testing.assert_array_equal(replay[0], observations)
+        np.testing.assert_array_equal(replay[1], rewards)
+        assert ('_episode' in replay[4]) == ('_episode' in infos)
+        if '_episode' in infos:
+            np.testing.assert_array_equal(replay[4]['episode']['r'], infos['episode']['r'])

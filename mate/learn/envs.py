@@ -1,5 +1,9 @@
 """The training view of B games for one team: `TeamEnvConfig` (the options every trainer takes) -> `TeamVecEnv`.
 
+A `TeamVecEnv` steps the public single-team env, `mate.SingleTeamVecEnv` (the games and the opponent, which a
+researcher's own algorithm steps too), and adds what mate's learners need on top: the policy spec's features and
+action decoding, frame skip, the team's reward kinds and episode sums in decisions.
+
 What a learner sees per decision (the paper's wrapper stack, done on arrays):
 
 * observations through its `PolicySpec`'s `features` (relative coordinates rescaled to [-1, 1], the team's
@@ -39,13 +43,13 @@ from typing import Literal
 
 import numpy as np
 
-from .. import make_vec
 from ..agents.utils import normalize_observation
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..options import option
 from ..protocol import PAPER_SETTINGS
-from ..team_vector import difference_rewards, own_rewards
+from ..registration import resolve_config
+from ..team_vector import SingleTeamVecEnv, difference_rewards, own_rewards
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory, camera_sightings
@@ -194,8 +198,13 @@ class TeamVecEnv:
         self.frame_skip = spec.frame_skip
         self.horizon = int(horizon or 500 * spec.frame_skip)
         self.num_envs = int(num_envs)
-        self.vec = make_vec(spec.env_id, num_envs=self.num_envs, config=spec.config, observation_dtype=np.float32,
-                            autoreset_mode='next_step', max_episode_steps=self.horizon, **overrides)
+        opponent_seed = None if seed is None else seed + 7919
+        factory = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
+        self.envs = SingleTeamVecEnv(resolve_config(spec.env_id, spec.config), team, self.num_envs,
+                                     opponent=lambda n, counts, _: factory(n, counts, opponent_seed),
+                                     max_episode_steps=self.horizon, observation_dtype=np.float32,
+                                     autoreset_mode='next_step', **overrides)
+        self.vec = self.envs.vec
         self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
         spec.check_game(team, self.counts, 'the policy spec')
         self.num_agents = spec.num_agents
@@ -203,11 +212,8 @@ class TeamVecEnv:
         self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
-        opponent_seed = None if seed is None else seed + 7919
-        self.opponent = (opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s)))(
-            self.num_envs, self.counts, opponent_seed)
         self._sees = None          # difference credit: which camera tracks which target at the last env step
-        self._raw = self._own_raw = self._other_raw = self._before = None
+        self._raw = self._own_raw = self._before = None
         self._return = np.zeros(self.num_envs)
         self._raw_return = np.zeros(self.num_envs)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
@@ -217,9 +223,6 @@ class TeamVecEnv:
     # ------------------------------------------------------------------ helpers
     def _own(self, observations):
         return observations[0] if self.team is Team.CAMERA else observations[1]
-
-    def _other(self, observations):
-        return observations[1] if self.team is Team.CAMERA else observations[0]
 
     def _enhanced(self, observations):
         """`observations` as the trained team sees them: unchanged, or (full observability) with every
@@ -236,26 +239,30 @@ class TeamVecEnv:
         before = self._before if rows is None else self._before[rows]
         return self.spec.features(raw, memory, before)
 
-    def _step_vec(self, joint, restarting):
-        """One env step of the vector env; keeps the trained team's previous raw observations (velocity), which
-        for rows starting an episode at this step are their first ones (no motion yet)."""
+    def _step_vec(self, own_actions, restarting):
+        """One env step of the single-team env (the opponent acts inside it, and restarts with its rows); returns
+        (both teams' observations, (camera reward, target reward), terminated, truncated, infos). Keeps the trained
+        team's previous raw observations (velocity), which for rows starting an episode at this step are their first
+        ones (no motion yet)."""
         before = self._own_raw.copy() if self.spec.velocity else None
         if self.credit == 'own':          # what a delivery pays is read before the step that changes it
             world = self.vec.world
             bounty, freight = world.target_bounty.copy(), world.target_freight.copy()
-        result = self.vec.step(joint)
+        _, reward, terminated, truncated, infos = self.envs.step(own_actions)
+        rewards = (reward, -reward) if self.team is Team.CAMERA else (-reward, reward)    # the game is zero-sum
+        observations = self.vec.observations
         if self.credit == 'own':
             world = self.vec.world
             self._own_rewards = own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1),
                                             world.target_done)
         if self.credit == 'difference':   # before full observability fills in every flag
-            self._sees = camera_sightings(result[0][0], *self.counts)[1]
-        observations = self._enhanced(result[0])
+            self._sees = camera_sightings(observations[0], *self.counts)[1]
+        observations = self._enhanced(observations)
         if self.spec.velocity:
             own = self._own(observations)
             before[restarting] = own[restarting]
             self._before = before
-        return (observations, *result[1:])
+        return observations, rewards, terminated, truncated, infos
 
     def _remember(self, observations, restarting=None) -> None:
         """One env step of the sighting memory: rows that start an episode forget, then every camera's
@@ -270,10 +277,12 @@ class TeamVecEnv:
     def _state(self):
         return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
 
-    def _joint(self, own_actions, other_actions):
-        return (own_actions, other_actions) if self.team is Team.CAMERA else (other_actions, own_actions)
-
     # ------------------------------------------------------------------ API
+    @property
+    def opponent(self):
+        """The other team's batched team (played inside `self.envs`, the public `mate.SingleTeamVecEnv`)."""
+        return self.envs.opponent
+
     @property
     def raw_observations(self) -> np.ndarray:
         """(B, N, D) unprocessed observations of the trained team at the current decision (do not modify)."""
@@ -296,12 +305,10 @@ class TeamVecEnv:
         return self.spec.allowed(features)
 
     def reset(self, seed: int | None = None):
-        observations, _ = self.vec.reset(seed=self._seed if seed is None else seed)
-        observations = self._enhanced(observations)
-        self.opponent.reset(self._other(observations), np.ones(self.num_envs, dtype=bool))
+        self.envs.reset(seed=self._seed if seed is None else seed)
+        observations = self._enhanced(self.vec.observations)
         self._raw = self._own(observations).copy()
         self._before = self._raw.copy()
-        self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)
         if self.memory is not None:
             self.memory.forget()
@@ -337,11 +344,7 @@ class TeamVecEnv:
         for _ in range(self.frame_skip):
             if self.spec.closed_loop:   # the executor re-aims at every env step from the fresh observation
                 own_actions = self.spec.decode(held, self._own_raw)
-            other = self.opponent.act(self._other_raw)
-            observations, rewards, terminated, truncated_now, infos = self._step_vec(self._joint(own_actions, other),
-                                                                                     restarting)
-            if restarting.any():
-                self.opponent.reset(self._other(observations), restarting)
+            observations, rewards, terminated, truncated_now, infos = self._step_vec(own_actions, restarting)
             self._remember(observations, restarting)
             live = ~done & ~restarting
             r = rewards[0] if self.team is Team.CAMERA else rewards[1]
@@ -376,14 +379,10 @@ class TeamVecEnv:
                 self._raw_return[rows] = 0.0
                 self._coverage_sum[rows] = 0.0
                 self._length[rows] = 0
-            self._other_raw = self._other(observations)
             self._own_raw = self._own(observations)
         if restarting.any():   # ended at the last env step: restart now so the next decision is clean
-            other = self.opponent.act(self._other(observations))
-            observations = self._step_vec(self._joint(own_actions, other), restarting)[0]
-            self.opponent.reset(self._other(observations), restarting)
+            observations = self._step_vec(own_actions, restarting)[0]
             self._remember(observations, restarting)
-        self._other_raw = self._other(observations)
         self._own_raw = self._own(observations)
         self._raw = self._own(observations).copy()
         info = dict(final_obs=final_obs, final_state=final_state, coverage=coverage / np.maximum(counted, 1),
@@ -394,20 +393,19 @@ class TeamVecEnv:
     def state_dict(self) -> dict:
         """Everything the batch's future depends on, as plain data (see the module docstring)."""
         memory = None if self.memory is None else dict(location=self.memory.location.copy(), age=self.memory.age.copy())
-        return dict(vec=self.vec.state_dict(), opponent=_team_state(self.opponent), memory=memory,
+        return dict(vec=self.vec.state_dict(), opponent=_team_state(self.envs.opponent), memory=memory,
                     before=None if self._before is None else self._before.copy(),
                     sums=dict(returns=self._return.copy(), raw_returns=self._raw_return.copy(),
                               coverage=self._coverage_sum.copy(), length=self._length.copy()))
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
-        self.vec.load_state_dict(state['vec'])
-        _load_team_state(self.opponent, state['opponent'])
+        self.envs.load_state_dict(dict(vec=state['vec'], opponent=state['opponent']))
         if self.memory is not None:
             self.memory.location[...] = state['memory']['location']
             self.memory.age[...] = state['memory']['age']
         observations = self._enhanced(self.vec.observations)
-        self._other_raw, self._own_raw = self._other(observations), self._own(observations)
+        self._own_raw = self._own(observations)
         self._raw = self._own(observations).copy()
         self._before = None if state['before'] is None else np.array(state['before'])
         sums = state['sums']
@@ -425,6 +423,3 @@ def _team_state(team) -> dict:
         raise TypeError(f'the opponent {type(team).__name__} has no state_dict(): its state cannot be checkpointed')
     return team.state_dict()
 
-
-def _load_team_state(team, state: dict) -> None:
-    team.load_state_dict(state)
