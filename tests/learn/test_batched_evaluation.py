@@ -80,6 +80,9 @@ def test_batched_policy_acts_as_the_deployment_agents(variant):
     team = mate.Team[kwargs['team'].upper()]
     policy = _policy(**kwargs)
     rows, steps, limit = 3, 70, 25
+    # Choices from a grid or a selection are exact; continuous actions are float32 network outputs, and a forward
+    # pass of 3 rows and of 1 row may run other GEMM kernels (another CPU family: 3e-7 apart): float32's tolerance.
+    tolerance = 1e-5 if kwargs.get('action') == 'continuous' else 1e-12
     vec = mate.make_vec('MATE-2v4-0-v0', num_envs=rows, max_episode_steps=limit, autoreset_mode='same_step')
     envs = [mate.make('MATE-2v4-0-v0', max_episode_steps=limit) for _ in range(rows)]
     batched = PolicyTeam(policy, team, rows, COUNTS, deterministic=True)
@@ -100,7 +103,7 @@ def test_batched_policy_acts_as_the_deployment_agents(variant):
         other = opponent.act(observations[1 - team])
         for i, env in enumerate(envs):
             expected = np.asarray(mate.group_step(env, agents[i], single_obs[i], infos[i]))
-            np.testing.assert_allclose(own[i], expected, rtol=0, atol=1e-12, err_msg=f'row {i}, step {step}')
+            np.testing.assert_allclose(own[i], expected, rtol=tolerance, atol=tolerance, err_msg=f'row {i}, step {step}')
             joint = (own[i], other[i]) if team is mate.Team.CAMERA else (other[i], own[i])
             result, _, terminated, truncated, all_infos = env.step(joint)
             single_obs[i], infos[i] = result[team], all_infos[team]
