@@ -10,6 +10,10 @@ the environment, messages, spaces helpers, agents, group helpers and wrappers.
 """
 # ruff: noqa: F401  (this module re-exports the public API)
 
+from .reproducible import pin_kernels as _pin_kernels
+
+_pin_kernels()   # MATE_REPRODUCIBLE=1: before anything imports torch (mate.reproducible)
+
 from . import constants, spaces
 from .agents import (AgentBase, CameraAgentBase, CameraStatePrivate, CameraStatePublic, GreedyCameraAgent,
                      GreedyTargetAgent, HeuristicCameraAgent, HeuristicTargetAgent, MixtureCameraAgent,

@@ -12,7 +12,9 @@ import importlib
 import importlib.util
 import os
 
-import pytest
+os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # before mate and torch load: golden runs hold on any x86-64 CPU
+
+import pytest  # noqa: E402
 
 EXTRAS = {'ray': 'rllib', 'ray.rllib': 'rllib', 'torch': 'train', 'tensorboard': 'train', 'pettingzoo': 'pettingzoo',
           'pygame': 'render', 'matplotlib': 'train', 'scipy': 'train', 'mkdocs': 'docs', 'griffe': 'docs'}

@@ -19,7 +19,9 @@ Python API. What is compared (`run_variant`):
 * PSRO `state`: the payoff matrices, pools, per-iteration meta-strategies, camera value and exploitability,
   and the best responses' summaries, without their `seconds`.
 
-Everything runs with one torch thread (`torch.set_num_threads(1)` and `--threads 1`) on the CPU.
+Everything runs with one torch thread (`torch.set_num_threads(1)` and `--threads 1`) on the CPU, with
+`MATE_REPRODUCIBLE=1` (`mate.reproducible`: MKL and ATen kernels pinned), so that the recordings hold on any x86-64
+CPU, Intel or AMD.
 """
 
 from __future__ import annotations
@@ -32,12 +34,14 @@ import hashlib
 import io
 import json
 import math
+import os
 import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # recorded and checked with the kernels pinned (mate.reproducible)
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / 'tests' / 'data' / 'golden'
 RUN_DIR = '{run_dir}'
@@ -194,8 +198,12 @@ def versions() -> dict:
     import numpy
     import torch
 
+    from mate.bench import machine_facts
+    from mate.reproducible import KERNEL_PINS
+
     return dict(python=platform.python_version(), torch=torch.__version__, numpy=numpy.__version__,
-                machine=platform.machine(), processor=platform.processor() or None)
+                machine=platform.machine(), processor=machine_facts()['processor'],
+                kernels={key: os.environ.get(key) for key in KERNEL_PINS})
 
 
 # ---------------------------------------------------------------------------- comparison

@@ -214,11 +214,12 @@ def test_dropout_zero_is_no_option_and_a_dropout_changes_training(tmp_path):
                                          ('tarmac', dict(communication_range=2.0)),
                                          ('i2c', dict(communication_range=2.0))])
 def test_the_update_replays_the_rollouts_masks(tmp_path, comm, extra):
-    """Learning rate 0: the log-probabilities the update recomputes equal the rollout's (KL 0) only if the unroll
-    reads the same messages as the rollout did."""
+    """Learning rate 0: the log-probabilities the update recomputes equal the rollout's (KL 0, up to float32's
+    rounding: a forward pass of another batch size may sum in another order, 1e-9 measured) only if the unroll reads
+    the same messages as the rollout did."""
     rows = []
     _train(tmp_path, comm, callback=rows.append, lr_schedule=((0, 0.0),), **extra)
-    assert len(rows) == 2 and all(row['approx_kl'] < 1e-9 and row['clip_fraction'] == 0 for row in rows), rows
+    assert len(rows) == 2 and all(row['approx_kl'] < 1e-7 and row['clip_fraction'] == 0 for row in rows), rows
 
 
 def test_an_update_without_the_masks_would_be_caught(tmp_path, monkeypatch):
