@@ -71,13 +71,30 @@ def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
                          "'module:Class', 'checkpoint:PATH' or 'pretrained:NAME'")
     module_name, _, attribute = spec.partition(':')
     try:
-        cls = getattr(importlib.import_module(module_name), attribute)
+        cls = getattr(_import_from_working_directory(module_name), attribute)
     except (ImportError, AttributeError) as exc:
         raise ValueError(f'cannot load agent {spec!r}: {exc}') from None
     base = BASE_CLASSES[team]
     if not (isinstance(cls, type) and issubclass(cls, base)):
         raise ValueError(f'agent {spec!r} must be a subclass of mate.{base.__name__}')
     return cls
+
+
+def _import_from_working_directory(module_name: str):
+    """Import `module_name` with the current directory first on the module path, as `python -m` finds modules (the
+    `mate` console script does not put it there)."""
+    import os
+    import sys
+
+    here = os.getcwd()
+    added = here not in sys.path
+    if added:
+        sys.path.insert(0, here)
+    try:
+        return importlib.import_module(module_name)
+    finally:
+        if added:
+            sys.path.remove(here)
 
 
 @dataclass

@@ -28,7 +28,7 @@ from typing import Any, Literal
 
 from .arguments import in_range, number, number_phrase
 
-__all__ = ['add_options', 'check_ranges', 'config_from', 'option']
+__all__ = ['add_options', 'check_ranges', 'config_from', 'file_arguments', 'option']
 
 RANGE_KEYS = ('minimum', 'above', 'maximum')
 
@@ -166,3 +166,49 @@ def config_from(parser: argparse.ArgumentParser, config_class, args: argparse.Na
         return config_class(**{**given, **fixed})
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
+
+
+def file_arguments(parser: argparse.ArgumentParser, path) -> list[str]:
+    """The options of a YAML or JSON config file (`mate train ALGORITHM --config-file FILE`) as command-line tokens
+    for `parser`, to be put before the command line's own (which then win): keys are the options' field names
+    (`num_envs` or `num-envs`) or preset switches (`paper: true`), values as the command line takes them (a list
+    for several numbers, `[[step, value], ...]` for a schedule). ValueError naming an unknown key, with the valid
+    ones, or a value of the wrong form; the parser checks ranges and choices as for the command line."""
+    import yaml
+
+    try:
+        data = yaml.safe_load(open(path).read())
+    except OSError as exc:
+        raise ValueError(f'--config-file: cannot read {path}: {exc.strerror}') from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f'--config-file {path}: not valid YAML/JSON: {str(exc).splitlines()[0]}') from None
+    if data is None:
+        return []
+    if not isinstance(data, dict):
+        raise ValueError(f'--config-file {path}: expected a mapping of options, got a {type(data).__name__}')
+    actions = {action.dest: action for action in parser._actions if action.option_strings}
+    switches = {action.dest.removeprefix('preset_'): action for dest, action in actions.items()
+                if dest.startswith('preset_')}
+    tokens: list[str] = []
+    for key, value in data.items():
+        name = str(key).replace('-', '_')
+        action = actions.get(name) or switches.get(name)
+        if action is None or name in ('help', 'config_file'):
+            valid = sorted(d for d in actions if d not in ('help', 'config_file') and not d.startswith('preset_'))
+            raise ValueError(f'--config-file {path}: unknown option {key!r}; the options are {", ".join(valid)}')
+        flag = action.option_strings[0]
+        if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)):
+            if not isinstance(value, bool):
+                raise ValueError(f'--config-file {path}: {key} is true or false, got {value!r}')
+            if value == isinstance(action, argparse._StoreTrueAction):    # --flag for true, --no-flag for false
+                tokens.append(flag)
+            continue
+        if value is None:
+            continue
+        if action.type is _schedule:
+            tokens += [flag, json.dumps(value)]
+        elif action.nargs == '+':
+            tokens += [flag, *map(str, value if isinstance(value, (list, tuple)) else [value])]
+        else:
+            tokens += [flag, str(value)]
+    return tokens

@@ -136,12 +136,16 @@ class ProgressLine:
         else:
             self._print()
 
-    def update(self, completed: float | None = None, advance: float = 0, status: str | None = None) -> None:
+    def update(self, completed: float | None = None, advance: float = 0, status: str | None = None,
+               total: float | None = None) -> None:
         self.completed = (self.completed if completed is None else completed) + advance
         if status is not None:
             self.status = status
+        if total is not None:
+            self.total = total
         if self._bar is not None:
-            self._bar.update(self._task, completed=self.completed, status=self.status)
+            self._bar.update(self._task, completed=self.completed, status=self.status,
+                             **({} if total is None else dict(total=total)))
         elif time.perf_counter() - self._printed >= self.interval:
             self._print()
 

@@ -50,13 +50,38 @@ import numpy as np
 
 from .teams.protocol import as_team
 
-__all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'PAPER_SETTINGS', 'PolicyScore',
-           'REFERENCES', 'TEAM_METRIC', 'evaluate', 'horizon', 'paper_config', 'score_policy']
+__all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'FRESH_SEEDS', 'PAPER_SETTINGS',
+           'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES', 'TEAM_METRIC', 'evaluate',
+           'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
 
 EVALUATION_SEEDS = 1_000_000
-"""First env seed of the periodic evaluation episodes."""
+"""First env seed of the periodic evaluation episodes (and the end of the training seeds)."""
 ABSOLUTE_SEEDS = 2_000_000
 """First env seed of the final evaluation of the best policy (the absolute metric)."""
+PAYOFF_SEEDS = 3_000_000
+"""First env seed of a population run's payoff entries (`mate psro`)."""
+FRESH_SEEDS = 4_000_000
+"""First env seed of a population run's fresh-seed exploitability (its best responses re-played)."""
+SEED_RANGES = {'training': (0, EVALUATION_SEEDS), 'evaluation': (EVALUATION_SEEDS, ABSOLUTE_SEEDS),
+               'absolute': (ABSOLUTE_SEEDS, PAYOFF_SEEDS), 'payoff': (PAYOFF_SEEDS, FRESH_SEEDS),
+               'fresh': (FRESH_SEEDS, FRESH_SEEDS + 1_000_000)}
+"""Every use of env seeds and its own range [first, end): the games of every training env row (any run, iteration or
+resume), the periodic evaluations, the absolute metric, PSRO's payoff entries and its fresh-seed exploitability. No
+game of one use is a game of another (tests/test_seed_ranges.py)."""
+RESET_SEED_STRIDE = 10_007
+"""A training session that cannot continue its checkpoint's episodes resets from `training_reset_seed`."""
+
+
+def training_reset_seed(seed: int, iteration: int, num_envs: int) -> int:
+    """The seed a training batch of `num_envs` rows resets with at `iteration` (0: a fresh run, `seed` itself; later:
+    a resumed session without the batch's state): `seed + RESET_SEED_STRIDE x iteration`, wrapped so that every row
+    (this seed + row) stays in the training range [0, EVALUATION_SEEDS). ValueError when `seed + num_envs` leaves it
+    already."""
+    end = SEED_RANGES['training'][1]
+    if seed < 0 or num_envs < 1 or seed + num_envs > end:
+        raise ValueError(f'training seeds: seed + num_envs must be at most {end:,} (the evaluation seeds start there), '
+                         f'got seed {seed:,} with {num_envs:,} envs')
+    return (seed + RESET_SEED_STRIDE * iteration) % (end - num_envs + 1)
 ABSOLUTE_FACTOR = 10
 """The absolute metric plays this many times the periodic evaluation's episodes."""
 TEAM_METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}

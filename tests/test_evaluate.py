@@ -155,3 +155,13 @@ def test_device_of_batched_policies(capsys):
         assert main(['evaluate', *policy, '--device', 'cuda']) == 2
         assert 'PyTorch sees no CUDA GPU here' in capsys.readouterr().err
     assert main(['evaluate', *policy, '--device', 'cpu']) == 0
+
+
+def test_an_agent_of_a_module_in_the_working_directory(tmp_path, monkeypatch):
+    """`--camera-agent my_cameras:StillCamera` finds my_cameras.py in the current directory, as `python -m` would."""
+    (tmp_path / 'my_cameras_here.py').write_text(
+        'import numpy as np\nimport mate\n\n\nclass StillCamera(mate.CameraAgentBase):\n'
+        '    def act(self, observation, info=None, deterministic=None):\n        return np.zeros(2)\n')
+    monkeypatch.chdir(tmp_path)
+    assert main(['evaluate', '--camera-agent', 'my_cameras_here:StillCamera', '--episodes', '1',
+                 '--max-episode-steps', '5', '--no-render']) == 0

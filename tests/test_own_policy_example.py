@@ -38,3 +38,23 @@ def test_the_example_trains_and_scores_at_a_tiny_budget(tmp_path):
     absolute = json.loads((run / 'absolute.json').read_text())
     assert absolute['metric'] == 'coverage_rate' and len(absolute['episodes']) == 10
     assert f"PPO {absolute['mean']:.3f}" in score_line
+
+
+def test_the_custom_experiment_runs_from_another_folder_and_reports(tmp_path):
+    """`examples/custom_experiment.py` (the example's PPO beside mate's MAPPO) copied outside the repository, run by
+    `mate benchmark run FILE` at one seed and a tiny budget, and reported."""
+    pytest.importorskip('torch', reason='needs the train extra')
+    import shutil
+
+    for name in ('custom_experiment.py', 'own_policy_ppo.py'):
+        shutil.copy(EXAMPLE.parent / name, tmp_path / name)
+    run = [sys.executable, '-m', 'mate', 'benchmark']
+    result = subprocess.run([*run, 'run', 'custom_experiment.py', '--out', 'out', '--seeds', '0', '--steps', '200'],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stdout + result.stderr
+    result = subprocess.run([*run, 'report', 'out', '--out', 'report', '--reps', '200'], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads((tmp_path / 'report' / 'results.json').read_text())['custom-ppo-vs-mappo']
+    assert set(summary['tasks']['MATE-4v8-9 cameras']['settings']) == {'my PPO', 'MAPPO'}
+    assert (tmp_path / 'report' / 'marl_eval.json').exists() and (tmp_path / 'report' / 'results.md').exists()

@@ -28,7 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                           'benchmark. Several runners may share OUT (a job runs under a lock of its '
                                           'directory: one a runner is running, another skips). One line per finished '
                                           'job, also in OUT/benchmark.log.')
-    run.add_argument('name', metavar='NAME', help='the experiment (mate benchmark list)')
+    run.add_argument('name', metavar='NAME|FILE',
+                     help='the experiment: a name of mate benchmark list, or a file of yours (.py defining EXPERIMENT, '
+                          'or .yaml/.json; docs/benchmark.md "Your own experiments")')
     run.add_argument('--seeds', default=None, help="run seeds, e.g. '0-4' or '0,2,5' (default: the experiment's, "
                                                    '0-4 for the figures)')
     run.add_argument('--presets', default=None,
@@ -38,7 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="only these of the experiment's settings, by label or file-name slug, e.g. "
                           "'IPPO,MAPPO+TarMAC' or 'ippo,mappo-tarmac' (default: all; a later run on the same --out may "
                           'add the others)')
-    run.add_argument('--out', default=None, help='the benchmark directory (default runs/benchmark/NAME)')
+    run.add_argument('--out', default=None, help="the benchmark directory (default runs/benchmark/NAME, NAME the "
+                                                 "experiment's name)")
     run.add_argument('--steps', type=positive_int, default=None,
                      help="decision steps per training run (PSRO: per best response); default the experiment's "
                           "budget (the paper's 10 M for the cooperative runs)")
@@ -96,6 +99,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     quote.add_argument('files', nargs='+', metavar='FILE', help='markdown files (README.md, docs/*.md)')
     quote.add_argument('--root', default='.', help='the directory the markers\' paths are relative to (default .)')
     quote.add_argument('--check', action='store_true', help='change nothing; exit status 1 if a block differs')
+    job = commands.add_parser('job', help=argparse.SUPPRESS,
+                              description="One job of a user's command-line or function setting (what mate benchmark "
+                                          'run starts; not for direct use).')
+    job.add_argument('dir', metavar='DIR', help='the benchmark directory (its manifest defines the experiment)')
+    job.add_argument('label', metavar='LABEL', help='the setting')
+    job.add_argument('preset', metavar='PRESET', help='the game')
+    job.add_argument('seed', type=int, metavar='SEED', help='the run seed')
+    job.add_argument('--threads', type=positive_int, default=1, help='torch threads (default 1)')
 
 
 def run(args: argparse.Namespace, console) -> int:
@@ -122,6 +133,8 @@ def run(args: argparse.Namespace, console) -> int:
             raise CommandError(str(exc)) from None
         say(f'kept {len(kept)} complete job{"s" * (len(kept) != 1)} of {args.dir} in {args.dest}')
         return 0
+    if args.benchmark_command == 'job':
+        return _job(args, say)
     if args.benchmark_command == 'quote':
         from .quote import quote_files
 
@@ -139,15 +152,42 @@ def _say(console):
     return say
 
 
-def _status(dirs: list[str], say) -> int:
+def _job(args: argparse.Namespace, say) -> int:
+    from .directory import read_manifest
+    from .experiments import experiment_of
+    from .jobs import job_values
+    from .user import run_user_job
+
+    try:
+        manifest = read_manifest(args.dir)
+        experiment = experiment_of(manifest)
+        setting = next((s for s in experiment.settings if s.label == args.label), None)
+        if setting is None or setting.kind not in ('argv', 'call'):
+            raise ValueError(f'{args.label!r} is no command-line or function setting of {experiment.name}')
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    os.environ.setdefault('OMP_NUM_THREADS', str(args.threads))
+    values = job_values(experiment, args.preset, args.seed, manifest['steps'], args.dir, args.threads, setting)
+    return run_user_job(setting, values, experiment.eval_episodes, say=say)
+
+
+def _experiment(name: str):
+    """The experiment `mate benchmark run NAME|FILE` names: the package's, or the one of a user's file."""
     from .experiments import experiment as experiment_named
+    from .user import is_experiment_file, load_experiment
+
+    return load_experiment(name) if is_experiment_file(name) else experiment_named(name)
+
+
+def _status(dirs: list[str], say) -> int:
     from .directory import JOB_STATES, job_status, read_manifest
+    from .experiments import experiment_of
     from .jobs import plan
 
     for folder in dirs:
         try:
             manifest = read_manifest(folder)
-            experiment = experiment_named(manifest['experiment'])
+            experiment = experiment_of(manifest)
         except ValueError as exc:
             raise CommandError(str(exc)) from None
         jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'],   # (run --presets, --settings:
@@ -179,13 +219,12 @@ def _list(say) -> int:
 
 def _run(args: argparse.Namespace, say) -> int:
     from ..runners import RayRunner, RunnerError, ThreadRunner
-    from .experiments import experiment as experiment_named
     from .directory import extend_jobs, reuse_jobs, write_manifest
     from .jobs import parse_presets, parse_seeds, parse_settings, plan
     from .runner import run_jobs, stop_children
 
     try:
-        experiment = experiment_named(args.name)
+        experiment = _experiment(args.name)
         seeds = parse_seeds(args.seeds) if args.seeds else list(range(experiment.seeds))
         presets = parse_presets(args.presets, experiment) if args.presets else list(experiment.presets)
         settings = parse_settings(args.settings, experiment) if args.settings else None

@@ -18,8 +18,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..progress import last_lines, last_logged_row, training_rate
-from .experiments import Experiment
-from .experiments import experiment as experiment_named
+from .experiments import Experiment, experiment_of
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
@@ -46,13 +45,16 @@ def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: i
     path = out / 'benchmark.json'
     manifest = dict(format=BENCHMARK_FORMAT, experiment=experiment.name, steps=steps,
                     eval_every=experiment.eval_interval(steps), eval_episodes=experiment.eval_episodes,
-                    horizon=horizon_of(experiment), seed_stride=SEED_STRIDE)
+                    horizon=horizon_of(experiment), seed_stride=SEED_STRIDE, definition=experiment.to_dict())
     if path.exists():
         old = read_manifest(out)
         for key in ('experiment', 'steps', 'eval_every', 'eval_episodes', 'horizon'):
             if old.get(key) != manifest[key]:
                 raise ValueError(f'{out} holds a benchmark with {key} {old.get(key)!r}, not {manifest[key]!r}; '
                                  'use another --out')
+        if experiment.source == 'user' and old.get('definition') not in (None, manifest['definition']):
+            raise ValueError(f'{out} holds a benchmark of another definition of {experiment.name!r} (its settings, '
+                             'games, claims or references changed since); use another --out')
         seeds = sorted(set(old.get('seeds', [])) | set(seeds))
     manifest['seeds'] = seeds
     manifest['jobs'] = [dict(kind=job.kind, label=job.label, preset=job.preset, seed=job.seed,
@@ -311,7 +313,7 @@ def keep_results(out, dest, say: Callable[[str], None] = print) -> list[Job]:
         raise ValueError(f'{dest} is the benchmark directory itself; keep its results in another directory')
     manifest = read_manifest(out)
     seeds = sorted({job['seed'] for job in manifest['jobs'] if job['seed'] is not None})
-    jobs = plan(experiment_named(manifest['experiment']), seeds, out, steps=manifest['steps'])
+    jobs = plan(experiment_of(manifest), seeds, out, steps=manifest['steps'])
     dest.mkdir(parents=True, exist_ok=True)
     shutil.copy2(out / 'benchmark.json', dest / 'benchmark.json')
     kept = []

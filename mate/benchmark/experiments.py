@@ -27,8 +27,13 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from collections.abc import Callable
+from pathlib import Path
 
-__all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'Setting', 'experiment']
+__all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'REFERENCE_NAMES', 'Setting', 'experiment', 'experiment_of']
+
+REFERENCE_NAMES = ('random', 'greedy', 'upper-bound')
+"""The rule teams an experiment may play as references (and name in its claims)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,13 +44,60 @@ class Setting:
         label: its name in figures and tables ('HRL-MAPPO', 'MAPPO+TarMAC', ...).
         command: the `mate train` trainer ('mappo', 'ippo', 'mappo-as', 'mappo-lstm', 'tarmac', 'i2c', 'iql', 'qmix',
             'matd3'), 'rllib-ppo' for RLlib's PPO (`mate rllib-train`, the same run files and evaluation protocol), or
-            'psro' for a population run.
+            'psro' for a population run; '' for the two kinds below.
         options: further command-line options of the trainer (or of `mate psro`).
+        argv: any command line instead (a user's training script), with `{run_dir}`, `{seed}`, ... placeholders; it
+            writes the protocol's run files (`mate.benchmark.user`).
+        call: a function that trains and returns a policy instead, or 'path/to/file.py:function'
+            (`mate.benchmark.user`); a function is stored as the file and name it is defined by.
     """
 
     label: str
-    command: str
+    command: str = ''
     options: tuple[str, ...] = ()
+    argv: tuple[str, ...] = ()
+    call: str | Callable | None = None
+
+    def __post_init__(self) -> None:
+        kinds = [kind for kind, given in (('command', self.command), ('argv', self.argv), ('call', self.call)) if given]
+        if len(kinds) != 1:
+            raise ValueError(f'setting {self.label!r}: give exactly one of command (a mate trainer), argv (a command '
+                             f'line) or call (a training function); got {", ".join(kinds) or "none"}')
+        if self.options and not self.command:
+            raise ValueError(f'setting {self.label!r}: options go with a mate trainer (command); put them in argv')
+        object.__setattr__(self, 'options', tuple(str(o) for o in self.options))
+        object.__setattr__(self, 'argv', tuple(str(a) for a in self.argv))
+        if callable(self.call):
+            object.__setattr__(self, 'call', _reference_of(self.call))
+
+    @property
+    def kind(self) -> str:
+        """'trainer', 'psro', 'argv' or 'call'."""
+        return 'argv' if self.argv else 'call' if self.call else 'psro' if self.command == 'psro' else 'trainer'
+
+    def to_dict(self) -> dict:
+        return {key: list(value) if isinstance(value, tuple) else value
+                for key, value in dataclasses.asdict(self).items() if value not in ('', (), None)}
+
+    @classmethod
+    def from_dict(cls, data: dict, base: Path | None = None) -> Setting:
+        """A setting from its mapping (a `call` path relative to `base`, the experiment file's folder)."""
+        known = {field.name for field in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f'setting {data.get("label", "?")!r}: unknown key(s) {", ".join(unknown)}; the keys are '
+                             f'{", ".join(sorted(known))}')
+        data = dict(data)
+        call = data.get('call')
+        if isinstance(call, str) and base is not None:
+            where, _, name = call.rpartition(':')
+            if where.endswith('.py') and not Path(where).is_absolute():
+                data['call'] = f'{(base / where).resolve()}:{name}'
+        for key in ('options', 'argv'):
+            if isinstance(data.get(key), str):
+                raise ValueError(f'setting {data.get("label", "?")!r}: {key} is a list of strings, got {data[key]!r}')
+            data[key] = tuple(data.get(key) or ())
+        return cls(**data)
 
     @property
     def slug(self) -> str:
@@ -102,6 +154,8 @@ class Experiment:
         seeds: runs per (setting, preset) unless `mate benchmark run --seeds` says otherwise.
         claim: the paper's claim the experiment tests, in a sentence.
         claims: that claim as comparisons the report judges.
+        source: 'paper' for the package's experiments (their claims are the paper's, or mate's diagnostics of
+            them), 'user' for an experiment of the user's file (`mate.benchmark.user`).
     """
 
     name: str
@@ -118,6 +172,63 @@ class Experiment:
     seeds: int = 5
     claim: str = ''
     claims: tuple[Claim, ...] = ()
+    source: str = 'user'
+
+    def __post_init__(self) -> None:
+        if self.team not in ('camera', 'target', 'both'):
+            raise ValueError(f"experiment {self.name!r}: team is 'camera', 'target' or 'both', got {self.team!r}")
+        if not self.settings or not self.presets:
+            raise ValueError(f'experiment {self.name!r}: it needs at least one setting and one preset')
+        object.__setattr__(self, 'settings', tuple(self.settings))
+        object.__setattr__(self, 'presets', tuple(self.presets))
+        object.__setattr__(self, 'references', tuple(self.references))
+        object.__setattr__(self, 'claims', tuple(self.claims))
+        labels = [setting.label for setting in self.settings]
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        if twice:
+            raise ValueError(f'experiment {self.name!r}: setting labels must differ; {twice[0]!r} is used twice')
+        bad = [name for name in self.references if name not in REFERENCE_NAMES]
+        if bad:
+            raise ValueError(f'experiment {self.name!r}: unknown reference {bad[0]!r}; references are '
+                             f'{", ".join(REFERENCE_NAMES)}')
+        sides = [*labels, *REFERENCE_NAMES]
+        for claim in self.claims:
+            for side in (claim.better, claim.worse):
+                if side not in sides:
+                    raise ValueError(f'experiment {self.name!r}, claim {claim.text!r}: {side!r} is neither a setting '
+                                     f'({", ".join(labels)}) nor a reference ({", ".join(REFERENCE_NAMES)})')
+            if claim.preset is not None and claim.preset not in self.presets:
+                raise ValueError(f'experiment {self.name!r}, claim {claim.text!r}: preset {claim.preset!r} is not one '
+                                 f'of its games ({", ".join(self.presets)})')
+
+    def to_dict(self) -> dict:
+        """The experiment as plain data (what a benchmark directory's manifest keeps; `from_dict` reads it)."""
+        data = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)}
+        data['settings'] = [setting.to_dict() for setting in self.settings]
+        data['claims'] = [dataclasses.asdict(claim) for claim in self.claims]
+        data['presets'], data['references'] = list(self.presets), list(self.references)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict, base: Path | None = None) -> Experiment:
+        """An experiment from its mapping (`to_dict`'s, or a YAML file's); ValueError naming a bad key."""
+        known = {field.name for field in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f'unknown experiment key(s) {", ".join(unknown)}; the keys are {", ".join(sorted(known))}')
+        data = dict(data)
+        try:
+            data['settings'] = tuple(Setting.from_dict(s, base) for s in data.get('settings') or ())
+            data['claims'] = tuple(Claim(**c) for c in data.get('claims') or ())
+            return cls(**data)
+        except TypeError as exc:
+            raise ValueError(f'experiment {data.get("name", "?")!r}: {exc}') from None
+
+    def with_calls_from(self, path: Path) -> Experiment:
+        """This experiment with its function settings' relative 'file.py:name' paths made absolute from the folder
+        of `path` (the experiment's file)."""
+        settings = tuple(Setting.from_dict(setting.to_dict(), Path(path).parent) for setting in self.settings)
+        return dataclasses.replace(self, settings=settings)
 
     @property
     def population(self) -> bool:
@@ -175,7 +286,7 @@ def _witness(team: str, preset: str, task: str, references: tuple[str, ...]) -> 
         claims=(Claim("RLlib PPO with IPPO's settings scores as IPPO", 'RLlib PPO', 'IPPO', kind='agree'),))
 
 
-EXPERIMENTS = {experiment.name: experiment for experiment in (
+EXPERIMENTS = {experiment.name: dataclasses.replace(experiment, source='paper') for experiment in (
     Experiment(
         'smoke', 'the whole pipeline in seconds (CI)', 'camera', ('MATE-2v4-0',),
         (Setting('MAPPO', 'mappo', ('--num-envs', '4', '--rollout-length', '10', '--hidden', '16', '16')),
@@ -299,5 +410,29 @@ EXPERIMENTS = {experiment.name: experiment for experiment in (
 def experiment(name: str) -> Experiment:
     """The experiment `name`; ValueError listing the experiments otherwise."""
     if name not in EXPERIMENTS:
-        raise ValueError(f'unknown experiment {name!r}; experiments: {", ".join(EXPERIMENTS)}')
+        raise ValueError(f'unknown experiment {name!r}; experiments: {", ".join(EXPERIMENTS)}, or a file of yours '
+                         '(.py, .yaml, .json)')
     return EXPERIMENTS[name]
+
+
+def experiment_of(manifest: dict) -> Experiment:
+    """The experiment of a benchmark directory's manifest: the definition it keeps, or (a directory written before
+    manifests kept it) the package's experiment of its name."""
+    if manifest.get('definition'):
+        return Experiment.from_dict(manifest['definition'])
+    return experiment(manifest['experiment'])
+
+
+def _reference_of(function: Callable) -> str:
+    """'path/to/file.py:name' of a function defined at the top level of a file."""
+    import inspect
+
+    try:
+        file = inspect.getsourcefile(function)
+    except TypeError:
+        file = None
+    name = getattr(function, '__name__', '')
+    if not file or not name or name == '<lambda>' or getattr(function, '__qualname__', name) != name:
+        raise ValueError(f'a call setting needs a function defined at the top level of a file (def name(...)), got '
+                         f'{function!r}')
+    return f'{Path(file).resolve()}:{name}'

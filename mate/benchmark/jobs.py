@@ -34,8 +34,8 @@ from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .experiments import Experiment, Setting
 
-__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'parse_presets', 'parse_seeds',
-           'parse_settings', 'plan']
+__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'job_values', 'parse_presets',
+           'parse_seeds', 'parse_settings', 'plan']
 
 SEED_STRIDE = 1000
 """Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
@@ -170,6 +170,10 @@ def horizon_of(experiment: Experiment) -> int | None:
 def _training(experiment: Experiment, setting: Setting, preset: str, seed: int, steps: int, out: Path,
               threads: int) -> Job:
     folder = out / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    if setting.kind in ('argv', 'call'):       # a user's command line or function: `mate benchmark job` runs it
+        command = ('benchmark', 'job', str(out), setting.label, preset, str(seed), '--threads', str(threads))
+        return Job('train', setting.label, preset, seed, folder, (command,), (folder / 'absolute.json',),
+                   TEAM_METRIC[experiment.team])
     trainer = ('rllib-train',) if setting.command == 'rllib-ppo' else ('train', setting.command)
     command = (*trainer, *setting.options, '--team', experiment.team, '--config', preset,
                '--steps', str(steps), '--seed', str(seed * SEED_STRIDE), '--horizon', str(horizon_of(experiment)),
@@ -218,6 +222,15 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     for seed in seeds:
         for preset in games:
             for setting in chosen:
-                jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.command == 'psro'
+                jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.kind == 'psro'
                             else _training(experiment, setting, preset, seed, steps, out, threads))
     return jobs
+
+
+def job_values(experiment: Experiment, preset: str, seed: int, steps: int, out, threads: int, setting: Setting) -> dict:
+    """What a user's command-line or function setting is given for the run (`mate.benchmark.user.PLACEHOLDERS`): its
+    run directory, training seed (`seed x SEED_STRIDE`, as a mate trainer's), budget, team, game, episode cut,
+    evaluation episodes and interval, and torch threads."""
+    return dict(run_dir=str(Path(out) / 'runs' / f'{setting.slug}-{preset}-seed{seed}'), seed=seed * SEED_STRIDE,
+                steps=int(steps), team=experiment.team, config=preset, horizon=horizon_of(experiment),
+                eval_episodes=experiment.eval_episodes, eval_every=experiment.eval_interval(steps), threads=int(threads))

@@ -31,8 +31,7 @@ import numpy as np
 
 from ..learn.evaluation import read_evaluations
 from ..learn.population.solvers import effective_policies
-from .experiments import Experiment
-from .experiments import experiment as experiment_named
+from .experiments import Experiment, experiment_of
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
 from .directory import read_manifest
 from .jobs import by_setting, job_name
@@ -93,7 +92,7 @@ def collect(directories: Iterable) -> dict[str, Results]:
     for directory in directories:
         directory = Path(directory)
         manifest = read_manifest(directory)
-        experiment = experiment_named(manifest['experiment'])
+        experiment = experiment_of(manifest)
         results = merged.setdefault(experiment.name, Results(experiment, manifest['steps']))
         if results.steps != manifest['steps']:
             raise ValueError(f'{directory}: {experiment.name} at {manifest["steps"]:,} steps per run, another '
@@ -173,7 +172,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
     """The numbers of `results.md` (module docstring) as a JSON-ready dict."""
     experiment = results.experiment
     summary = dict(experiment=experiment.name, figure=experiment.figure, claim=experiment.claim,
-                   team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
+                   **({} if experiment.source == 'paper' else dict(source=experiment.source)), team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
                    eval_every=experiment.eval_interval(results.steps), eval_episodes=experiment.eval_episodes,
                    iterations=experiment.iterations,
                    incomplete=by_setting(sorted(results.incomplete, key=_job_order)), tasks={})
@@ -492,7 +491,8 @@ def markdown(summary: dict, figures: list[str]) -> str:
             lines += [f'| {pair} | {format_interval(value, 2)} |' for pair, value in data['improvement'].items()]
             lines.append('')
     if summary.get('claims'):
-        lines += ['Claims of the paper at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, '
+        whose = 'Claims of the paper' if summary.get('source', 'paper') == 'paper' else 'Claims of this experiment'
+        lines += [f'{whose} at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, '
                   "or of the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval "
                   'holds both; '
                   'for two settings that should agree, consistent: the interval of P holds 1/2, differ: it does not):',

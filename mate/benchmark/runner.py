@@ -1,12 +1,15 @@
 """`mate benchmark run`: the jobs of an experiment (`mate.benchmark.jobs`) run as independent processes, on this
 machine (`mate.runners.ThreadRunner`) or as Ray tasks (`RayRunner`), one line per finished job.
 
+    from mate.benchmark.directory import write_manifest
     from mate.benchmark.experiments import experiment
     from mate.benchmark.jobs import plan
     from mate.benchmark.runner import run_jobs
     from mate.runners import ThreadRunner
 
-    jobs = plan(experiment('smoke'), seeds=[0], out='bench/smoke')
+    smoke = experiment('smoke')                 # or mate.benchmark.user.load_experiment('my_experiment.py')
+    jobs = plan(smoke, seeds=[0], out='bench/smoke')
+    write_manifest(smoke, jobs, 'bench/smoke', steps=smoke.steps, seeds=[0])   # what report and status read
     failed = run_jobs(jobs, ThreadRunner(2), say=print)     # runs the missing ones, two at a time
 
 Each job runs under a lock of its directory (`JOB_LOCK`; two runners never run one job) and names its process in

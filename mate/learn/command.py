@@ -72,6 +72,9 @@ def trainer_parser(name: str):
         raise CommandError(f"needs PyTorch ({exc}); install the train extra: pip install -e '.[train]'") from None
     config_class = getattr(module, trainer.config)
     parser = ArgumentParser(prog=f'mate train {name}', description=f'{trainer.help}. {config_class.__doc__}')
+    parser.add_argument('--config-file', default=None, metavar='FILE',
+                        help='a YAML or JSON file of these options by field name (num_envs: 16, hidden: [64, 64], '
+                             'paper: true); the command line overrides it')
     add_options(parser, config_class, exclude=tuple(trainer.fixed))
     return parser, module, config_class
 
@@ -79,14 +82,23 @@ def trainer_parser(name: str):
 def run(args: argparse.Namespace, console) -> int:
     """Train as `args` say; 0 when done (or already done), 130 when stopped by a signal (resumable)."""
     parser, module, config_class = trainer_parser(args.algo)
-    from ..options import config_from
+    from ..options import config_from, file_arguments
     from .checkpoint import CheckpointError, load_checkpoint
 
     options = parser.parse_args(args.options)
+    if options.config_file:
+        with resolving_arguments():
+            options = parser.parse_args([*file_arguments(parser, options.config_file), *args.options])
     config = config_from(parser, config_class, options, **TRAINERS[args.algo].fixed)
     name = run_name(args.algo, config)
     if config.run_dir is None:
         config.run_dir = f'runs/{name}-{config.team}-seed{config.seed}'
+    if config.wandb:
+        from ..extras import _importable
+
+        if not _importable('wandb'):
+            raise CommandError("--wandb needs Weights & Biases: pip install wandb (WANDB_MODE=offline logs without an "
+                               'account)')
     resuming = resumes(config, console)
     if resuming is None:
         return 0
@@ -100,6 +112,7 @@ def run(args: argparse.Namespace, console) -> int:
         from .device import resolve_device
 
         device = resolve_device(config.device)
+    _write_command(config.run_dir, ['mate', 'train', args.algo, *args.options])
     console.print(f'training {name.upper()} {config.team}s on {spec.env_id} ({spec.network} network'
                   f'{f", LSTM {spec.lstm}" if spec.lstm else ""}, {spec.action} actions, frame skip {spec.frame_skip}, '
                   f'{config.num_envs} envs, {config.steps:,} decision steps, {device}) -> {config.run_dir}',
@@ -131,10 +144,14 @@ def train_and_report(train: Callable, config, console, resuming: bool) -> int:
         return 0
     if config.minutes and result.env_steps < config.steps:
         console.print(f'stopped at the time limit of {config.minutes:g} minutes')
-    console.print(f"done: {result.env_steps:,} decision steps, "
-                  f"coverage {row.get('rollout_coverage', float('nan')):.3f}, "
-                  f"episode return {row.get('episode_return', float('nan')):.1f}; final policy "
-                  f"{Path(config.run_dir) / 'final.pt'}", soft_wrap=True)
+    from .run import episode_reward_phrase
+
+    rounded = f' (--steps {config.steps:,} rounded up to whole iterations)' if result.env_steps > config.steps else ''
+    console.print(f"done: {result.env_steps:,} decision steps{rounded}, rollout coverage "
+                  f"{row.get('rollout_coverage', float('nan')):.3f}, {episode_reward_phrase(row)}; final policy "
+                  f"{Path(config.run_dir) / 'final.pt'} (the learner's reward is what it trains on: for cameras the "
+                  "summed coverage rate; mate evaluate reports the env's raw team return)", soft_wrap=True,
+                  highlight=False)
     return 0
 
 
@@ -200,3 +217,13 @@ def _absolute_metric(config, console) -> None:
     record = evaluator.absolute()
     console.print(f'absolute metric (best evaluated policy, {len(record["episodes"])} held-out episodes): '
                   f'{record["metric"]} {record["mean"]:.3f} -> {run_dir / "absolute.json"}', soft_wrap=True)
+
+
+def _write_command(run_dir, argv: list[str]) -> None:
+    """`RUN_DIR/command.txt`: the command line that ran (or resumed) the run, beside its checkpoints and
+    `config.json`."""
+    import shlex
+
+    path = Path(run_dir)
+    path.mkdir(parents=True, exist_ok=True)
+    (path / 'command.txt').write_text(shlex.join(argv) + '\n')

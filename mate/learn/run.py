@@ -44,11 +44,13 @@ from pathlib import Path
 import numpy as np
 
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
-from .evaluation import EVALUATION_SEEDS, Evaluator
+from ..protocol import EVALUATION_SEEDS, training_reset_seed
+from .evaluation import Evaluator
 from .run_config import RunConfig
 from .spec import PolicySpec
 
-__all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'mean_or_nan']
+__all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'config_hash', 'episode_reward_phrase',
+           'mean_or_nan', 'write_run_config']
 
 EPISODE_WINDOW = 25
 """Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
@@ -62,9 +64,62 @@ TIMING_COLUMNS = ('wall_seconds', 'steps_per_second', 'collect_share')
 RESUME_SETTINGS = ('credit',)
 """Config settings that a resumed run must share with its checkpoint beside the spec and the algorithm (the reward
 each agent learns from, hence the critic's outputs)."""
-RESET_SEED_STRIDE = 10_007
-"""A session that cannot continue its checkpoint's episodes resets the envs with seed `seed + RESET_SEED_STRIDE x
-iteration` (`Run.first_observations`)."""
+
+
+NOT_IN_THE_HASH = ('run_dir', 'fresh', 'progress', 'threads', 'device', 'minutes', 'checkpoint_every',
+                   'snapshot_every', 'wandb', 'wandb_project')
+"""Config fields that do not change what a run computes (where it runs, how it shows and saves it), left out of
+`config_hash`. The budget (`steps`) is in: a run of another budget is another run."""
+
+
+def config_hash(algo: str, config_dict: dict) -> str:
+    """sha256 of the canonical JSON of the algorithm and the config fields that define the run (all but
+    `NOT_IN_THE_HASH`): two runs with the same hash run the same computation."""
+    import hashlib
+    import json
+
+    defining = {key: value for key, value in config_dict.items() if key not in NOT_IN_THE_HASH}
+    text = json.dumps(dict(algorithm=algo, config=defining), sort_keys=True, separators=(',', ':'), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def write_run_config(run_dir: Path, algo: str, config, spec: PolicySpec) -> Path:
+    """`RUN_DIR/config.json`: every resolved setting of the run (the config's fields, the game, frame skip and
+    horizon its spec resolved), the algorithm, the mate version and `config_hash`."""
+    import json
+
+    from .. import __version__
+
+    fields = _config_dict(config)
+    data = dict(algorithm=algo, mate_version=__version__, config=fields,
+                resolved=dict(env_id=spec.env_id, game=spec.config, frame_skip=spec.frame_skip,
+                              horizon=getattr(config, 'resolved_horizon', None), team=spec.team),
+                config_hash=config_hash(algo, fields))
+    path = Path(run_dir) / 'config.json'
+    path.write_text(json.dumps(data, indent=1, default=str) + '\n')
+    return path
+
+
+def _wandb_run(run_dir: Path, algo: str, config):
+    """A Weights & Biases run logging this run's rows (resumed with the run: its id comes from the run directory)."""
+    import hashlib
+
+    try:
+        import wandb
+    except ImportError:
+        raise ValueError("--wandb needs Weights & Biases: pip install wandb") from None
+    identity = hashlib.sha256(str(Path(run_dir).resolve()).encode()).hexdigest()[:16]
+    return wandb.init(project=config.wandb_project, name=Path(run_dir).name, id=identity, resume='allow',
+                      dir=str(run_dir), config=dict(algorithm=algo, **_config_dict(config)), reinit=True)
+
+
+def episode_reward_phrase(row: dict) -> str:
+    """How a log row's episode window reads in progress lines: the learner's reward summed over an episode (for
+    cameras the coverage rate of each decision, not the env's raw team reward that `mate evaluate` reports), over the
+    last finished episodes, or that none has finished yet."""
+    if not row.get('episodes'):
+        return 'no episode finished yet'
+    return f"learner's episode reward {row['episode_return']:.1f} (last {row['episodes']})"
 
 
 def mean_or_nan(values) -> float:
@@ -110,7 +165,7 @@ class Run:
         self._stop_requested = False
         self.interrupted = False             # stopped by a signal before the run was complete
         self._resume = resume
-        self._writer = self._csv_fields = self._line = None
+        self._writer = self._csv_fields = self._line = self._wandb = None
         self._handlers = {}
         self.last_row: dict = {}
 
@@ -119,13 +174,13 @@ class Run:
         """The run of a trainer's `config` (its `RunConfig` fields: directory, default runs/ALGO-TEAM-seedN, budget,
         checkpoints, progress, --fresh) training the policy of `spec` with algorithm `algo`."""
         run_dir = config.run_dir or f'runs/{algo}-{config.team}-seed{config.seed}'
+        if config.seed + config.num_envs > EVALUATION_SEEDS:
+            raise ValueError(f'--seed {config.seed} with --num-envs {config.num_envs} would train on evaluation seeds: '
+                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} (mate.protocol.SEED_RANGES)')
         evaluator = None
         if config.eval_every:
             from .device import resolve_device
 
-            if config.seed + config.num_envs > EVALUATION_SEEDS:
-                raise ValueError(f'--seed {config.seed} with --num-envs {config.num_envs} would train on evaluation '
-                                 f'seeds: with --eval-every, seed + num_envs must be at most {EVALUATION_SEEDS:,}')
             evaluator = Evaluator(run_dir, spec, config.eval_every, config.eval_episodes, config.resolved_horizon,
                                   resolve_device(config.device))
         return cls(run_dir, algo, config, spec, total_steps=config.steps, time_limit=config.time_limit,
@@ -183,12 +238,12 @@ class Run:
 
         A checkpoint with the batch's state (`saved['envs']`, what `resume` returned) continues the very episodes
         it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x
-        iteration`, the config's seed for a fresh run and other seeds for each later session of an older
-        checkpoint."""
+        iteration` wrapped into the training seeds (`mate.protocol.training_reset_seed`), the config's seed for a
+        fresh run and other seeds for each later session of an older checkpoint."""
         if self.continues_episodes(saved):
             envs.load_state_dict(saved['envs'])
             return envs.observations()
-        return envs.reset(seed=self.config.seed + RESET_SEED_STRIDE * self.iteration)
+        return envs.reset(seed=training_reset_seed(self.config.seed, self.iteration, envs.num_envs))
 
     # ------------------------------------------------------------------ the session
     def __enter__(self) -> Run:
@@ -199,8 +254,10 @@ class Run:
         self.close()
 
     def start(self) -> None:
-        """Open the logs (dropping rows logged after the checkpoint), the progress display and the signal handlers."""
+        """Write `config.json`; open the logs (dropping rows logged after the checkpoint), the progress display and the
+        signal handlers."""
         self._started, self._start_steps = time.perf_counter(), self.env_steps
+        write_run_config(self.dir, self.algo, self.config, self.spec)
         self._open_logs()
         if self.show_progress:
             from ..progress import ProgressLine
@@ -224,6 +281,9 @@ class Run:
         if self._tensorboard is not None:
             self._tensorboard.close()
             self._tensorboard = None
+        if self._wandb is not None:
+            self._wandb.finish()
+            self._wandb = None
 
     def _on_signal(self, number, frame) -> None:
         if self._stop_requested and number == signal.SIGINT:
@@ -261,6 +321,8 @@ class Run:
 
     # ------------------------------------------------------------------ logs
     def _open_logs(self) -> None:
+        if getattr(self.config, 'wandb', False):
+            self._wandb = _wandb_run(self.dir, self.algo, self.config)
         path = self.dir / 'progress.csv'
         if self.iteration == 0 or not path.exists():
             path.unlink(missing_ok=True)
@@ -328,16 +390,27 @@ class Run:
                 self.save_policy('best.pt', actor(), note=f'best, iteration {self.iteration}')
         if self.callback is not None:
             self.callback(row)
+        if self.iteration == 1 and self.total_steps % int(steps):
+            self._say_rounding(int(steps))
         if self._line is not None:
             self._line.update(completed=self.env_steps, status=(
                 f"{row['steps_per_second']:,.0f} steps/s  coverage {row['rollout_coverage']:.3f}  "
-                f"return {row['episode_return']:.1f}" + (f'  {status}' if status else '')))
+                f'{episode_reward_phrase(row)}' + (f'  {status}' if status else '')))
         if actor is not None and self.snapshot_every and self.iteration % self.snapshot_every == 0:
             self.save_policy(f'snapshots/policy-{self.env_steps:010d}.pt', actor())
         if save is not None and self.iteration % self.checkpoint_every == 0:
             self.checkpoint(save())
         self.last_row = row
         return row
+
+    def _say_rounding(self, steps: int) -> None:
+        """Say (once, after the first iteration) that the run trains whole iterations of `steps` decisions, so its
+        budget rounds up, and show the rounded total in the progress display."""
+        total = -(-self.total_steps // steps) * steps
+        self._say(f'an iteration is {steps:,} decision steps: the run trains whole iterations, {total:,} decision steps '
+                  f'for --steps {self.total_steps:,}')
+        if self._line is not None:
+            self._line.update(total=total)
 
     def _write(self, row: dict) -> None:
         path = self.dir / 'progress.csv'
@@ -352,6 +425,9 @@ class Run:
                 if key != 'env_steps' and isinstance(value, (int, float)) and not math.isnan(value):
                     self._tensorboard.add_scalar(key, value, row['env_steps'])
             self._tensorboard.flush()
+        if self._wandb is not None:
+            self._wandb.log({key: value for key, value in row.items() if isinstance(value, (int, float))},
+                            step=int(row['env_steps']))
 
     # ------------------------------------------------------------------ files
     def checkpoint(self, state: dict, path: Path | None = None) -> Path:

@@ -19,6 +19,7 @@ from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from mate.learn.population.psro import PSROSettings
+from mate.protocol import FRESH_SEEDS
 
 from conftest import needs_extra
 
@@ -599,7 +600,7 @@ def test_population_smoke_run_and_report(tmp_path):
     for state in states:
         last = state['iterations'][-1]
         fresh = last['exploitability_fresh']
-        assert fresh['seeds'] == EVALUATION_SEEDS
+        assert fresh['seeds'] == FRESH_SEEDS                 # its own range (mate.protocol.SEED_RANGES)
         assert fresh['mean'] == pytest.approx(0.5 * (fresh['camera'] + fresh['target']))
     entry = json.loads((report / 'results.json').read_text())['smoke-psro']['tasks']['MATE-2v4-0']['settings'][
         'PSRO-Nash']

@@ -42,6 +42,8 @@ import time
 from pathlib import Path
 
 os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # recorded and checked with the kernels pinned (mate.reproducible)
+import mate  # noqa: E402,F401  (first: it pins the kernels before anything imports torch)
+
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / 'tests' / 'data' / 'golden'
 RUN_DIR = '{run_dir}'

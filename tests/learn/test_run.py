@@ -96,6 +96,8 @@ def test_another_algorithm_or_spec_is_refused(tmp_path):
 class _RecordingEnvs:
     """What `Run.first_observations` asks of a TeamVecEnv, recorded."""
 
+    num_envs = 4
+
     def __init__(self):
         self.calls = []
 
@@ -113,7 +115,7 @@ class _RecordingEnvs:
 def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_seed(tmp_path):
     from types import SimpleNamespace
 
-    from mate.learn.run import RESET_SEED_STRIDE
+    from mate.protocol import RESET_SEED_STRIDE
 
     run = Run(tmp_path, 'toy', SimpleNamespace(seed=7), SPEC, total_steps=100)
     envs = _RecordingEnvs()

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import threading
 import time
@@ -36,7 +37,7 @@ import numpy as np
 
 from ...progress import logged_steps
 from ...runners import STOP, LocalRunner, RayRunner
-from ..evaluation import EVALUATION_SEEDS
+from ...protocol import EVALUATION_SEEDS, FRESH_SEEDS, PAYOFF_SEEDS, SEED_RANGES
 from .jobs import TARGET_CREDITS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
@@ -45,9 +46,6 @@ __all__ = ['JOB_LOG', 'LocalRunner', 'PROGRESS_EVERY', 'PSROError', 'PSROSetting
 
 STATE_FORMAT = 'mate.psro/1'
 SIDES = ('camera', 'target')
-FRESH_SEEDS = EVALUATION_SEEDS
-"""First env seed of the fresh-seed exploitability (`exploitability_fresh`): the held-out evaluation seeds of
-`mate.learn.evaluation`, which no best response trains on (`PSROSettings.validate` keeps their games below)."""
 MATRICES = ('payoff', 'payoff_sem', 'coverage', 'real_coverage')
 """The (cameras x targets) matrices of a state: mean normalised target return U_T, its standard error over
 the episodes, mean coverage rate, mean real coverage rate."""
@@ -90,10 +88,13 @@ class PSROSettings:
             raise PSROError('eval_steps must be a positive integer (or None: the preset\'s limit), got '
                             f'{self.eval_steps!r}')
         last_game = self.best_response_seed(self.iterations, 'target') + self.num_envs - 1
-        if last_game >= FRESH_SEEDS:
+        if last_game >= EVALUATION_SEEDS:
             raise PSROError(f'seed {self.seed} with {self.iterations} iterations and {self.num_envs} envs trains on '
-                            f'env seeds up to {last_game:,}, into the held-out seeds from {FRESH_SEEDS:,}; use seed <= '
-                            f'{(FRESH_SEEDS - self.num_envs - 2 * self.iterations - 1) // 1000}')
+                            f'env seeds up to {last_game:,}, past the training seeds (below {EVALUATION_SEEDS:,}); '
+                            f'use seed <= {(EVALUATION_SEEDS - self.num_envs - 2 * self.iterations - 1) // 1000}')
+        for name, first in (('payoff', PAYOFF_SEEDS), ('fresh', FRESH_SEEDS)):
+            if first + self.eval_episodes > SEED_RANGES[name][1]:
+                raise PSROError(f'eval_episodes must be at most {SEED_RANGES[name][1] - first:,} (the {name} seeds)')
         return self
 
     def best_response_seed(self, iteration: int, side: str) -> int:
@@ -338,6 +339,15 @@ class _Loop:
                f'{gains["mean"]:.4f} (cameras {gains["camera"]:.4f}, targets {gains["target"]:.4f}; on fresh seeds '
                f'{fresh["mean"]:.4f})')
             + f'; {settings.solver} meta-strategies: cameras {_fmt(camera_strategy)}, targets {_fmt(target_strategy)}')
+        untrained = [response['team'] for response in state['best_responses']
+                     if response['iteration'] == i and math.isnan(response.get('episode_return', math.nan))]
+        if untrained:
+            warning = (f'the {" and ".join(untrained)} best response{"s" * (len(untrained) > 1)} of iteration {i} '
+                       f'finished no training episode in {settings.br_steps:,} decision steps: they are barely trained, '
+                       'and this exploitability means nothing at this budget (raise --br-steps: an episode is 500 '
+                       'decisions per env)')
+            say(f'warning: {warning}')
+            self.log('exploitability', i, 'warning', None, reason=warning)     # in the run's jobs.jsonl too
 
     def best_responses(self, i: int) -> None:
         """1. The best responses of iteration i (member i of each pool), the missing ones."""
@@ -405,7 +415,7 @@ class _Loop:
                     state[key][k][l] = entry[key]
             _save_state(self.out, state)
 
-        self.run([self.entry_job(k, l, 0) for k, l in missing],
+        self.run([self.entry_job(k, l, PAYOFF_SEEDS) for k, l in missing],
                  [f'payoff entry (camera {k}, target {l}) of iteration {i}' for k, l in missing], entered, i,
                  gpu_share=ENTRY_GPU_SHARE)
         say(f'iteration {i}: payoff entries done in {time.perf_counter() - evaluated:.0f} s')

@@ -1,0 +1,157 @@
+"""Your own experiments: an experiment file outside the package, and the jobs of its own kinds of settings.
+
+    mate benchmark run my_experiment.py --out runs/mine       # or my_experiment.yaml
+    mate benchmark report runs/mine --out runs/mine-report
+
+**A Python file** defines `EXPERIMENT`, a `mate.benchmark.Experiment` (its settings, games, budget, claims). **A
+YAML or JSON file** holds the same fields as a mapping (settings and claims as lists of mappings). A setting is one
+of three kinds:
+
+* a mate trainer: `Setting('MAPPO', 'mappo', ('--hidden', '64', '64'))` (`mate train` and its options; 'rllib-ppo'
+  for `mate rllib-train`);
+* any command line: `Setting('mine', argv=('python', 'train.py', '--seed', '{seed}', '--out', '{run_dir}'))`, run as
+  it is (not through `python -m mate`) with the placeholders `{run_dir}`, `{seed}`, `{steps}`, `{team}`,
+  `{config}`, `{horizon}`, `{eval_episodes}`, `{eval_every}` and `{threads}` filled in. It must leave the run files
+  of the protocol in `{run_dir}`: `absolute.json` (and `evaluations.jsonl` for a curve), as `mate.score_policy(...,
+  run_dir=...)` writes them;
+* a Python function that trains and returns a policy: `Setting('my PPO', call=train)` in a Python file (or
+  `call='path/to/file.py:train'`, a path relative to the experiment file). The benchmark calls
+  `train(team=..., config=..., steps=..., seed=..., run_dir=...)` in a job of its own and scores what it returns
+  with `mate.score_policy` (a callable from observations (B, N, D) to actions (B, N, 2), a batched agent name, or
+  a factory `f(num_envs, counts, seed)` of a batched team), on the experiment's evaluation episodes, writing the run
+  files. During training the function may call `mate.protocol.evaluate(policy, team, config, run_dir=run_dir,
+  env_steps=k, episodes=..., max_episode_steps=...)` to draw a learning curve.
+
+The seed a run gets is what a mate trainer gets (`seed x SEED_STRIDE`, rows below the evaluation seeds); its
+training games must stay below `EVALUATION_SEEDS` (`mate.protocol`). The benchmark directory's manifest keeps the
+whole experiment, so `mate benchmark report` and `status` need nothing but the directory.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import json
+from importlib import import_module
+import subprocess
+import sys
+from pathlib import Path
+
+from .experiments import Experiment, Setting
+
+__all__ = ['EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'is_experiment_file', 'load_experiment', 'run_user_job']
+
+EXPERIMENT_SUFFIXES = ('.py', '.yaml', '.yml', '.json')
+"""The files `mate benchmark run FILE` reads as an experiment."""
+PLACEHOLDERS = ('run_dir', 'seed', 'steps', 'team', 'config', 'horizon', 'eval_episodes', 'eval_every', 'threads')
+"""What `{name}` in a command-line setting is replaced with (module docstring)."""
+
+
+def is_experiment_file(name: str) -> bool:
+    """Whether `mate benchmark run NAME` names a file of the user's rather than one of the package's experiments."""
+    return Path(name).suffix.lower() in EXPERIMENT_SUFFIXES or Path(name).is_file()
+
+
+def load_experiment(path) -> Experiment:
+    """The experiment of a user's file (module docstring); ValueError naming the problem otherwise."""
+    path = Path(path).resolve()
+    if not path.is_file():
+        raise ValueError(f'{path}: no such experiment file')
+    if path.suffix == '.py':
+        experiment = _from_python(path)
+    elif path.suffix.lower() in ('.yaml', '.yml', '.json'):
+        import yaml
+
+        try:
+            data = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as exc:
+            raise ValueError(f'{path}: not valid YAML/JSON: {str(exc).splitlines()[0]}') from None
+        if not isinstance(data, dict):
+            raise ValueError(f'{path}: an experiment file holds a mapping of the Experiment fields')
+        experiment = Experiment.from_dict(data, base=path.parent)
+    else:
+        raise ValueError(f'{path}: an experiment file ends with {", ".join(EXPERIMENT_SUFFIXES)}')
+    return dataclasses.replace(experiment, source='user')
+
+
+def _from_python(path: Path) -> Experiment:
+    spec = importlib.util.spec_from_file_location(f'mate_user_experiment_{abs(hash(str(path)))}', path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module            # as an import would (dataclasses of the file look their module up)
+    sys.path.insert(0, str(path.parent))       # the file's own imports, as `python FILE` would find them
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(path.parent))
+    experiment = getattr(module, 'EXPERIMENT', None)
+    if not isinstance(experiment, Experiment):
+        raise ValueError(f'{path}: defines no EXPERIMENT = mate.benchmark.Experiment(...)')
+    return experiment.with_calls_from(path)
+
+
+def _function(reference: str):
+    """The function of 'path/to/file.py:name' (imported from its file) or 'module:name'."""
+    where, _, name = reference.rpartition(':')
+    if not where or not name:
+        raise ValueError(f"a call setting names 'path/to/file.py:function', got {reference!r}")
+    if where.endswith('.py'):
+        file = Path(where)
+        spec = importlib.util.spec_from_file_location(f'mate_user_setting_{file.stem}', file)
+        if spec is None or not file.is_file():
+            raise ValueError(f'{reference}: no such file {file}')
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module
+        sys.path.insert(0, str(file.parent))
+        try:
+            spec.loader.exec_module(module)
+        finally:
+            sys.path.remove(str(file.parent))
+    else:
+        module = import_module(where)
+    function = getattr(module, name, None)
+    if not callable(function):
+        raise ValueError(f'{reference}: {name!r} is not a function of {where}')
+    return function
+
+
+def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> int:
+    """Run one job of a command-line or function setting with the job's `values` (the `PLACEHOLDERS`), then check
+    (command line) or write (function: `mate.score_policy`) the run files; returns the exit status."""
+    run_dir = Path(values['run_dir'])
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if setting.argv:
+        argv = [part.format(**values) for part in setting.argv]
+        say(f'$ {" ".join(argv)}')
+        status = subprocess.call(argv)
+        if status == 0 and not (run_dir / 'absolute.json').exists():
+            say(f'the command of {setting.label} ended without writing {run_dir / "absolute.json"} (the protocol\'s '
+                'run files: mate.score_policy(..., run_dir=...) writes them)')
+            return 1
+        return status
+    from ..protocol import score_policy
+
+    train = _function(setting.call)
+    policy = train(team=values['team'], config=values['config'], steps=int(values['steps']),
+                   seed=int(values['seed']), run_dir=str(run_dir))
+    arguments = dict(team=values['team'], config=values['config'], episodes=episodes,
+                     max_episode_steps=int(values['horizon']), references=(), run_dir=run_dir,
+                     env_steps=int(values['steps']))
+    if callable(policy) and not isinstance(policy, str) and _is_factory(policy):
+        score = score_policy(team_factory=policy, **arguments)
+    else:
+        score = score_policy(policy, **arguments)
+    say(f'{setting.label}: absolute {score.metric} {score.absolute_mean:.3f} ({len(score.absolute)} episodes) '
+        f'-> {run_dir / "absolute.json"}')
+    (run_dir / 'job.json').write_text(json.dumps(dict(setting=setting.to_dict(), values=values), indent=1))
+    return 0
+
+
+def _is_factory(function) -> bool:
+    """Whether a returned callable is a team factory f(num_envs, counts, seed) rather than a policy f(observations)."""
+    import inspect
+
+    try:
+        return len(inspect.signature(function).parameters) == 3
+    except (TypeError, ValueError):
+        return False
+
