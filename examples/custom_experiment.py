@@ -1,6 +1,6 @@
 """Your own experiment in the benchmark: the PPO of `own_policy_ppo.py` beside mate's MAPPO, on a tiny budget.
 
-    mate benchmark run examples/custom_experiment.py --out runs/custom          # ~2 min on 2 cores, from any folder
+    mate benchmark run examples/custom_experiment.py --out runs/custom          # ~80 s on 2 cores, from any folder
     mate benchmark report runs/custom --out runs/custom-report                  # results.md, results.json, marl_eval
 
 The benchmark plays the references (random, greedy, and the upper-bound cameras) on the held-out games, runs every
