@@ -19,7 +19,7 @@ class RunConfig:
                                  '0: no time limit', minimum=0)
     threads: int = option(1, 'torch threads of the updates; 0: every core (collection always uses 1). Measured on 2 '
                              'cores, MAPPO cameras: 1 thread 1,760 decisions/s alone and 1,520 beside a busy process, '
-                             'every core 2,070 alone but 710 beside it', minimum=0)
+                             'every core 2,070 alone but 705 beside it', minimum=0)
     device: str = option('auto', "where networks, rollouts and updates run: auto (a GPU when there is one), cpu, "
                                  'cuda or cuda:N; the simulation always runs on the CPU')
     run_dir: str | None = option(None, 'output directory; None: runs/NAME-TEAM-seedN')

@@ -6,7 +6,7 @@ A stand-in is `functools.partial(best_response, FOLDER)` (or `payoff_entries`) p
 register_pickle_by_value(faults)`), and in the worker it calls the real job of the worker's own, unpatched module.
 
 In FOLDER, per job KEY ('br-camera-2': the best response of that team and seed; 'entry-1-0-0': the payoff entry
-of camera 1, target 0 from env seed 0):
+of camera 1, target 0 from env seed 0; `mate psro` plays its entries from seed 3,000,000):
 
 * every attempt leaves `KEY-N` (N = 0, 1, ...), holding the id of the Ray node it ran on;
 * with `stall-KEY` present, attempt 0 waits (for its node or driver to be killed) instead of running;

@@ -34,6 +34,7 @@ torch = needs_extra('torch')
 from mate.learn.checkpoint import load_checkpoint          # noqa: E402  (needs torch)
 from mate.learn.population import jobs as psro_jobs         # noqa: E402
 from mate.learn.population.psro import JOB_LOG, LocalRunner, PSROSettings, load_state, run_psro  # noqa: E402
+from mate.protocol import PAYOFF_SEEDS  # noqa: E402
 from mate.runners import JobFailed, RayRunner, RunnerError  # noqa: E402
 
 SETTINGS = dict(solver='nash', iterations=1, br_steps=2000, num_envs=4, eval_episodes=3, eval_steps=120)
@@ -43,8 +44,10 @@ ARGUMENTS = ['--solver', 'nash', '--iterations', '1', '--br-steps', '2000', '--n
 """The same run on the command line."""
 CAMERA, TARGET = 'br-camera-2', 'br-target-3'
 """The keys of iteration 1's best responses in `faults` (their seeds: `PSROSettings.best_response_seed`)."""
-ENTRIES = ['entry-0-0-0', 'entry-0-1-0', 'entry-1-0-0', 'entry-1-1-0']
-"""The keys of the payoff entries of the run (env seeds from 0)."""
+ENTRIES = [f'entry-{k}-{l}-{PAYOFF_SEEDS}' for k, l in ((0, 0), (0, 1), (1, 0), (1, 1))]
+"""The keys of the payoff entries of the run (env seeds from `PAYOFF_SEEDS`)."""
+LOST, FAILING = ENTRIES[3], ENTRIES[2]
+"""The entries the tests lose on a node (camera 1, target 1) and make fail (camera 1, target 0)."""
 DEADLINE = 600
 """Seconds a test waits for a stage before it fails, rather than hanging (the stages take seconds)."""
 
@@ -173,7 +176,7 @@ def test_psro_that_loses_nodes_mid_job_ends_as_an_undisturbed_run(cluster, undis
     folder.mkdir()
     for name, job in faults.stand_ins(folder).items():
         monkeypatch.setattr(psro_jobs, name, job)
-    (folder / 'stall-entry-1-1-0').touch()
+    (folder / f'stall-{LOST}').touch()
     out, said, errors = tmp_path / 'run', [], []
 
     def run():
@@ -188,8 +191,8 @@ def test_psro_that_loses_nodes_mid_job_ends_as_an_undisturbed_run(cluster, undis
                'checkpoint of the camera best response', thread.is_alive)
     lost_training = faults.attempts(folder, CAMERA)[0]
     replace_node(cluster, lost_training)
-    wait_until(lambda: faults.attempts(folder, 'entry-1-1-0'), 'start of payoff entry (1, 1)', thread.is_alive)
-    lost_entry = faults.attempts(folder, 'entry-1-1-0')[0]
+    wait_until(lambda: faults.attempts(folder, LOST), 'start of payoff entry (1, 1)', thread.is_alive)
+    lost_entry = faults.attempts(folder, LOST)[0]
     replace_node(cluster, lost_entry)
     thread.join(DEADLINE)
     assert not thread.is_alive() and not errors, errors
@@ -197,9 +200,9 @@ def test_psro_that_loses_nodes_mid_job_ends_as_an_undisturbed_run(cluster, undis
     trained = faults.attempts(folder, CAMERA)
     assert len(trained) == 2 and trained[0] == lost_training != trained[1]
     assert len(faults.attempts(folder, TARGET)) == 1
-    entry = faults.attempts(folder, 'entry-1-1-0')
+    entry = faults.attempts(folder, LOST)
     assert len(entry) == 2 and entry[0] == lost_entry != entry[1]
-    assert [len(faults.attempts(folder, key)) for key in ENTRIES if key != 'entry-1-1-0'] == [1, 1, 1]
+    assert [len(faults.attempts(folder, key)) for key in ENTRIES if key != LOST] == [1, 1, 1]
     rows = (out / 'players' / 'camera-1' / 'progress.csv').read_text().splitlines()[1:]
     assert [int(float(row.split(',')[0])) for row in rows] == list(range(1, 21))   # resumed: no iteration twice
     log = job_log(out)
@@ -231,7 +234,7 @@ def test_a_killed_driver_and_a_failing_job_resume_without_redoing_finished_jobs(
     folder, out = tmp_path / 'attempts', tmp_path / 'run'
     folder.mkdir()
     (folder / f'stall-{TARGET}').touch()
-    (folder / 'fail-entry-1-0-0').touch()
+    (folder / f'fail-{FAILING}').touch()
     command = [sys.executable, '-c', DRIVER, str(Path(__file__).parent), str(folder), 'psro', '--address',
                cluster.address, *ARGUMENTS, '--out', str(out)]
     env = dict(os.environ, MATE_COMPILE_NOTICE='0')
@@ -254,22 +257,22 @@ def test_a_killed_driver_and_a_failing_job_resume_without_redoing_finished_jobs(
     assert second.returncode == 2, second.stderr[-2000:]
     error = [line for line in second.stderr.splitlines() if 'error:' in line]
     assert error == [f'mate psro: error: payoff entry (camera 1, target 0) of iteration 1 failed: ValueError: injected '
-                     f'failure of entry-1-0-0; every finished job is saved in {out}: fix the cause and run the same '
+                     f'failure of {FAILING}; every finished job is saved in {out}: fix the cause and run the same '
                      'command again to resume'], second.stderr[-2000:]
     assert 'Traceback' not in second.stderr and 'resuming' in second.stdout
     state = load_state(out)
     assert state['pools']['target'] == ['random', 'players/target-1.pt']
     assert state['payoff'][1][0] is None and None not in (state['payoff'][0][1], state['payoff'][1][1])
-    assert len(faults.attempts(folder, 'entry-1-0-0')) == 1                 # its own failure: not retried
+    assert len(faults.attempts(folder, FAILING)) == 1                 # its own failure: not retried
 
-    (folder / 'fail-entry-1-0-0').unlink()                                  # the fix
+    (folder / f'fail-{FAILING}').unlink()                                  # the fix
     third = subprocess.run(command, capture_output=True, text=True, env=env)
     assert third.returncode == 0, third.stderr[-2000:]
     counts = {key: len(faults.attempts(folder, key)) for key in (CAMERA, TARGET, *ENTRIES)}
-    assert counts == {CAMERA: 1, TARGET: 2, 'entry-0-0-0': 1, 'entry-0-1-0': 1, 'entry-1-0-0': 2, 'entry-1-1-0': 1}
+    assert counts == {CAMERA: 1, TARGET: 2, ENTRIES[0]: 1, ENTRIES[1]: 1, FAILING: 2, LOST: 1}
     log = job_log(out)
     done = [record['job'] for record in log if record['status'] == 'done']
     assert len(done) == len(set(done))                                      # no job saved twice
     assert [(r['job'], r['reason']) for r in log if r['status'] == 'failed'] == [
-        ('payoff entry (camera 1, target 0) of iteration 1', 'ValueError: injected failure of entry-1-0-0')]
+        ('payoff entry (camera 1, target 0) of iteration 1', f'ValueError: injected failure of {FAILING}')]
     assert_same_run(undisturbed, out)
