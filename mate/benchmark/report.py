@@ -16,7 +16,9 @@ experiment's seeds may be spread over several directories, e.g. run on several m
   setting, the references as horizontal lines; population experiments: `<experiment>-exploitability.png` (Fig. 7)
   and `<experiment>-meta-strategies.png` (Fig. 8: every run's meta-strategies, iteration x policy heat maps).
 * `marl_eval.json`: every training run's evaluations and absolute metric in marl-eval's layout (environment: the
-  experiment, task: '<preset> <team>s', algorithm: the setting, run: `seed_<k>`; `mate.benchmark.marl_eval`).
+  experiment, task: '<preset> <team>s', algorithm: the setting, run: `seed_<k>`; `mate.benchmark.marl_eval`); a
+  population run's exploitability per iteration, negated (`negative_exploitability`: higher is better), and as its
+  absolute metric the last iteration's exploitability on fresh seeds, negated (task: the preset).
 """
 
 from __future__ import annotations
@@ -524,6 +526,37 @@ def marl_eval_records(results: Results, environment: str) -> list:
     return records
 
 
+POPULATION_METRIC = 'negative_exploitability'
+"""The metric of a population run in `marl_eval.json`: its exploitability negated, so that higher is better as
+marl-eval's aggregates (and probability of improvement) assume."""
+
+
+def population_marl_eval_records(results: Results, environment: str) -> list:
+    """Every complete population run as marl-eval records: one step per PSRO iteration from the first with an
+    exploitability (step_count: the decisions of one side's best responses so far), its value the negated
+    exploitability of the payoff matrix; the absolute metric the negated exploitability of the last iteration with
+    the best responses re-played on fresh seeds. Only the seeds complete for every setting and task, each cut to the
+    iterations all of them have (marl-eval needs the same runs and steps everywhere)."""
+    groups = {(label, preset) for label, preset, _ in results.populations}
+    seeds = set.intersection(*({seed for label, preset, seed in results.populations if (label, preset) == group}
+                               for group in groups)) if groups else set()
+    runs = {key: state for key, state in results.populations.items() if key[2] in seeds}
+    if not runs:
+        return []
+    scored = {key: [it for it in state['iterations'] if it.get('exploitability')] for key, state in runs.items()}
+    length = min(len(iterations) for iterations in scored.values())
+    records: list = []
+    for (label, preset, seed), iterations in sorted(scored.items()):
+        task, steps = results.experiment.task(preset), int(runs[(label, preset, seed)]['settings']['br_steps'])
+        for index, iteration in enumerate(iterations[:length]):
+            records.append(StepRecord(environment, task, label, seed, index, int(iteration['iteration']) * steps,
+                                      POPULATION_METRIC, [-float(iteration['exploitability']['mean'])]))
+        last = iterations[length - 1]
+        fresh = last.get('exploitability_fresh') or last['exploitability']
+        records.append(AbsoluteRecord(environment, task, label, seed, POPULATION_METRIC, [-float(fresh['mean'])]))
+    return records
+
+
 def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[str], None] = print) -> dict[str, Path]:
     """Write the report of the benchmark directories to `out` (module docstring); returns the files written."""
     out = Path(out)
@@ -544,8 +577,8 @@ def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[st
         figures = [figure for figure in figures if figure is not None]
         files.update({figure.name: figure for figure in figures})
         sections.append(markdown(summary, [figure.name for figure in figures]))
-        if not results.experiment.population:
-            records += marl_eval_records(results, name)
+        records += (population_marl_eval_records if results.experiment.population else marl_eval_records)(results,
+                                                                                                           name)
         complete = len(results.runs) + len(results.populations)
         say(f'{name}: {complete} complete run{"s" * (complete != 1)}, {len(results.incomplete)} not complete')
     files['results.md'] = out / 'results.md'

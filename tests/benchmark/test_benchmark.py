@@ -597,6 +597,12 @@ def test_population_smoke_run_and_report(tmp_path):
     exp = experiment('smoke-psro')
     states = [json.loads(path.read_text()) for path in sorted((runs / 'runs').glob('*/state.json'))]
     assert len(states) == exp.seeds
+    marl = json.loads((report / 'marl_eval.json').read_text())['smoke-psro']['MATE-2v4-0']['PSRO-Nash']
+    assert sorted(marl) == [f'seed_{seed}' for seed in range(exp.seeds)]
+    for state, run in zip(states, (marl[f'seed_{seed}'] for seed in range(exp.seeds))):
+        last = state['iterations'][-1]           # higher is better: the exploitability negated
+        assert run['step_0']['negative_exploitability'] == [-last['exploitability']['mean']]
+        assert run['absolute_metrics']['negative_exploitability'] == [-last['exploitability_fresh']['mean']]
     for state in states:
         last = state['iterations'][-1]
         fresh = last['exploitability_fresh']
@@ -611,7 +617,7 @@ def test_population_smoke_run_and_report(tmp_path):
     curve = entry['exploitability_by_iteration']            # the figure's curve: IQM per iteration 1..N
     assert len(curve) == exp.iterations and curve[-1] == entry['final_exploitability']['IQM']
     assert 'The exploitability by iteration' in (report / 'results.md').read_text()
-    assert (report / 'smoke-psro-exploitability.png').exists() and not (report / 'marl_eval.json').exists()
+    assert (report / 'smoke-psro-exploitability.png').exists() and (report / 'marl_eval.json').exists()
     assert (report / 'smoke-psro-meta-strategies.png').exists()                    # Fig. 8: every run's heat maps
     from mate.learn.population.solvers import effective_policies
 
