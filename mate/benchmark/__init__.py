@@ -1,6 +1,9 @@
-"""The paper's experiments as a benchmark (`mate benchmark`).
+"""The paper's experiments, and yours, as a benchmark (`mate benchmark`).
 
-- `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `EXPERIMENTS`);
+- `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `Claim`, `EXPERIMENTS`; the
+  first three also here, for an experiment file of yours: `EXPERIMENT = mate.benchmark.Experiment(...)`);
+- `mate.benchmark.user`: experiments of the user's files (.py, .yaml, .json) and the jobs of their command-line and
+  function settings;
 - `mate.benchmark.jobs`: an experiment's jobs (references, training runs, PSRO runs) for run seeds and a budget;
 - `mate.benchmark.runner`: the jobs run, resumable, in local processes or on Ray (`mate.runners`);
 - `mate.benchmark.directory`: a benchmark directory's manifest, the reuse of another's jobs, each job's status;
@@ -9,13 +12,14 @@
   intervals (rliable's definitions, in numpy), curves with bands, normalised scores;
 - `mate.benchmark.marl_eval`: results in marl-eval's JSON layout.
 
-None imports torch (the training runs are `mate train` processes).
+None imports torch (the training runs are `mate train` or `mate benchmark job` processes).
 """
 
+from .experiments import Claim, Experiment, Setting
 from .marl_eval import AbsoluteRecord, StepRecord, marl_eval_json, write_marl_eval
 from .stats import (Interval, curve_intervals, improvement_intervals, interval_estimates, iqm, mean, normalised,
                     probability_of_improvement, stratified_bootstrap)
 
-__all__ = ['iqm', 'mean', 'stratified_bootstrap', 'interval_estimates', 'probability_of_improvement',
+__all__ = ['Experiment', 'Setting', 'Claim', 'iqm', 'mean', 'stratified_bootstrap', 'interval_estimates', 'probability_of_improvement',
            'improvement_intervals', 'curve_intervals', 'normalised', 'Interval',
            'StepRecord', 'AbsoluteRecord', 'marl_eval_json', 'write_marl_eval']

@@ -1,5 +1,7 @@
-"""`mate benchmark list | run NAME | report DIR... | quote FILE...`: the paper's experiments (argument parsing and
-the commands; torch is imported only by the jobs, which run `mate train` in their own processes)."""
+"""`mate benchmark list | run NAME|FILE | status DIR... | keep DIR DEST | report DIR... | quote FILE...`: the
+paper's experiments and the user's (argument parsing and the commands; torch is imported only by the jobs, which run
+`mate train` or `mate benchmark job`, the internal command of a user's command-line or function setting, in their
+own processes)."""
 
 from __future__ import annotations
 

@@ -22,10 +22,16 @@ from .experiments import Experiment, experiment_of
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
-__all__ = ['BENCHMARK_FORMAT', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS', 'REUSED_NOTE',
-           'extend_jobs', 'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs', 'write_manifest']
+__all__ = ['BENCHMARK_FORMAT', 'BENCHMARK_FORMATS', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS',
+           'REUSED_NOTE', 'extend_jobs', 'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs',
+           'write_manifest']
 
-BENCHMARK_FORMAT = 'mate.benchmark/1'
+BENCHMARK_FORMAT = 'mate.benchmark/2'
+"""The manifest's format: /2 keeps the whole experiment (`definition`, `Experiment.to_dict`), so that a report needs
+nothing but the directory; /1 (directories written before 2026-11-29, e.g. those kept in docs/results) names the
+experiment alone, which is then the package's of that name."""
+BENCHMARK_FORMATS = ('mate.benchmark/1', BENCHMARK_FORMAT)
+"""The manifest formats this version reads."""
 
 
 def write_manifest(experiment: Experiment, jobs: list[Job], out, steps: int, seeds: list[int]) -> Path:
@@ -71,13 +77,15 @@ def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: i
 
 
 def read_manifest(out) -> dict:
-    """The `benchmark.json` of a benchmark directory; ValueError when it has none or another format."""
+    """The `benchmark.json` of a benchmark directory (any of `BENCHMARK_FORMATS`; `experiment_of` gives its
+    experiment); ValueError when it has none or another format."""
     path = Path(out) / 'benchmark.json'
     if not path.exists():
         raise ValueError(f'{out}: no benchmark.json (not a directory of mate benchmark run)')
     manifest = json.loads(path.read_text())
-    if manifest.get('format') != BENCHMARK_FORMAT:
-        raise ValueError(f'{path}: format {manifest.get("format")!r}, expected {BENCHMARK_FORMAT!r}')
+    if manifest.get('format') not in BENCHMARK_FORMATS:
+        raise ValueError(f'{path}: format {manifest.get("format")!r}, expected one of {", ".join(BENCHMARK_FORMATS)} '
+                         '(a newer mate wrote it?)')
     return manifest
 
 

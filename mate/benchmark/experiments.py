@@ -80,24 +80,32 @@ class Setting:
                 for key, value in dataclasses.asdict(self).items() if value not in ('', (), None)}
 
     @classmethod
-    def from_dict(cls, data: dict, base: Path | None = None) -> Setting:
-        """A setting from its mapping (a `call` path relative to `base`, the experiment file's folder)."""
+    def from_dict(cls, data: dict) -> Setting:
+        """A setting from its mapping (`to_dict`'s, or one of a YAML file's `settings`); ValueError naming a bad key."""
+        if not isinstance(data, dict):
+            raise ValueError(f'a setting is a mapping (label, and command, argv or call), got {data!r}')
         known = {field.name for field in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f'setting {data.get("label", "?")!r}: unknown key(s) {", ".join(unknown)}; the keys are '
                              f'{", ".join(sorted(known))}')
         data = dict(data)
-        call = data.get('call')
-        if isinstance(call, str) and base is not None:
-            where, _, name = call.rpartition(':')
-            if where.endswith('.py') and not Path(where).is_absolute():
-                data['call'] = f'{(base / where).resolve()}:{name}'
         for key in ('options', 'argv'):
             if isinstance(data.get(key), str):
                 raise ValueError(f'setting {data.get("label", "?")!r}: {key} is a list of strings, got {data[key]!r}')
             data[key] = tuple(data.get(key) or ())
         return cls(**data)
+
+    def resolved_from(self, folder: Path) -> Setting:
+        """This setting as the experiment file in `folder` means it: a `call` of 'file.py:name' relative to the
+        folder made absolute, and `{here}` in `argv` replaced by the folder (absolute)."""
+        folder = Path(folder).resolve()
+        call = self.call
+        where, _, name = (call or '').rpartition(':')
+        if where.endswith('.py') and not Path(where).is_absolute():
+            call = f'{(folder / where).resolve()}:{name}'
+        argv = tuple(part.replace('{here}', str(folder)) for part in self.argv)
+        return dataclasses.replace(self, call=call, argv=argv)
 
     @property
     def slug(self) -> str:
@@ -113,7 +121,7 @@ class Claim:
 
     Args:
         text: the claim in words.
-        better, worse: setting labels of the experiment, or a reference ('random', 'greedy', 'upper-bound').
+        better, worse: setting labels of the experiment, or a reference it plays (its `references`).
         preset: the game it is about (None: each of the experiment's).
         kind: 'better', or 'agree' (two settings: *consistent* when the 95 % interval of P(better > worse) holds
             1/2, *differ* otherwise; no difference found is not proof of equality: read the interval's width).
@@ -180,9 +188,11 @@ class Experiment:
         if not self.settings or not self.presets:
             raise ValueError(f'experiment {self.name!r}: it needs at least one setting and one preset')
         object.__setattr__(self, 'settings', tuple(self.settings))
-        object.__setattr__(self, 'presets', tuple(self.presets))
-        object.__setattr__(self, 'references', tuple(self.references))
+        for key in ('presets', 'references'):        # a single name (a YAML file's `presets: MATE-2v4-0`) is one
+            value = getattr(self, key)
+            object.__setattr__(self, key, (value,) if isinstance(value, str) else tuple(value))
         object.__setattr__(self, 'claims', tuple(self.claims))
+        self._check_counts()
         labels = [setting.label for setting in self.settings]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
@@ -191,15 +201,28 @@ class Experiment:
         if bad:
             raise ValueError(f'experiment {self.name!r}: unknown reference {bad[0]!r}; references are '
                              f'{", ".join(REFERENCE_NAMES)}')
-        sides = [*labels, *REFERENCE_NAMES]
+        if self.team == 'target' and 'upper-bound' in self.references:
+            raise ValueError(f"experiment {self.name!r}: 'upper-bound' is a camera controller; a target experiment's "
+                             "references are random and greedy")
+        played = () if self.population else self.references       # a population experiment plays no references
         for claim in self.claims:
             for side in (claim.better, claim.worse):
-                if side not in sides:
+                if side not in (*labels, *played):
                     raise ValueError(f'experiment {self.name!r}, claim {claim.text!r}: {side!r} is neither a setting '
-                                     f'({", ".join(labels)}) nor a reference ({", ".join(REFERENCE_NAMES)})')
+                                     f'({", ".join(labels)}) nor a reference it plays ({", ".join(played) or "none"})')
             if claim.preset is not None and claim.preset not in self.presets:
                 raise ValueError(f'experiment {self.name!r}, claim {claim.text!r}: preset {claim.preset!r} is not one '
                                  f'of its games ({", ".join(self.presets)})')
+
+    def _check_counts(self) -> None:
+        """ValueError unless the budget and counts are positive integers (`horizon` and, for a population
+        experiment, `iterations` may be left out)."""
+        counts = dict(steps=self.steps, eval_every=self.eval_every, eval_episodes=self.eval_episodes, seeds=self.seeds)
+        counts.update({} if self.horizon is None else dict(horizon=self.horizon))
+        counts.update(dict(iterations=self.iterations) if self.population else {})
+        for key, value in counts.items():
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f'experiment {self.name!r}: {key} is a positive whole number, got {value!r}')
 
     def to_dict(self) -> dict:
         """The experiment as plain data (what a benchmark directory's manifest keeps; `from_dict` reads it)."""
@@ -210,7 +233,7 @@ class Experiment:
         return data
 
     @classmethod
-    def from_dict(cls, data: dict, base: Path | None = None) -> Experiment:
+    def from_dict(cls, data: dict) -> Experiment:
         """An experiment from its mapping (`to_dict`'s, or a YAML file's); ValueError naming a bad key."""
         known = {field.name for field in dataclasses.fields(cls)}
         unknown = sorted(set(data) - known)
@@ -218,17 +241,16 @@ class Experiment:
             raise ValueError(f'unknown experiment key(s) {", ".join(unknown)}; the keys are {", ".join(sorted(known))}')
         data = dict(data)
         try:
-            data['settings'] = tuple(Setting.from_dict(s, base) for s in data.get('settings') or ())
+            data['settings'] = tuple(Setting.from_dict(s) for s in data.get('settings') or ())
             data['claims'] = tuple(Claim(**c) for c in data.get('claims') or ())
             return cls(**data)
         except TypeError as exc:
             raise ValueError(f'experiment {data.get("name", "?")!r}: {exc}') from None
 
-    def with_calls_from(self, path: Path) -> Experiment:
-        """This experiment with its function settings' relative 'file.py:name' paths made absolute from the folder
-        of `path` (the experiment's file)."""
-        settings = tuple(Setting.from_dict(setting.to_dict(), Path(path).parent) for setting in self.settings)
-        return dataclasses.replace(self, settings=settings)
+    def resolved_from(self, path: Path) -> Experiment:
+        """This experiment as its file `path` means it (`Setting.resolved_from` the file's folder)."""
+        folder = Path(path).resolve().parent
+        return dataclasses.replace(self, settings=tuple(s.resolved_from(folder) for s in self.settings))
 
     @property
     def population(self) -> bool:
@@ -416,11 +438,15 @@ def experiment(name: str) -> Experiment:
 
 
 def experiment_of(manifest: dict) -> Experiment:
-    """The experiment of a benchmark directory's manifest: the definition it keeps, or (a directory written before
-    manifests kept it) the package's experiment of its name."""
+    """The experiment of a benchmark directory's manifest (`mate.benchmark.directory.read_manifest`): the definition
+    it keeps (format 'mate.benchmark/2'), or for a directory written before manifests kept it ('mate.benchmark/1')
+    the package's experiment of its name; ValueError otherwise."""
     if manifest.get('definition'):
         return Experiment.from_dict(manifest['definition'])
-    return experiment(manifest['experiment'])
+    if manifest['experiment'] not in EXPERIMENTS:
+        raise ValueError(f"the manifest names the experiment {manifest['experiment']!r} without its definition (an old "
+                         f"manifest, format {manifest.get('format')!r}) and the package has none of that name")
+    return EXPERIMENTS[manifest['experiment']]
 
 
 def _reference_of(function: Callable) -> str:

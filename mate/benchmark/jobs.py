@@ -227,10 +227,12 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     return jobs
 
 
-def job_values(experiment: Experiment, preset: str, seed: int, steps: int, out, threads: int, setting: Setting) -> dict:
+def job_values(experiment: Experiment, preset: str, seed: int, steps: int, out, threads: int,
+               setting: Setting) -> dict:
     """What a user's command-line or function setting is given for the run (`mate.benchmark.user.PLACEHOLDERS`): its
-    run directory, training seed (`seed x SEED_STRIDE`, as a mate trainer's), budget, team, game, episode cut,
-    evaluation episodes and interval, and torch threads."""
-    return dict(run_dir=str(Path(out) / 'runs' / f'{setting.slug}-{preset}-seed{seed}'), seed=seed * SEED_STRIDE,
-                steps=int(steps), team=experiment.team, config=preset, horizon=horizon_of(experiment),
-                eval_episodes=experiment.eval_episodes, eval_every=experiment.eval_interval(steps), threads=int(threads))
+    run directory (absolute, from the current one), training seed (`seed x SEED_STRIDE`, as a mate trainer's),
+    budget, team, game, episode cut, evaluation episodes and interval, and torch threads."""
+    run_dir = Path(out).resolve() / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
+    return dict(run_dir=str(run_dir), seed=seed * SEED_STRIDE, steps=int(steps), team=experiment.team, config=preset,
+                horizon=horizon_of(experiment), eval_episodes=experiment.eval_episodes,
+                eval_every=experiment.eval_interval(steps), threads=int(threads))

@@ -173,8 +173,9 @@ def _reference_means(results: Results, preset: str, part: str) -> dict[str, floa
 def summarise(results: Results, reps: int = REPS) -> dict:
     """The numbers of `results.md` (module docstring) as a JSON-ready dict."""
     experiment = results.experiment
-    summary = dict(experiment=experiment.name, figure=experiment.figure, claim=experiment.claim,
-                   **({} if experiment.source == 'paper' else dict(source=experiment.source)), team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
+    source = {} if experiment.source == 'paper' else dict(source=experiment.source)   # (the paper's reports: as before)
+    summary = dict(experiment=experiment.name, figure=experiment.figure, claim=experiment.claim, **source,
+                   team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
                    eval_every=experiment.eval_interval(results.steps), eval_episodes=experiment.eval_episodes,
                    iterations=experiment.iterations,
                    incomplete=by_setting(sorted(results.incomplete, key=_job_order)), tasks={})

@@ -9,11 +9,13 @@ of three kinds:
 
 * a mate trainer: `Setting('MAPPO', 'mappo', ('--hidden', '64', '64'))` (`mate train` and its options; 'rllib-ppo'
   for `mate rllib-train`);
-* any command line: `Setting('mine', argv=('python', 'train.py', '--seed', '{seed}', '--out', '{run_dir}'))`, run as
-  it is (not through `python -m mate`) with the placeholders `{run_dir}`, `{seed}`, `{steps}`, `{team}`,
-  `{config}`, `{horizon}`, `{eval_episodes}`, `{eval_every}` and `{threads}` filled in. It must leave the run files
-  of the protocol in `{run_dir}`: `absolute.json` (and `evaluations.jsonl` for a curve), as `mate.score_policy(...,
-  run_dir=...)` writes them;
+* any command line: `Setting('mine', argv=('{python}', '{here}/train.py', '--seed', '{seed}', '--out',
+  '{run_dir}'))`, run as it is (not through `python -m mate`) with the placeholders `{run_dir}` (absolute),
+  `{seed}`, `{steps}`, `{team}`, `{config}` (the preset), `{horizon}`, `{eval_episodes}`, `{eval_every}`,
+  `{threads}` and `{python}` (the interpreter running mate) filled in, and the same values in its environment as
+  `MATE_BENCHMARK_RUN_DIR`, `MATE_BENCHMARK_SEED`, ... (`environment`); `{here}` is the experiment file's folder,
+  filled in when the file is read. It must leave the run files of the protocol in `{run_dir}`: `absolute.json` (and
+  `evaluations.jsonl` for a curve), as `mate.score_policy(..., run_dir=...)` writes them;
 * a Python function that trains and returns a policy: `Setting('my PPO', call=train)` in a Python file (or
   `call='path/to/file.py:train'`, a path relative to the experiment file). The benchmark calls
   `train(team=..., config=..., steps=..., seed=..., run_dir=...)` in a job of its own and scores what it returns
@@ -32,19 +34,25 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import json
-from importlib import import_module
+import os
 import subprocess
 import sys
+from importlib import import_module
 from pathlib import Path
 
 from .experiments import Experiment, Setting
 
-__all__ = ['EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'is_experiment_file', 'load_experiment', 'run_user_job']
+__all__ = ['ENVIRONMENT_PREFIX', 'EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'environment', 'is_experiment_file',
+           'load_experiment', 'run_user_job']
 
 EXPERIMENT_SUFFIXES = ('.py', '.yaml', '.yml', '.json')
 """The files `mate benchmark run FILE` reads as an experiment."""
-PLACEHOLDERS = ('run_dir', 'seed', 'steps', 'team', 'config', 'horizon', 'eval_episodes', 'eval_every', 'threads')
-"""What `{name}` in a command-line setting is replaced with (module docstring)."""
+PLACEHOLDERS = ('run_dir', 'seed', 'steps', 'team', 'config', 'horizon', 'eval_episodes', 'eval_every', 'threads',
+                'python')
+"""What `{name}` in a command-line setting is replaced with (module docstring; `{here}` is filled in earlier, when
+the experiment file is read)."""
+ENVIRONMENT_PREFIX = 'MATE_BENCHMARK_'
+"""A command-line setting's process also finds the `PLACEHOLDERS` in its environment: `MATE_BENCHMARK_RUN_DIR`, ..."""
 
 
 def is_experiment_file(name: str) -> bool:
@@ -57,7 +65,7 @@ def load_experiment(path) -> Experiment:
     path = Path(path).resolve()
     if not path.is_file():
         raise ValueError(f'{path}: no such experiment file')
-    if path.suffix == '.py':
+    if path.suffix.lower() == '.py':
         experiment = _from_python(path)
     elif path.suffix.lower() in ('.yaml', '.yml', '.json'):
         import yaml
@@ -68,10 +76,10 @@ def load_experiment(path) -> Experiment:
             raise ValueError(f'{path}: not valid YAML/JSON: {str(exc).splitlines()[0]}') from None
         if not isinstance(data, dict):
             raise ValueError(f'{path}: an experiment file holds a mapping of the Experiment fields')
-        experiment = Experiment.from_dict(data, base=path.parent)
+        experiment = Experiment.from_dict(data)
     else:
         raise ValueError(f'{path}: an experiment file ends with {", ".join(EXPERIMENT_SUFFIXES)}')
-    return dataclasses.replace(experiment, source='user')
+    return dataclasses.replace(experiment.resolved_from(path), source='user')
 
 
 def _from_python(path: Path) -> Experiment:
@@ -85,12 +93,14 @@ def _from_python(path: Path) -> Experiment:
         sys.path.remove(str(path.parent))
     experiment = getattr(module, 'EXPERIMENT', None)
     if not isinstance(experiment, Experiment):
-        raise ValueError(f'{path}: defines no EXPERIMENT = mate.benchmark.Experiment(...)')
-    return experiment.with_calls_from(path)
+        hint = ' (one experiment per file: EXPERIMENTS is not read)' if hasattr(module, 'EXPERIMENTS') else ''
+        raise ValueError(f'{path}: defines no EXPERIMENT = mate.benchmark.Experiment(...){hint}')
+    return experiment
 
 
 def _function(reference: str):
-    """The function of 'path/to/file.py:name' (imported from its file) or 'module:name'."""
+    """The function of 'path/to/file.py:name' (imported from its file, whose folder stays on `sys.path` for the
+    imports the function makes when called: a job's process calls one function) or 'module:name'."""
     where, _, name = reference.rpartition(':')
     if not where or not name:
         raise ValueError(f"a call setting names 'path/to/file.py:function', got {reference!r}")
@@ -102,10 +112,7 @@ def _function(reference: str):
         module = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = module
         sys.path.insert(0, str(file.parent))
-        try:
-            spec.loader.exec_module(module)
-        finally:
-            sys.path.remove(str(file.parent))
+        spec.loader.exec_module(module)
     else:
         module = import_module(where)
     function = getattr(module, name, None)
@@ -120,9 +127,19 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
     run_dir = Path(values['run_dir'])
     run_dir.mkdir(parents=True, exist_ok=True)
     if setting.argv:
-        argv = [part.format(**values) for part in setting.argv]
+        values = dict(values, python=sys.executable)
+        try:
+            argv = [part.format(**values) for part in setting.argv]
+        except (KeyError, IndexError, ValueError) as exc:
+            say(f'the command line of {setting.label} has a placeholder mate does not fill in ({exc}); they are '
+                f'{", ".join("{%s}" % name for name in PLACEHOLDERS)} ({{{{ and }}}} for braces)')
+            return 2
         say(f'$ {" ".join(argv)}')
-        status = subprocess.call(argv)
+        try:
+            status = subprocess.call(argv, env={**os.environ, **environment(values)})
+        except OSError as exc:
+            say(f'the command of {setting.label} could not start: {exc}')
+            return 1
         if status == 0 and not (run_dir / 'absolute.json').exists():
             say(f'the command of {setting.label} ended without writing {run_dir / "absolute.json"} (the protocol\'s '
                 'run files: mate.score_policy(..., run_dir=...) writes them)')
@@ -130,7 +147,12 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
         return status
     from ..protocol import score_policy
 
-    train = _function(setting.call)
+    _limit_threads(int(values['threads']))
+    try:
+        train = _function(setting.call)
+    except (ValueError, ImportError) as exc:
+        say(f'the function of {setting.label} could not be imported: {exc}')
+        return 2
     policy = train(team=values['team'], config=values['config'], steps=int(values['steps']),
                    seed=int(values['seed']), run_dir=str(run_dir))
     arguments = dict(team=values['team'], config=values['config'], episodes=episodes,
@@ -146,12 +168,29 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
     return 0
 
 
+def environment(values: dict) -> dict[str, str]:
+    """A command-line setting's environment variables: each of `values` (the `PLACEHOLDERS`) as
+    `MATE_BENCHMARK_<NAME>` ('MATE_BENCHMARK_RUN_DIR', 'MATE_BENCHMARK_SEED', ...)."""
+    return {f'{ENVIRONMENT_PREFIX}{name.upper()}': str(value) for name, value in values.items()}
+
+
+def _limit_threads(threads: int) -> None:
+    """Torch threads of a function's job: the runner's share of the cores (`OMP_NUM_THREADS` for a torch imported
+    later, `torch.set_num_threads` for one the experiment file imported already)."""
+    os.environ.setdefault('OMP_NUM_THREADS', str(threads))
+    if 'torch' in sys.modules:
+        sys.modules['torch'].set_num_threads(threads)
+
+
 def _is_factory(function) -> bool:
-    """Whether a returned callable is a team factory f(num_envs, counts, seed) rather than a policy f(observations)."""
+    """Whether a returned callable is a team factory f(num_envs, counts, seed) rather than a policy f(observations):
+    it takes three arguments without defaults."""
     import inspect
 
     try:
-        return len(inspect.signature(function).parameters) == 3
+        parameters = inspect.signature(function).parameters.values()
     except (TypeError, ValueError):
         return False
+    positional = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    return sum(p.kind in positional and p.default is inspect.Parameter.empty for p in parameters) == 3
 

@@ -77,36 +77,73 @@ def test_status_reads_the_manifest_alone(mine, capsys):
     assert 'mine: ' in capsys.readouterr().out
 
 
-def test_a_yaml_experiment_with_a_command_line_setting(tmp_path):
-    script = tmp_path / 'my_trainer.py'
-    script.write_text(textwrap.dedent('''
+def test_a_yaml_experiment_with_a_command_line_and_a_function_setting(tmp_path, monkeypatch):
+    """A YAML file beside its script and its training function, run from another folder: `{here}`, `{python}`, the
+    placeholders and the environment variables of a command line, and a 'file.py:function' call."""
+    home = tmp_path / 'home'
+    home.mkdir()
+    (home / 'my_trainer.py').write_text(textwrap.dedent('''
+        import os
         import sys
         import numpy as np
         import mate
         run_dir, seed, horizon = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+        assert os.environ['MATE_BENCHMARK_RUN_DIR'] == run_dir and os.path.isabs(run_dir), run_dir
+        assert seed == int(os.environ['MATE_BENCHMARK_SEED']) == 0
         mate.score_policy(lambda o: np.zeros((*o.shape[:2], 2)), team='target', config='MATE-2v4-0', episodes=2,
                           max_episode_steps=horizon, references=(), run_dir=run_dir)
         '''))
-    (tmp_path / 'mine.yaml').write_text(textwrap.dedent(f'''
+    (home / 'helpers.py').write_text(textwrap.dedent('''
+        def train(team, config, steps, seed, run_dir):
+            assert (team, config, steps, seed) == ('target', 'MATE-2v4-0', 10, 0)
+            return 'greedy'
+        '''))
+    (home / 'mine.yaml').write_text(textwrap.dedent('''
         name: mine-yaml
-        figure: a command line against the rules
+        figure: a command line and a function against the rules
         team: target
-        presets: [MATE-2v4-0]
+        presets: MATE-2v4-0
         settings:
           - label: script
-            argv: ['{sys.executable}', '{script}', '{{run_dir}}', '{{seed}}', '{{horizon}}']
+            argv: ['{python}', '{here}/my_trainer.py', '{run_dir}', '{seed}', '{horizon}']
+          - {label: rules, call: 'helpers.py:train'}
         steps: 10
         eval_episodes: 2
         horizon: 20
         seeds: 1
         claims:
-          - {{text: the script beats random, better: script, worse: random}}
+          - {text: the rules beat the script, better: rules, worse: script}
         '''))
-    assert main(['benchmark', 'run', str(tmp_path / 'mine.yaml'), '--out', str(tmp_path / 'out')]) == 0
-    assert main(['benchmark', 'report', str(tmp_path / 'out'), '--out', str(tmp_path / 'report'), '--reps',
-                 '200']) == 0
-    results = json.loads((tmp_path / 'report' / 'results.json').read_text())['mine-yaml']
-    assert results['tasks']['MATE-2v4-0 targets']['settings']['script']['runs'] == 1
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(['benchmark', 'run', str(home / 'mine.yaml'), '--out', 'out', '--jobs', '2']) == 0
+    assert main(['benchmark', 'report', 'out', '--out', 'report', '--reps', '200']) == 0
+    assert main(['benchmark', 'status', 'out']) == 0
+    results = json.loads((elsewhere / 'report' / 'results.json').read_text())['mine-yaml']
+    settings = results['tasks']['MATE-2v4-0 targets']['settings']
+    assert {label: s['runs'] for label, s in settings.items()} == {'script': 1, 'rules': 1}
+    assert 'Claims of this experiment' in (elsewhere / 'report' / 'results.md').read_text()
+    marl = json.loads((elsewhere / 'report' / 'marl_eval.json').read_text())
+    assert set(marl['mine-yaml']['MATE-2v4-0 targets']) == {'script', 'rules'}
+
+
+def test_a_command_line_must_leave_the_run_files(tmp_path, capsys):
+    (tmp_path / 'lazy.yaml').write_text(textwrap.dedent('''
+        name: lazy
+        figure: a command that writes nothing
+        team: camera
+        presets: [MATE-2v4-0]
+        settings: [{label: lazy, argv: ['{python}', -c, 'pass']}]
+        steps: 10
+        eval_episodes: 2
+        horizon: 20
+        seeds: 1
+        references: [random]
+        '''))
+    assert main(['benchmark', 'run', str(tmp_path / 'lazy.yaml'), '--out', str(tmp_path / 'out')]) == 1
+    log = next((tmp_path / 'out' / 'runs').glob('lazy-*/job.log')).read_text()
+    assert 'ended without writing' in log
 
 
 def test_a_definition_is_checked_when_it_is_built(tmp_path):
@@ -120,6 +157,17 @@ def test_a_definition_is_checked_when_it_is_built(tmp_path):
     (tmp_path / 'bad.yaml').write_text('name: x\nfigure: x\nteam: camera\npresets: [MATE-2v4-0]\nsetings: []\n')
     with pytest.raises(ValueError, match="unknown experiment key"):
         load_experiment(tmp_path / 'bad.yaml')
+    with pytest.raises(ValueError, match="'upper-bound' is neither a setting"):   # a reference it does not play
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), (Setting('MAPPO', 'mappo'),), steps=10,
+                   references=('random', 'greedy'), claims=(Claim('above the bound', 'MAPPO', 'upper-bound'),))
+    with pytest.raises(ValueError, match='steps is a positive whole number'):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), (Setting('MAPPO', 'mappo'),), steps='2e6')
+    with pytest.raises(ValueError, match="'upper-bound' is a camera controller"):
+        Experiment('x', 'x', 'target', ('MATE-2v4-0',), (Setting('MAPPO', 'mappo'),), steps=10,
+                   references=('upper-bound',))
+    (tmp_path / 'two.py').write_text('EXPERIMENTS = {}\n')
+    with pytest.raises(ValueError, match='one experiment per file'):
+        load_experiment(tmp_path / 'two.py')
     assert main(['benchmark', 'run', str(tmp_path / 'missing.py')]) == 2
 
 
@@ -129,17 +177,60 @@ def test_the_manifest_keeps_the_definition(mine):
     assert experiment.name == 'mine' and [s.kind for s in experiment.settings] == ['trainer', 'call', 'call']
 
 
-def test_the_runner_recipe_works_as_written(tmp_path, monkeypatch):
-    """The recipe of mate/benchmark/runner.py's docstring, run as written (in a temporary directory)."""
-    import mate.benchmark.runner as runner
+def test_an_old_manifest_names_a_package_experiment():
+    """Format 1 manifests (docs/results/*/benchmark) keep the name alone: the package's experiment of that name."""
+    from mate.benchmark.experiments import EXPERIMENTS
 
+    assert experiment_of(dict(format='mate.benchmark/1', experiment='smoke')) is EXPERIMENTS['smoke']
+    with pytest.raises(ValueError, match="'mine' without its definition"):
+        experiment_of(dict(format='mate.benchmark/1', experiment='mine'))
+
+
+def test_a_newer_manifest_is_refused(tmp_path):
+    from mate.benchmark.directory import read_manifest
+
+    (tmp_path / 'benchmark.json').write_text(json.dumps(dict(format='mate.benchmark/9', experiment='smoke')))
+    with pytest.raises(ValueError, match="format 'mate.benchmark/9'"):
+        read_manifest(tmp_path)
+
+
+def test_a_returned_policy_or_team_factory():
+    from mate.benchmark.user import _is_factory
+
+    def policy(observations, state=None, deterministic=True):
+        return observations
+
+    def factory(num_envs, counts, seed):
+        return None
+
+    assert not _is_factory(policy) and _is_factory(factory) and not _is_factory(print)
+
+
+def _recipe(module) -> str:
+    """The first indented block of a module's docstring (its recipe), dedented."""
     recipe = []
-    for line in runner.__doc__.splitlines():          # the first indented block of the docstring
+    for line in module.__doc__.splitlines():
         if line.startswith('    ') or (recipe and not line.strip()):
             recipe.append(line)
         elif recipe:
             break
+    return textwrap.dedent('\n'.join(recipe))
+
+
+def test_the_jobs_recipe_works_as_written(capsys):
+    import mate.benchmark.jobs as jobs
+
+    recipe = _recipe(jobs)
+    exec(recipe, {})
+    printed, = capsys.readouterr().out.splitlines()
+    assert '# ' + printed in recipe               # what it prints is what its comment says
+
+
+def test_the_runner_recipe_works_as_written(tmp_path, monkeypatch):
+    """The recipe of mate/benchmark/runner.py's docstring, run as written (in a temporary directory)."""
+    import mate.benchmark.runner as runner
+
     monkeypatch.chdir(tmp_path)
-    exec(textwrap.dedent('\n'.join(recipe)), {})
+    exec(_recipe(runner), {})
     assert (tmp_path / 'bench' / 'smoke' / 'benchmark.json').exists()
     assert main(['benchmark', 'report', 'bench/smoke', '--out', 'report', '--reps', '200']) == 0
