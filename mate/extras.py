@@ -10,6 +10,7 @@ extras add the rest:
 | `pettingzoo` | pettingzoo                              | `mate.integrations.pettingzoo`                          |
 | `train`      | torch (CPU wheel), TensorBoard, matplotlib, scipy | `mate train`, `mate psro`, `mate benchmark`, trained policies (`pretrained:NAME`, `checkpoint:PATH`) |
 | `rllib`      | ray[rllib]                              | `mate rllib-train`, `mate.integrations.rllib`           |
+| `wandb`      | wandb                                   | `mate train --wandb` (Weights & Biases logging)         |
 | `docs`       | mkdocs, mkdocs-material, mkdocstrings   | the documentation site                                  |
 | `all`        | render, pettingzoo, train               |                                                         |
 | `test`       | pytest, hypothesis and what the tests use |                                                       |
@@ -32,6 +33,7 @@ EXTRAS = {
     'pettingzoo': ('pettingzoo',),
     'train': ('torch', 'scipy', 'matplotlib'),
     'rllib': ('ray',),
+    'wandb': ('wandb',),
     'docs': ('mkdocs',),
 }
 """extra -> the top-level modules it installs that the package imports (the table of the module docstring)."""

@@ -24,6 +24,7 @@ import dataclasses
 import json
 import types
 import typing
+from pathlib import Path
 from typing import Any, Literal
 
 from .arguments import in_range, number, number_phrase
@@ -177,7 +178,7 @@ def file_arguments(parser: argparse.ArgumentParser, path) -> list[str]:
     import yaml
 
     try:
-        data = yaml.safe_load(open(path).read())
+        data = yaml.safe_load(Path(path).read_text())
     except OSError as exc:
         raise ValueError(f'--config-file: cannot read {path}: {exc.strerror}') from None
     except yaml.YAMLError as exc:

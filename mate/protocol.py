@@ -1,4 +1,5 @@
-"""The benchmark's evaluation protocol for any policy: held-out seeds, the absolute metric, references on the same games.
+"""The benchmark's evaluation protocol for any policy: held-out seeds, the absolute metric, references on the same
+games.
 
     import mate
 
@@ -51,8 +52,8 @@ import numpy as np
 from .teams.protocol import as_team
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'FRESH_SEEDS', 'PAPER_SETTINGS',
-           'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES', 'TEAM_METRIC', 'evaluate',
-           'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
+           'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES', 'TEAM_METRIC',
+           'agent_team_factory', 'evaluate', 'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
 
 EVALUATION_SEEDS = 1_000_000
 """First env seed of the periodic evaluation episodes (and the end of the training seeds)."""
@@ -68,6 +69,19 @@ SEED_RANGES = {'training': (0, EVALUATION_SEEDS), 'evaluation': (EVALUATION_SEED
 """Every use of env seeds and its own range [first, end): the games of every training env row (any run, iteration or
 resume), the periodic evaluations, the absolute metric, PSRO's payoff entries and its fresh-seed exploitability. No
 game of one use is a game of another (tests/test_seed_ranges.py)."""
+ABSOLUTE_FACTOR = 10
+"""The absolute metric plays this many times the periodic evaluation's episodes."""
+TEAM_METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}
+"""The metric a team is scored by (the paper's Fig. 4 and Figs. 5-6)."""
+PAPER_SETTINGS = {
+    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5),
+    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10),
+}
+"""The paper's game and frame skip per trained team (a training episode: 500 decisions)."""
+REFERENCES = {'camera': ('random', 'greedy', 'upper-bound'), 'target': ('random', 'greedy')}
+"""The rule teams the benchmark plays as references on the evaluation games, per team."""
+DEFAULT_EPISODES = 32
+"""Episodes of one evaluation (the benchmark's `eval_episodes`); the absolute metric plays ten times as many."""
 RESET_SEED_STRIDE = 10_007
 """A training session that cannot continue its checkpoint's episodes resets from `training_reset_seed`."""
 
@@ -82,19 +96,6 @@ def training_reset_seed(seed: int, iteration: int, num_envs: int) -> int:
         raise ValueError(f'training seeds: seed + num_envs must be at most {end:,} (the evaluation seeds start there), '
                          f'got seed {seed:,} with {num_envs:,} envs')
     return (seed + RESET_SEED_STRIDE * iteration) % (end - num_envs + 1)
-ABSOLUTE_FACTOR = 10
-"""The absolute metric plays this many times the periodic evaluation's episodes."""
-TEAM_METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}
-"""The metric a team is scored by (the paper's Fig. 4 and Figs. 5-6)."""
-PAPER_SETTINGS = {
-    'camera': dict(env_id='MATE-4v8-9-v0', frame_skip=5),
-    'target': dict(env_id='MATE-2v4-0-v0', frame_skip=10),
-}
-"""The paper's game and frame skip per trained team (a training episode: 500 decisions)."""
-REFERENCES = {'camera': ('random', 'greedy', 'upper-bound'), 'target': ('random', 'greedy')}
-"""The rule teams the benchmark plays as references on the evaluation games, per team."""
-DEFAULT_EPISODES = 32
-"""Episodes of one evaluation (the benchmark's `eval_episodes`); the absolute metric plays ten times as many."""
 
 
 def horizon(team) -> int:
@@ -200,27 +201,40 @@ def _play(policy, team_factory, team: str, config: str, episodes: int, first_see
 
 def _team_factory(policy, team_factory, team: str, seed: int, device: str) -> Callable:
     """A factory f(num_envs, counts) of the team that plays `policy` (play_batch's form of a team)."""
+    if team_factory is None and isinstance(policy, str):
+        team_factory = agent_team_factory(policy, team, 'policy', device=device)
     if team_factory is not None:
         return lambda num_envs, counts: team_factory(num_envs, counts, seed)
-    if isinstance(policy, str):
-        from .evaluate import has_batched_team
-        from .teams import RULE_TEAMS, make_team
-
-        if policy in RULE_TEAMS:
-            return lambda num_envs, counts: make_team(policy, team, num_envs, counts, seed=seed)
-        if not has_batched_team(policy):
-            raise ValueError(f'{policy!r} has no batched form; give one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
-                             'checkpoint:PATH, a callable or a team_factory')
-        from .extras import missing
-        if missing('train'):
-            raise ValueError(f"{policy} needs the train extra: pip install 'mate[train]'")
-        from .learn.policy import make_team as make_policy_team
-
-        return lambda num_envs, counts: make_policy_team(policy, team, num_envs, counts, seed=seed, device=device)
     if not callable(policy):
         raise TypeError(f'policy must be a callable (observations -> actions), an agent name or None with a '
                         f'team_factory; got {type(policy).__name__}')
     return lambda num_envs, counts: CallableTeam(policy, team, num_envs)
+
+
+def agent_team_factory(agent, team, role: str = 'agent', device: str = 'cpu'):
+    """A factory f(num_envs, counts, seed) of `team` played by `agent`: a built-in agent name with a batched form
+    ('random', 'greedy', 'upper-bound' for cameras; 'pretrained:NAME', 'checkpoint:PATH' with the train extra), or
+    such a factory itself. `role` names the agent in the errors (ValueError for an unknown name or a missing extra);
+    `device`: where a trained policy's forward passes run."""
+    team = as_team(team)
+    if callable(agent) and not isinstance(agent, str):
+        return agent
+    if not isinstance(agent, str):
+        raise TypeError(f'{role} must be an agent name or a factory f(num_envs, counts, seed); got {agent!r}')
+    from .teams import RULE_TEAMS, make_team
+
+    if agent in RULE_TEAMS:
+        make_team(agent, team, 1, (1, 1, 0))   # an unknown name or a wrong team fails now, with the usual line
+        return lambda num_envs, counts, seed: make_team(agent, team, num_envs, counts, seed=seed)
+    if agent.partition(':')[0] not in ('pretrained', 'checkpoint'):
+        raise ValueError(f'unknown {role} {agent!r}: use one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
+                         'checkpoint:PATH or a factory f(num_envs, counts, seed)')
+    from .extras import missing
+    if missing('train'):
+        raise ValueError(f"the {role} {agent} needs the train extra: pip install 'mate[train]'")
+    from .learn.policy import make_team as make_policy_team
+
+    return lambda num_envs, counts, seed: make_policy_team(agent, team, num_envs, counts, seed=seed, device=device)
 
 
 def _settings(team, config, episodes, max_episode_steps) -> tuple[str, str, int, int]:

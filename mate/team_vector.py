@@ -28,8 +28,8 @@ Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
   `num_delivered_cargoes`, `episode_step`); on a step where games end, `infos['episode']` holds each ended
   game's statistics with the mask `infos['_episode']` (Gymnasium's `RecordEpisodeStatistics` form): `r` the
   summed reward of the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps,
-  `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end), `camera_return` and
-  `target_return` (the config's team rewards summed), `normalized_target_return` (the target return divided by
+  `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end),
+  `camera_return` and `target_return` (the config's team rewards summed), `normalized_target_return` (the target return divided by
   the preset's largest one: the targets' benchmark metric), `delivered_cargoes`.
 
 **Seeding**: `reset(seed=s)` seeds game i with s + i and the opponent's row i with s + i too, so game i is the
@@ -54,10 +54,12 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv
 
 from .messages import Team
+from .protocol import agent_team_factory, paper_config
 from .teams.protocol import as_team
-from .vector import INFO_KEYS, AutoresetMode, make_vec
+from .vector import AutoresetMode, make_vec
 
-__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'own_rewards']
+__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'opponent_factory', 'own_rewards',
+           'payments_before', 'step_rewards']
 
 REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
 """The reward kinds of each team (module docstring)."""
@@ -95,29 +97,33 @@ def difference_rewards(sees: np.ndarray) -> np.ndarray:
 
 
 def opponent_factory(opponent, team: Team):
-    """A factory f(num_envs, counts, seed) of the team that plays against `team` (module docstring)."""
-    other = Team.TARGET if team is Team.CAMERA else Team.CAMERA
-    if callable(opponent) and not isinstance(opponent, str):
-        return opponent
-    if not isinstance(opponent, str):
-        raise TypeError(f'opponent must be an agent name or a factory f(num_envs, counts, seed); got {opponent!r}')
-    from .teams import RULE_TEAMS, make_team
-
+    """A factory f(num_envs, counts, seed) of the team that plays against `team` (module docstring;
+    `mate.protocol.agent_team_factory`, but the upper-bound cameras, which read the true state of a whole batch, are
+    no opponent)."""
     if opponent == 'upper-bound':
         raise ValueError('the upper-bound cameras read the true state of a whole batch; they are a reference of '
                          'mate.score_policy, not an opponent of the single-team env')
-    if opponent in RULE_TEAMS:
-        make_team(opponent, other, 1, (1, 1, 0))   # an unknown name or a wrong team fails now, with the usual line
-        return lambda num_envs, counts, seed: make_team(opponent, other, num_envs, counts, seed=seed)
-    if opponent.partition(':')[0] not in ('pretrained', 'checkpoint'):
-        raise ValueError(f'unknown opponent {opponent!r}: use one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
-                         'checkpoint:PATH or a factory f(num_envs, counts, seed)')
-    from .extras import missing
-    if missing('train'):
-        raise ValueError(f"the opponent {opponent} needs the train extra: pip install 'mate[train]'")
-    from .learn.policy import make_team as make_policy_team
+    return agent_team_factory(opponent, Team.TARGET if team is Team.CAMERA else Team.CAMERA, 'opponent')
 
-    return lambda num_envs, counts, seed: make_policy_team(opponent, other, num_envs, counts, seed=seed)
+
+def payments_before(world, reward: str):
+    """What the rewards of kind `reward` need from the batched world before a step: the targets' bounty and freight
+    (B, Nt) for 'own' (a delivery pays what the step then changes), None otherwise."""
+    return (world.target_bounty.copy(), world.target_freight.copy()) if reward == 'own' else None
+
+
+def step_rewards(reward: str, world, team_reward, coverage_rate, before) -> np.ndarray:
+    """The rewards of kind `reward` (`REWARDS`) of the step just played in the batched world (B, ...): 'team' the
+    own team's reward (B,), 'coverage' the coverage rate (B,), 'difference' (B, Nc) and 'own' (B, Nt) per agent
+    (`before`: `payments_before` of the step)."""
+    if reward == 'team':
+        return np.array(team_reward, dtype=np.float64)
+    if reward == 'coverage':
+        return np.array(coverage_rate, dtype=np.float64)
+    if reward == 'difference':
+        return difference_rewards(world.camera_target_view_mask)
+    bounty, freight = before
+    return own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1), world.target_done)
 
 
 class SingleTeamVecEnv(VectorEnv):
@@ -141,8 +147,6 @@ class SingleTeamVecEnv(VectorEnv):
     def __init__(self, config: Any = None, team='camera', num_envs: int = 1, *, opponent='greedy',
                  reward: str = 'team', max_episode_steps: int | None = None, observation_dtype=np.float64,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **overrides) -> None:
-        from .protocol import paper_config
-
         self.team = as_team(team)
         name = self.team.name.lower()
         if reward not in REWARDS[name]:
@@ -211,14 +215,12 @@ class SingleTeamVecEnv(VectorEnv):
         if self._other_obs is None:
             raise RuntimeError('SingleTeamVecEnv: call reset() before step()')
         actions = self._checked(actions)
-        world = self.vec.world
-        if self.reward_kind == 'own':     # what a delivery pays is read before the step that changes it
-            bounty, freight = world.target_bounty.copy(), world.target_freight.copy()
+        before = payments_before(self.vec.world, self.reward_kind)
         restarting = self._pending.copy()
         observations, team_rewards, terminations, truncations, infos = self.vec.step(self._joint(actions))
         self._other_obs = observations[1 - self._own]
-        rewards = self._rewards(team_rewards, infos, bounty if self.reward_kind == 'own' else None,
-                                freight if self.reward_kind == 'own' else None)
+        rewards = step_rewards(self.reward_kind, self.vec.world, team_rewards[self._own], infos['coverage_rate'],
+                               before)
         live = ~restarting
         if self.reward_kind in ('own', 'difference'):
             rewards = np.where(live[:, None], rewards, 0.0)
@@ -236,16 +238,6 @@ class SingleTeamVecEnv(VectorEnv):
             infos['final_obs'] = np.array([None if pair is None else pair[self._own] for pair in infos['final_obs']],
                                           dtype=object)
         return observations[self._own], rewards, terminations, truncations, infos
-
-    def _rewards(self, team_rewards, infos, bounty, freight) -> np.ndarray:
-        world = self.vec.world
-        if self.reward_kind == 'team':
-            return np.array(team_rewards[self._own], dtype=np.float64)
-        if self.reward_kind == 'coverage':
-            return np.array(infos['coverage_rate'], dtype=np.float64)
-        if self.reward_kind == 'difference':
-            return difference_rewards(world.camera_target_view_mask)
-        return own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1), world.target_done)
 
     def _accumulate(self, live, rewards, team_rewards, infos) -> None:
         steps = {'r': rewards if rewards.ndim == 1 else rewards.sum(axis=1), 'l': 1.0,

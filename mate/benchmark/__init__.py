@@ -20,6 +20,6 @@ from .marl_eval import AbsoluteRecord, StepRecord, marl_eval_json, write_marl_ev
 from .stats import (Interval, curve_intervals, improvement_intervals, interval_estimates, iqm, mean, normalised,
                     probability_of_improvement, stratified_bootstrap)
 
-__all__ = ['Experiment', 'Setting', 'Claim', 'iqm', 'mean', 'stratified_bootstrap', 'interval_estimates', 'probability_of_improvement',
-           'improvement_intervals', 'curve_intervals', 'normalised', 'Interval',
+__all__ = ['Experiment', 'Setting', 'Claim', 'iqm', 'mean', 'stratified_bootstrap', 'interval_estimates',
+           'probability_of_improvement', 'improvement_intervals', 'curve_intervals', 'normalised', 'Interval',
            'StepRecord', 'AbsoluteRecord', 'marl_eval_json', 'write_marl_eval']

@@ -168,7 +168,6 @@ def _job(args: argparse.Namespace, say) -> int:
             raise ValueError(f'{args.label!r} is no command-line or function setting of {experiment.name}')
     except ValueError as exc:
         raise CommandError(str(exc)) from None
-    os.environ.setdefault('OMP_NUM_THREADS', str(args.threads))
     values = job_values(experiment, args.preset, args.seed, manifest['steps'], args.dir, args.threads, setting)
     return run_user_job(setting, values, experiment.eval_episodes, say=say)
 

@@ -82,15 +82,24 @@ def load_experiment(path) -> Experiment:
     return dataclasses.replace(experiment.resolved_from(path), source='user')
 
 
-def _from_python(path: Path) -> Experiment:
-    spec = importlib.util.spec_from_file_location(f'mate_user_experiment_{abs(hash(str(path)))}', path)
+def _module_of(path: Path, name: str, keep_path: bool = False):
+    """Run the Python file `path` as the module `name`: registered in `sys.modules` as an import would (dataclasses
+    of the file look their module up), with the file's folder first on `sys.path` for its own imports, as `python
+    FILE` finds them; the folder stays there with `keep_path` (a job's function imports more when it is called)."""
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module            # as an import would (dataclasses of the file look their module up)
-    sys.path.insert(0, str(path.parent))       # the file's own imports, as `python FILE` would find them
+    sys.modules[spec.name] = module
+    sys.path.insert(0, str(path.parent))
     try:
         spec.loader.exec_module(module)
     finally:
-        sys.path.remove(str(path.parent))
+        if not keep_path:
+            sys.path.remove(str(path.parent))
+    return module
+
+
+def _from_python(path: Path) -> Experiment:
+    module = _module_of(path, f'mate_user_experiment_{abs(hash(str(path)))}')
     experiment = getattr(module, 'EXPERIMENT', None)
     if not isinstance(experiment, Experiment):
         hint = ' (one experiment per file: EXPERIMENTS is not read)' if hasattr(module, 'EXPERIMENTS') else ''
@@ -106,13 +115,9 @@ def _function(reference: str):
         raise ValueError(f"a call setting names 'path/to/file.py:function', got {reference!r}")
     if where.endswith('.py'):
         file = Path(where)
-        spec = importlib.util.spec_from_file_location(f'mate_user_setting_{file.stem}', file)
-        if spec is None or not file.is_file():
+        if not file.is_file():
             raise ValueError(f'{reference}: no such file {file}')
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module
-        sys.path.insert(0, str(file.parent))
-        spec.loader.exec_module(module)
+        module = _module_of(file, f'mate_user_setting_{file.stem}', keep_path=True)
     else:
         module = import_module(where)
     function = getattr(module, name, None)
@@ -126,6 +131,7 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
     (command line) or write (function: `mate.score_policy`) the run files; returns the exit status."""
     run_dir = Path(values['run_dir'])
     run_dir.mkdir(parents=True, exist_ok=True)
+    _limit_threads(int(values['threads']))      # the job's share of the cores (a command line inherits it)
     if setting.argv:
         values = dict(values, python=sys.executable)
         try:
@@ -147,7 +153,6 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
         return status
     from ..protocol import score_policy
 
-    _limit_threads(int(values['threads']))
     try:
         train = _function(setting.call)
     except (ValueError, ImportError) as exc:
@@ -175,8 +180,8 @@ def environment(values: dict) -> dict[str, str]:
 
 
 def _limit_threads(threads: int) -> None:
-    """Torch threads of a function's job: the runner's share of the cores (`OMP_NUM_THREADS` for a torch imported
-    later, `torch.set_num_threads` for one the experiment file imported already)."""
+    """Torch threads of a job: the runner's share of the cores (`OMP_NUM_THREADS` for a command line's process and a
+    torch imported later, `torch.set_num_threads` for one the experiment file imported already)."""
     os.environ.setdefault('OMP_NUM_THREADS', str(threads))
     if 'torch' in sys.modules:
         sys.modules['torch'].set_num_threads(threads)

@@ -191,28 +191,22 @@ class _Opponent:
 
     def act(self, camera_actions: np.ndarray, target_actions: np.ndarray) -> None:
         """Write the opponents' actions into their team's row of the joint action."""
+        from ..team_vector import payments_before
+
         other = self.players.act(self._other_obs)[0]
         (target_actions if self.team is Team.CAMERA else camera_actions)[:] = other
-        world = self.env._world
-        self._before = (world.target_bounty[0].copy(), world.target_freight[0].copy())
+        self._before = payments_before(self.env._world, self.reward)     # the single env's world: a batch of one
 
     def observed(self, camera_obs, target_obs, team_reward: float, infos) -> np.ndarray:
-        """The own agents' rewards (N,) of the step just played (`team_reward`: the own team's); keeps the
-        opponents' observations."""
-        from ..team_vector import difference_rewards, own_rewards
+        """The own agents' rewards (N,) of the step just played (`team_reward`: the own team's), as
+        `mate.SingleTeamVecEnv` gives them; keeps the opponents' observations."""
+        from ..team_vector import step_rewards
 
         self._other_obs = self._other(camera_obs, target_obs)
-        world = self.env._world
         own_infos = infos[0] if self.team is Team.CAMERA else infos[1]
-        count = len(own_infos)
-        if self.reward == 'team':
-            return np.full(count, float(team_reward))
-        if self.reward == 'coverage':
-            return np.full(count, float(own_infos[0]['coverage_rate']))
-        if self.reward == 'difference':
-            return difference_rewards(world.camera_target_view_mask[0])
-        bounty, freight = self._before
-        return own_rewards(bounty, freight, world.camera_target_view_mask[0].any(axis=0), world.target_done[0])
+        rewards = step_rewards(self.reward, self.env._world, [team_reward], [own_infos[0]['coverage_rate']],
+                               self._before)[0]
+        return np.full(len(own_infos), float(rewards)) if rewards.ndim == 0 else rewards
 
 
 def parallel_env(config: Any = 'MATE-4v8-9', render_mode: str | None = None, max_cycles: int | None = None,

@@ -94,11 +94,9 @@ def run(args: argparse.Namespace, console) -> int:
     if config.run_dir is None:
         config.run_dir = f'runs/{name}-{config.team}-seed{config.seed}'
     if config.wandb:
-        from ..extras import _importable
+        from ..extras import require
 
-        if not _importable('wandb'):
-            raise CommandError("--wandb needs Weights & Biases: pip install wandb (WANDB_MODE=offline logs without an "
-                               'account)')
+        require('wandb', '--wandb')
     resuming = resumes(config, console)
     if resuming is None:
         return 0

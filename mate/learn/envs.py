@@ -49,7 +49,7 @@ from ..messages import Team
 from ..options import option
 from ..protocol import PAPER_SETTINGS
 from ..registration import resolve_config
-from ..team_vector import SingleTeamVecEnv, difference_rewards, own_rewards
+from ..team_vector import SingleTeamVecEnv, difference_rewards, own_rewards  # noqa: F401  (own_rewards: re-exported)
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory, camera_sightings
@@ -202,8 +202,8 @@ class TeamVecEnv:
         factory = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
         self.envs = SingleTeamVecEnv(resolve_config(spec.env_id, spec.config), team, self.num_envs,
                                      opponent=lambda n, counts, _: factory(n, counts, opponent_seed),
-                                     max_episode_steps=self.horizon, observation_dtype=np.float32,
-                                     autoreset_mode='next_step', **overrides)
+                                     reward='own' if credit == 'own' else 'team', max_episode_steps=self.horizon,
+                                     observation_dtype=np.float32, autoreset_mode='next_step', **overrides)
         self.vec = self.envs.vec
         self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
         spec.check_game(team, self.counts, 'the policy spec')
@@ -245,16 +245,12 @@ class TeamVecEnv:
         team's previous raw observations (velocity), which for rows starting an episode at this step are their first
         ones (no motion yet)."""
         before = self._own_raw.copy() if self.spec.velocity else None
-        if self.credit == 'own':          # what a delivery pays is read before the step that changes it
-            world = self.vec.world
-            bounty, freight = world.target_bounty.copy(), world.target_freight.copy()
         _, reward, terminated, truncated, infos = self.envs.step(own_actions)
-        rewards = (reward, -reward) if self.team is Team.CAMERA else (-reward, reward)    # the game is zero-sum
+        target_reward = self.vec.world.target_reward.copy()
+        rewards = (-target_reward, target_reward)           # the game is zero-sum
         observations = self.vec.observations
-        if self.credit == 'own':
-            world = self.vec.world
-            self._own_rewards = own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1),
-                                            world.target_done)
+        if self.credit == 'own':          # the single-team env's own parts of the team reward (B, Nt)
+            self._own_rewards = reward
         if self.credit == 'difference':   # before full observability fills in every flag
             self._sees = camera_sightings(observations[0], *self.counts)[1]
         observations = self._enhanced(observations)
@@ -393,14 +389,16 @@ class TeamVecEnv:
     def state_dict(self) -> dict:
         """Everything the batch's future depends on, as plain data (see the module docstring)."""
         memory = None if self.memory is None else dict(location=self.memory.location.copy(), age=self.memory.age.copy())
-        return dict(vec=self.vec.state_dict(), opponent=_team_state(self.envs.opponent), memory=memory,
+        games = self.envs.state_dict()
+        return dict(vec=games['vec'], opponent=games['opponent'], pending=games['pending'], memory=memory,
                     before=None if self._before is None else self._before.copy(),
                     sums=dict(returns=self._return.copy(), raw_returns=self._raw_return.copy(),
                               coverage=self._coverage_sum.copy(), length=self._length.copy()))
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
-        self.envs.load_state_dict(dict(vec=state['vec'], opponent=state['opponent']))
+        self.envs.load_state_dict(dict(vec=state['vec'], opponent=state['opponent'],
+                                       pending=state.get('pending', False)))   # (older checkpoints: none pending)
         if self.memory is not None:
             self.memory.location[...] = state['memory']['location']
             self.memory.age[...] = state['memory']['age']
@@ -415,11 +413,4 @@ class TeamVecEnv:
     def observations(self):
         """(features (B, N, D), state (B, S)) of the current decision (as `reset` and `step` return them)."""
         return self._features(self._raw), self._state()
-
-
-def _team_state(team) -> dict:
-    """A batched team's state for a checkpoint (every team of `mate.teams` and `PolicyTeam` has `state_dict`)."""
-    if not hasattr(team, 'state_dict'):
-        raise TypeError(f'the opponent {type(team).__name__} has no state_dict(): its state cannot be checkpointed')
-    return team.state_dict()
 

@@ -407,8 +407,8 @@ class Run:
         """Say (once, after the first iteration) that the run trains whole iterations of `steps` decisions, so its
         budget rounds up, and show the rounded total in the progress display."""
         total = -(-self.total_steps // steps) * steps
-        self._say(f'an iteration is {steps:,} decision steps: the run trains whole iterations, {total:,} decision steps '
-                  f'for --steps {self.total_steps:,}')
+        self._say(f'an iteration is {steps:,} decision steps: the run trains whole iterations, '
+                  f'{total:,} decision steps for --steps {self.total_steps:,}')
         if self._line is not None:
             self._line.update(total=total)
 

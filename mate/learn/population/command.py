@@ -28,7 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--br-steps', type=positive_int, default=100_000,
                         help='decision steps of each best-response training (default 100,000; the paper 5 M)')
     parser.add_argument('--eval-episodes', type=positive_int, default=100,
-                        help='episodes per payoff entry, env seeds 3,000,000 .. 3,000,000 + E - 1 (default 100, as the paper)')
+                        help='episodes per payoff entry, env seeds 3,000,000 .. 3,000,000 + E - 1 '
+                             '(default 100, as the paper)')
     parser.add_argument('--eval-steps', type=positive_int, default=None,
                         help="step cap of an evaluation episode (default: the preset's, 10,000 for MATE-2v4-0)")
     parser.add_argument('--seed', type=non_negative_int, default=0, help='seed of the trainings (default 0)')

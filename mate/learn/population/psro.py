@@ -343,7 +343,8 @@ class _Loop:
                      if response['iteration'] == i and math.isnan(response.get('episode_return', math.nan))]
         if untrained:
             warning = (f'the {" and ".join(untrained)} best response{"s" * (len(untrained) > 1)} of iteration {i} '
-                       f'finished no training episode in {settings.br_steps:,} decision steps: they are barely trained, '
+                       f'finished no training episode in {settings.br_steps:,} decision steps: '
+                       'they are barely trained, '
                        'and this exploitability means nothing at this budget (raise --br-steps: an episode is 500 '
                        'decisions per env)')
             say(f'warning: {warning}')
