@@ -123,13 +123,18 @@ class Claim:
         text: the claim in words.
         better, worse: setting labels of the experiment, or a reference it plays (its `references`).
         preset: the game it is about (None: each of the experiment's).
-        kind: 'better', or 'agree' (two settings: *consistent* when the 95 % interval of P(better > worse) holds
-            1/2, *differ* otherwise; no difference found is not proof of equality: read the interval's width).
+        kind: 'better', or 'agree' (two settings).
+        margin: for an agreement claim, the largest difference of the settings' mean scores (in the metric's units)
+            that still counts as agreeing; without one, no test can show agreement and the verdict reads *no
+            difference detected* at best.
 
-    The verdict (`mate.benchmark.report`): between two settings, from the probability of improvement P(better >
-    worse) and its 95 % interval: *confirmed* when the interval lies above 1/2, *refuted* when below, *unresolved*
-    otherwise; between a setting and a reference, from the setting's absolute IQM interval against the reference's
-    score on the same episodes.
+    The verdict (`mate.benchmark.verdicts`): decisive only where the 95 % interval and a test with a controlled
+    false-positive rate agree at 5 %, after Holm's correction over the experiment's claims. Between two settings:
+    the interval of the probability of improvement P(better > worse) against 1/2 and the exact Mann-Whitney
+    permutation test (*confirmed*, *refuted*, *unresolved*; 3 runs a side can never be decisive); between a setting
+    and a reference: the paired bootstrap interval of the difference on the same held-out episodes and a t-test whose
+    error counts the runs' and the episodes' spread; agreement: *equivalent* by two one-sided tests within `margin`,
+    *differ*, or *no difference detected*.
     """
 
     text: str
@@ -137,8 +142,12 @@ class Claim:
     worse: str
     preset: str | None = None
     kind: str = 'better'
+    margin: float | None = None
 
     def __post_init__(self) -> None:
+        if self.margin is not None and (self.kind != 'agree' or not self.margin > 0):
+            raise ValueError(f"a claim's margin is a positive number, for kind='agree' only, got {self.margin!r} "
+                             f'(kind {self.kind!r})')
         if self.kind not in ('better', 'agree'):
             raise ValueError(f"a claim's kind is 'better' or 'agree', got {self.kind!r}")
 

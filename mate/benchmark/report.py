@@ -38,6 +38,7 @@ from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
 from .directory import read_manifest
 from .jobs import by_setting, job_name
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
+from .verdicts import decide, weigh
 
 __all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'exploitability_histories', 'format_each',
            'format_interval', 'summarise', 'write_report']
@@ -218,7 +219,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                 if f'final_{key}_values' in entry:       # lower is better: scored negated
                     scores[label] = -np.array(entry[f'final_{key}_values'])
             summary['tasks'][experiment.task(preset)] = task
-            claims += _judge(experiment, preset, scores, {}, reps)
+            claims += _weigh(experiment, preset, scores, {}, {}, {}, reps)
             continue
         references = _reference_means(results, preset, 'absolute')
         task['references'] = {agent: dict(absolute=value, episodes=len(results.references[(agent, preset)]['absolute']),
@@ -244,50 +245,19 @@ def summarise(results: Results, reps: int = REPS) -> dict:
             for (x, y), value in improvement_intervals(scores, reps=reps).items():
                 task['improvement'][f'{x} > {y}'] = _interval(value)
         summary['tasks'][experiment.task(preset)] = task
-        claims += _judge(experiment, preset, scores, references, reps)
-    summary['claims'] = claims
+        episodes = {label: np.array([run.absolute for run in results.runs_of(label, preset)]) for label in scores}
+        reference_episodes = {agent: np.array(values['absolute'])
+                              for (agent, p), values in results.references.items() if p == preset}
+        claims += _weigh(experiment, preset, scores, references, episodes, reference_episodes, reps)
+    summary['claims'] = decide(claims)
     return summary
 
 
-MIN_RUNS = 3
-"""Runs of each setting a claim needs for a verdict (with fewer, the bootstrap intervals say nothing)."""
-
-
-def _judge(experiment: Experiment, preset: str, scores: dict, references: dict, reps: int) -> list[dict]:
-    """The verdicts of the experiment's claims on `preset` (`mate.benchmark.experiments.Claim`): `scores` are the
-    settings' per-run scores, higher better (population experiments: the exploitability negated); `references` the
-    reference teams' scores."""
-    verdicts = []
-    for claim in experiment.claims:
-        if claim.preset not in (None, preset):
-            continue
-        verdict = dict(text=claim.text, better=claim.better, worse=claim.worse, task=experiment.task(preset))
-        sides = [claim.better, claim.worse]
-        present = [side for side in sides if side in scores]
-        judged = len(present) == 2 or (len(present) == 1 and any(side in references for side in sides))
-        runs = min(len(scores[side]) for side in present) if judged else 0
-        if judged and runs < MIN_RUNS:   # a bootstrap over one or two runs gives intervals of no width
-            verdict.update(verdict=f'too few runs ({runs}; a verdict needs {MIN_RUNS})')
-        elif all(side in scores for side in sides):
-            point, low, high = improvement_intervals(scores, pairs=[tuple(sides)], reps=reps)[tuple(sides)]
-            if claim.kind == 'agree':
-                outcome = 'consistent' if low <= 0.5 <= high else 'differ'
-            else:
-                outcome = 'confirmed' if low > 0.5 else 'refuted' if high < 0.5 else 'unresolved'
-            verdict.update(statistic='probability of improvement', point=point, low=low, high=high, verdict=outcome)
-        elif any(side in scores for side in sides) and any(side in references for side in sides):
-            setting = next(side for side in sides if side in scores)
-            reference = next(side for side in sides if side in references)
-            point, low, high = interval_estimates({setting: scores[setting]}, reps=reps)[setting]['IQM']
-            above, below = low > references[reference], high < references[reference]
-            holds, fails = (above, below) if setting == claim.better else (below, above)
-            verdict.update(statistic=f'IQM of {setting} against {reference} {format_number(references[reference])}',
-                           point=point, low=low, high=high,
-                           verdict='confirmed' if holds else 'refuted' if fails else 'unresolved')
-        else:
-            verdict.update(verdict='no data')
-        verdicts.append(verdict)
-    return verdicts
+def _weigh(experiment: Experiment, preset: str, scores: dict, references: dict, episodes: dict,
+           reference_episodes: dict, reps: int) -> list[dict]:
+    """The evidence on the experiment's claims about `preset` (`mate.benchmark.verdicts.weigh`)."""
+    return [weigh(claim, experiment.task(preset), scores, references, episodes, reference_episodes, reps)
+            for claim in experiment.claims if claim.preset in (None, preset)]
 
 
 # ============================================================================ figures
@@ -416,12 +386,27 @@ def format_interval(interval: dict | None, digits: int = 3) -> str:
 
 def claim_rows(claims: list[dict]) -> list[str]:
     """The markdown table of the claims' verdicts (`summarise`'s 'claims'), header included."""
-    rows = ['| claim | task | verdict | evidence [95 % CI] |', '|---|---|---|---|']
+    rows = ['| claim | task | verdict | evidence [95 % CI] | test: p (Holm) |', '|---|---|---|---|---|']
     for claim in claims:
-        evidence = '-' if 'point' not in claim else \
-            f'{claim["statistic"]}: {format_interval(claim)}'
-        rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} |')
+        evidence = '-' if 'point' not in claim else f'{claim["statistic"]}: {format_interval(claim)}'
+        test = '-' if 'p' not in claim else f'{claim["test"]}: {_p_value(claim["p"])} ({_p_value(claim["p_holm"])})'
+        rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} | {test} |')
     return rows
+
+
+def _p_value(p: float) -> str:
+    """'0.0079', '0.10', '<0.0001': two significant digits."""
+    return '<0.0001' if p < 1e-4 else f'{p:.2g}' if p < 0.1 else f'{p:.2f}'
+
+
+VERDICT_RULE = ('a verdict is decisive only where the 95 % interval and a test agree at 5 % after Holm\'s correction '
+                'over these claims: between two settings, the interval of P(better > worse) against 1/2 and the exact '
+                'Mann-Whitney permutation test (3 runs a side can never be decisive: its smallest p is 0.1); against a '
+                'reference, the interval of the difference paired by episode against 0 and a t-test counting the '
+                "runs' and the episodes' spread. confirmed: on the claim's side; refuted: on the other; unresolved: "
+                'not decisive. For two settings that should agree: equivalent (two one-sided tests within a declared '
+                'margin), differ, or no difference detected (which is not evidence that they agree)')
+"""How a report's verdicts are reached, in words (`mate.benchmark.verdicts`)."""
 
 
 def markdown(summary: dict, figures: list[str]) -> str:
@@ -495,11 +480,7 @@ def markdown(summary: dict, figures: list[str]) -> str:
             lines.append('')
     if summary.get('claims'):
         whose = 'Claims of the paper' if summary.get('source', 'paper') == 'paper' else 'Claims of this experiment'
-        lines += [f'{whose} at this budget (confirmed: the 95 % interval of P(better > worse) above 1/2, '
-                  "or of the setting's IQM beyond the reference; refuted: the other way; unresolved: the interval "
-                  'holds both; '
-                  'for two settings that should agree, consistent: the interval of P holds 1/2, differ: it does not):',
-                  '', *claim_rows(summary['claims']), '']
+        lines += [f'{whose} at this budget ({VERDICT_RULE}):', '', *claim_rows(summary['claims']), '']
     if summary['incomplete']:
         lines += [f'Not complete (left out): {", ".join(summary["incomplete"])}.', '']
     return '\n'.join(lines)

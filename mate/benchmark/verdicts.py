@@ -19,7 +19,9 @@ false-positive rate is at most `ALPHA` agree, after Holm's correction over a rep
   one-sided t-tests (TOST, Welch) decide *equivalent* (|difference| < d at level `ALPHA`).
 
 The verdicts: *confirmed* / *refuted* (decisive, in the claim's direction or against it), *unresolved*, and for
-agreement claims *equivalent*, *differ* or *no difference detected*. `simulate_false_decisive_rate` measures the
+agreement claims *equivalent* / *not shown equivalent* (with a margin), *differ* or *no difference detected*.
+`weigh` gathers the evidence on one claim, `decide` gives an experiment's verdicts (`mate.benchmark.report` calls
+both). `simulate_false_decisive_rate` measures the
 rule's error rate on null data (tests/benchmark/test_verdicts.py: at most 5 % at 3, 5 and 10 runs).
 """
 
@@ -31,13 +33,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ['ALPHA', 'ENUMERATION_LIMIT', 'holm', 'mann_whitney_p', 'paired_reference_interval', 'reference_p',
-           'equivalence_p', 'runs_for_a_decisive_verdict', 'simulate_false_decisive_rate']
+__all__ = ['ALPHA', 'ENUMERATION_LIMIT', 'MIN_RUNS', 'holm', 'mann_whitney_p', 'paired_reference_interval',
+           'reference_p', 'equivalence_p', 'runs_for_a_decisive_verdict', 'simulate_false_decisive_rate', 'weigh',
+           'decide']
 
 ALPHA = 0.05
 """The false-positive rate a decisive verdict is held to (two-sided, after Holm's correction)."""
 ENUMERATION_LIMIT = 200_000
 """Splits of the pooled runs enumerated exactly; beyond, `mann_whitney_p` draws this many random splits."""
+MIN_RUNS = 3
+"""Runs of each setting a claim needs before it is weighed at all (with fewer, a bootstrap interval has no width).
+A decisive verdict between two settings needs more: 4 a side (`runs_for_a_decisive_verdict`)."""
 
 
 def _u_statistic(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -192,3 +198,70 @@ def simulate_false_decisive_rate(runs: int, trials: int = 400, kind: str = 'sett
         else:
             raise ValueError(f"kind must be 'settings' or 'reference', got {kind!r}")
     return decisive / trials
+
+
+# ============================================================================ the claims of a report
+
+
+def weigh(claim, task: str, scores: dict, reference_scores: dict, episodes: dict, reference_episodes: dict,
+          reps: int) -> dict:
+    """The evidence on one claim (`mate.benchmark.experiments.Claim`) in one task, before `decide` gives the verdict.
+
+    `scores`: setting label -> per-run scores (runs,), higher better (population experiments: the exploitability
+    negated); `reference_scores`: reference team -> its mean score; `episodes`: setting label -> the runs' absolute
+    metric per held-out episode (runs, E), and `reference_episodes`: reference team -> (E,) on the same episodes (a
+    claim against a reference needs both). Returns the claim's row: text, better, worse, task, kind and either
+    `verdict` (no data, too few runs) or the statistic with its interval (point, low, high), the test and its raw
+    p-value `p`, and `lean`: 'holds' / 'fails' when the interval lies on one side, else None."""
+    from .stats import improvement_intervals
+
+    row = dict(text=claim.text, better=claim.better, worse=claim.worse, task=task, kind=claim.kind)
+    sides = [claim.better, claim.worse]
+    present = [side for side in sides if side in scores]
+    judged = len(present) == 2 or (len(present) == 1 and any(side in reference_scores for side in sides))
+    if not judged:
+        return dict(row, verdict='no data')
+    runs = min(len(scores[side]) for side in present)
+    if runs < MIN_RUNS:
+        return dict(row, verdict=f'too few runs ({runs}; a verdict needs {MIN_RUNS})')
+    if len(present) == 2:
+        better, worse = (np.asarray(scores[side], dtype=float) for side in sides)
+        point, low, high = improvement_intervals({'b': better, 'w': worse}, pairs=[('b', 'w')], reps=reps)[('b', 'w')]
+        row.update(statistic='probability of improvement', point=point, low=low, high=high,
+                   lean='holds' if low > 0.5 else 'fails' if high < 0.5 else None)
+        if claim.kind == 'agree' and claim.margin is not None:
+            return dict(row, test=f'equivalence within {claim.margin:g} (TOST)',
+                        p=equivalence_p(better, worse, claim.margin))
+        return dict(row, test='exact Mann-Whitney', p=mann_whitney_p(better, worse))
+    setting = present[0]
+    reference = next(side for side in sides if side != setting)
+    if setting not in episodes or reference not in reference_episodes:
+        return dict(row, verdict='no data (the episodes are not kept)')
+    point, low, high = paired_reference_interval(episodes[setting], reference_episodes[reference], reps=reps)
+    above, below = low > 0.0, high < 0.0
+    holds, fails = (above, below) if setting == claim.better else (below, above)
+    return dict(row, statistic=f'IQM of {setting} - {reference} ({reference_scores[reference]:.3f}), '
+                               'paired by episode', point=point, low=low, high=high,
+                lean='holds' if holds else 'fails' if fails else None,
+                test='paired t (runs and episodes)', p=reference_p(episodes[setting], reference_episodes[reference]))
+
+
+def decide(rows: list[dict]) -> list[dict]:
+    """The verdicts of one experiment's weighed claims (`weigh`): Holm's correction over every claim with a test
+    (`p_holm`), then a verdict decisive only where the interval and the corrected test agree at `ALPHA`:
+
+    * a claim that one side is better: *confirmed* (the interval on the claim's side, p_holm < ALPHA), *refuted*
+      (on the other side, p_holm < ALPHA), else *unresolved*;
+    * an agreement claim without a margin: *differ* (the interval of P excludes 1/2, p_holm < ALPHA), else *no
+      difference detected*; with a margin: *equivalent* (TOST p_holm < ALPHA), else *not shown equivalent*."""
+    tested = [row for row in rows if 'p' in row]
+    for row, adjusted in zip(tested, holm([row['p'] for row in tested])):
+        decisive, lean = adjusted < ALPHA, row.pop('lean')
+        row['p_holm'] = adjusted
+        if row['kind'] == 'agree' and 'TOST' in row['test']:
+            row['verdict'] = 'equivalent' if decisive else 'not shown equivalent'
+        elif row['kind'] == 'agree':
+            row['verdict'] = 'differ' if decisive and lean else 'no difference detected'
+        else:
+            row['verdict'] = {'holds': 'confirmed', 'fails': 'refuted'}.get(lean if decisive else None, 'unresolved')
+    return rows

@@ -11,6 +11,8 @@ import shutil
 import numpy as np
 import pytest
 
+from mate.benchmark import verdicts
+
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
 from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _cuts_its_last_iteration, _ends_on_an_evaluation,
                                       job_status, reusable, reuse_jobs, write_manifest)
@@ -521,13 +523,21 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
     pair = claims['MAPPO > IPPO']
     assert (pair['point'], pair['low'], pair['high']) == pytest.approx(
         tuple(task['improvement']['MAPPO > IPPO'][k] for k in ('point', 'low', 'high')))
+    holm = verdicts.holm([claim['p'] for claim in results['claims']])
+    assert [claim['p_holm'] for claim in results['claims']] == pytest.approx(holm)
     for claim in claims.values():
-        expected = 'confirmed' if claim['low'] > (0.5 if claim is pair else random) else \
-            'refuted' if claim['high'] < (0.5 if claim is pair else random) else 'unresolved'
+        centre = 0.5 if claim is pair else 0.0         # against a reference: the difference paired by episode
+        decisive = claim['p_holm'] < verdicts.ALPHA
+        expected = 'confirmed' if decisive and claim['low'] > centre else \
+            'refuted' if decisive and claim['high'] < centre else 'unresolved'
         assert claim['verdict'] == expected
+    assert claims['MAPPO > random']['test'] == 'paired t (runs and episodes)'
+    assert pair['p'] == pytest.approx(verdicts.mann_whitney_p(task['settings']['MAPPO']['values'],
+                                                              task['settings']['IPPO']['values']))
     assert (agree['text'], agree['low'], agree['high']) == ('(pipeline check) MAPPO and IPPO agree', pair['low'],
                                                             pair['high'])
-    assert agree['verdict'] == ('consistent' if pair['low'] <= 0.5 <= pair['high'] else 'differ')
+    differ = agree['p_holm'] < verdicts.ALPHA and not pair['low'] <= 0.5 <= pair['high']
+    assert agree['verdict'] == ('differ' if differ else 'no difference detected')
     markdown = (report / 'results.md').read_text()
     assert '| MAPPO | 3 |' in markdown and '*upper-bound* (reference)' in markdown
     assert f'| (pipeline check) MAPPO beats IPPO | MATE-2v4-0 cameras | **{pair["verdict"]}** |' in markdown
@@ -686,17 +696,32 @@ def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tm
     assert 'resuming from' in (progress.parent / 'job.log').read_text()
 
 
-def test_a_claim_needs_three_runs_per_setting_for_a_verdict():
-    """With one or two runs a bootstrap interval has no width: no verdict then (and none without data)."""
-    from mate.benchmark.report import MIN_RUNS, _judge
+def test_a_claim_needs_three_runs_per_setting_to_be_weighed_and_four_to_be_decisive():
+    """With one or two runs a bootstrap interval has no width: no verdict then (and none without data); with three
+    a side the exact test can never reach 5 % (its smallest p is 0.1); four a side that never overlap can."""
+    from mate.benchmark.report import _weigh
+
+    def judge(scores, references=None, episodes=None, reference_episodes=None):
+        rows = _weigh(exp, 'MATE-2v4-0', scores, references or {}, episodes or {}, reference_episodes or {}, 200)
+        return {row['text']: row['verdict'] for row in verdicts.decide(rows)}
 
     exp = experiment('smoke')
     two = {'MAPPO': np.array([0.5, 0.6]), 'IPPO': np.array([0.1, 0.2])}
-    verdicts = {v['text']: v['verdict'] for v in _judge(exp, 'MATE-2v4-0', two, {'random': 0.0}, reps=200)}
-    assert MIN_RUNS == 3 and set(verdicts.values()) == {'too few runs (2; a verdict needs 3)'}
+    assert verdicts.MIN_RUNS == 3
+    assert set(judge(two, {'random': 0.0}).values()) == {'too few runs (2; a verdict needs 3)'}
     three = {'MAPPO': np.array([0.5, 0.6, 0.7]), 'IPPO': np.array([0.1, 0.2, 0.3])}
-    verdicts = {v['text']: v['verdict'] for v in _judge(exp, 'MATE-2v4-0', three, {'random': 0.0}, reps=200)}
-    assert verdicts == {'(pipeline check) MAPPO beats IPPO': 'confirmed',
-                        '(pipeline check) MAPPO beats the random cameras': 'confirmed',
-                        '(pipeline check) MAPPO and IPPO agree': 'differ'}
-    assert {v['verdict'] for v in _judge(exp, 'MATE-2v4-0', {}, {}, reps=200)} == {'no data'}
+    episodes = {'MAPPO': np.array([[0.5, 0.5], [0.6, 0.6], [0.7, 0.7]]) + np.array([0.0, 0.01])}
+    assert judge(three, {'random': 0.0}, episodes, {'random': np.array([0.0, 0.01])}) == {
+        '(pipeline check) MAPPO beats IPPO': 'unresolved',
+        '(pipeline check) MAPPO beats the random cameras': 'confirmed',
+        '(pipeline check) MAPPO and IPPO agree': 'no difference detected'}
+    assert judge(three, {'random': 0.0})['(pipeline check) MAPPO beats the random cameras'] == \
+        'no data (the episodes are not kept)'
+    four = {'MAPPO': np.array([0.5, 0.6, 0.7, 0.8]), 'IPPO': np.array([0.1, 0.2, 0.3, 0.4])}
+    five = {'MAPPO': np.array([0.5, 0.6, 0.7, 0.8, 0.9]), 'IPPO': np.array([0.0, 0.1, 0.2, 0.3, 0.4])}
+    # two claims test this pair: Holm doubles the smallest p, 2/70 = 0.029 at 4 a side (0.057), 2/252 at 5 (0.016)
+    assert judge(four)['(pipeline check) MAPPO beats IPPO'] == 'unresolved'
+    assert judge(five) == {'(pipeline check) MAPPO beats IPPO': 'confirmed',
+                           '(pipeline check) MAPPO beats the random cameras': 'no data',
+                           '(pipeline check) MAPPO and IPPO agree': 'differ'}
+    assert set(judge({}).values()) == {'no data'}

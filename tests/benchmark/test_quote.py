@@ -65,7 +65,7 @@ def test_quote_rewrites_a_stale_block_and_check_finds_a_changed_report(report, c
     each = summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['values']     # each run, by seed
     assert f' | {", ".join(f"{value:.3f}" for value in each)} |\n' in text and len(each) == 3
     assert '[its report](../reports/diag/results.md)' in text          # relative to the quoting file
-    assert '**confirmed**' in text and '**no data**' in text
+    assert '**unresolved**' in text and '**no data**' in text and 'exact Mann-Whitney: 0.10 (0.40)' in text
     assert main(['benchmark', 'quote', '--root', str(root), '--check', str(page)]) == 0
     # the report changes (a re-run): the quoted table is stale again
     summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['absolute']['IQM']['point'] = 0.5

@@ -60,3 +60,35 @@ def test_equivalence_needs_a_margin_and_evidence():
     assert verdicts.equivalence_p(x[:3], y[:3] + 0.04, margin=0.05) > verdicts.ALPHA
     with pytest.raises(ValueError, match='margin must be positive'):
         verdicts.equivalence_p(x, y, margin=0)
+
+
+def test_an_agreement_claim_is_equivalent_only_within_its_declared_margin():
+    from mate.benchmark.experiments import Claim
+
+    rng = np.random.default_rng(3)
+    scores = {'A': rng.normal(0.5, 0.01, size=8), 'B': rng.normal(0.5, 0.01, size=8)}
+
+    def verdict(claim):
+        return verdicts.decide([verdicts.weigh(claim, 'task', scores, {}, {}, {}, reps=500)])[0]
+
+    assert verdict(Claim('A and B agree', 'A', 'B', kind='agree', margin=0.05))['verdict'] == 'equivalent'
+    row = verdict(Claim('A and B agree', 'A', 'B', kind='agree'))
+    assert row['verdict'] == 'no difference detected' and row['test'] == 'exact Mann-Whitney'
+    assert verdict(Claim('A and B agree', 'A', 'B', kind='agree', margin=1e-4))['verdict'] == 'not shown equivalent'
+    with pytest.raises(ValueError, match='margin'):
+        Claim('A beats B', 'A', 'B', margin=0.05)
+    with pytest.raises(ValueError, match='margin'):
+        Claim('A and B agree', 'A', 'B', kind='agree', margin=0.0)
+
+
+def test_holm_over_a_reports_claims_can_take_a_verdict_back():
+    """One claim alone at p = 2/70 (4 runs a side, no overlap) is confirmed; beside a second claim it is not."""
+    from mate.benchmark.experiments import Claim
+
+    scores = {'A': np.array([0.5, 0.6, 0.7, 0.8]), 'B': np.array([0.1, 0.2, 0.3, 0.4]),
+              'C': np.array([0.1, 0.5, 0.3, 0.6])}
+    claims = [Claim('A beats B', 'A', 'B'), Claim('C beats B', 'C', 'B')]
+    alone = verdicts.decide([verdicts.weigh(claims[0], 'task', scores, {}, {}, {}, reps=500)])
+    both = verdicts.decide([verdicts.weigh(claim, 'task', scores, {}, {}, {}, reps=500) for claim in claims])
+    assert alone[0]['verdict'] == 'confirmed' and alone[0]['p'] == pytest.approx(2 / 70)
+    assert both[0]['verdict'] == 'unresolved' and both[0]['p_holm'] == pytest.approx(4 / 70)

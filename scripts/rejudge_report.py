@@ -1,0 +1,89 @@
+"""Give a committed report whose runs' data were not kept the current verdict rule (`mate.benchmark.verdicts`).
+
+    python scripts/rejudge_report.py docs/results/fig5-targets-comm [...]
+
+A report committed without its `benchmark/` directory still holds what the verdicts need: each run's score
+(`results.json`) and each run's absolute metric per held-out episode (`marl_eval.json`). The reference teams'
+episodes are taken from a report that kept them (`docs/results/*/benchmark/references/AGENT-PRESET/absolute.json`):
+the same rule team on the same held-out seeds, checked by its mean, which must equal the report's to the last digit
+(a shorter protocol, e.g. 160 episodes, uses the first ones). Every number but the claims' is left as it was;
+`results.md` is written again from the updated summary, with the figures it showed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from mate.benchmark.experiments import experiment
+from mate.benchmark.report import _jsonable, _weigh, markdown
+from mate.benchmark.verdicts import decide
+from mate.protocol import ABSOLUTE_SEEDS, TEAM_METRIC
+
+ROOT = Path(__file__).resolve().parents[1]
+HEADER = ['# Benchmark results', '', 'Written by `mate benchmark report`; every number below is in `results.json`.', '']
+
+
+def run_episodes(marl_eval: dict, name: str, task: str, label: str, metric: str, values: list) -> np.ndarray:
+    """(runs, E): the runs' absolute metric per episode from marl_eval.json, checked against their scores."""
+    runs = marl_eval[name][task][label]
+    seeds = sorted(runs, key=lambda key: int(key.split('_')[1]))
+    episodes = np.array([runs[seed]['absolute_metrics'][metric] for seed in seeds], dtype=float)
+    if not np.allclose(episodes.mean(axis=1), values, rtol=0, atol=1e-12):
+        raise SystemExit(f'{name} {task} {label}: marl_eval.json does not hold the runs of results.json')
+    return episodes
+
+
+def reference_episodes(agent: str, preset: str, metric: str, mean: float, count: int) -> np.ndarray:
+    """(E,): a kept reference's first `count` episodes whose mean is the report's `mean` exactly."""
+    for path in sorted(ROOT.glob(f'docs/results/*/benchmark/references/{agent}-{preset}/absolute.json')):
+        episodes = json.loads(path.read_text())['episodes'][:count]
+        values = np.array([episode[metric] for episode in episodes])
+        if len(values) == count and episodes[0]['seed'] == ABSOLUTE_SEEDS and float(values.mean()) == mean:
+            return values
+    raise SystemExit(f'no kept reference {agent} on {preset} with {count} episodes of mean {mean!r}')
+
+
+def rejudge(folder: Path, reps: int) -> None:
+    summaries = json.loads((folder / 'results.json').read_text())
+    marl_eval = json.loads((folder / 'marl_eval.json').read_text())
+    figures = re.findall(r'^!\[[^]]*\]\(([^)]+)\)$', (folder / 'results.md').read_text(), flags=re.MULTILINE)
+    sections = list(HEADER)
+    for name, summary in summaries.items():
+        exp = experiment(name)
+        metric = TEAM_METRIC[exp.team]
+        claims = []
+        for preset in exp.presets:
+            task = summary['tasks'][exp.task(preset)]
+            scores = {label: np.array(entry['values']) for label, entry in task['settings'].items()}
+            references = {agent: entry['absolute'] for agent, entry in task['references'].items()}
+            episodes = {label: run_episodes(marl_eval, name, exp.task(preset), label, metric, entry['values'])
+                        for label, entry in task['settings'].items()}
+            played = {agent: reference_episodes(agent, preset, metric, entry['absolute'], entry['episodes'])
+                      for agent, entry in task['references'].items()}
+            claims += _weigh(exp, preset, scores, references, episodes, played, reps)
+        summary['claims'] = decide(claims)
+        sections.append(markdown(summary, [figure for figure in figures if figure.startswith(name)]))
+        for claim in summary['claims']:
+            print(f'{name}: {claim["verdict"]:>24} | {claim["text"]} | p {claim.get("p", "-")}')
+    (folder / 'results.json').write_text(json.dumps(summaries, indent=1, default=_jsonable))
+    (folder / 'results.md').write_text('\n'.join(sections))
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('reports', nargs='+', type=Path, help='report folders (results.json, marl_eval.json)')
+    parser.add_argument('--reps', type=int, default=50_000, help='bootstrap replications (default 50,000)')
+    args = parser.parse_args(argv)
+    for folder in args.reports:
+        rejudge(folder, args.reps)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
