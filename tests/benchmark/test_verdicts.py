@@ -92,3 +92,36 @@ def test_holm_over_a_reports_claims_can_take_a_verdict_back():
     both = verdicts.decide([verdicts.weigh(claim, 'task', scores, {}, {}, {}, reps=500) for claim in claims])
     assert alone[0]['verdict'] == 'confirmed' and alone[0]['p'] == pytest.approx(2 / 70)
     assert both[0]['verdict'] == 'unresolved' and both[0]['p_holm'] == pytest.approx(4 / 70)
+
+
+def _runs_of(task: dict, label: str) -> list[float]:
+    entry = task['settings'][label]
+    if 'values' in entry:
+        return entry['values']
+    return entry.get('final_exploitability_fresh_values', entry.get('final_exploitability_values'))
+
+
+def test_no_committed_report_has_a_decisive_verdict_its_runs_do_not_support():
+    """Every confirmed, refuted or differ verdict of docs/results/ holds under an exact two-sided test at 5 % on the
+    report's own runs (between settings: the Mann-Whitney test recomputed here from each run's score), after Holm's
+    correction over the experiment's claims."""
+    from pathlib import Path
+    import json
+
+    reports = sorted((Path(__file__).resolve().parents[2] / 'docs' / 'results').glob('*/results.json'))
+    decisive = 0
+    for path in reports:
+        for summary in json.loads(path.read_text()).values():
+            claims = summary.get('claims', [])
+            assert [claim['p_holm'] for claim in claims if 'p' in claim] == pytest.approx(
+                verdicts.holm([claim['p'] for claim in claims if 'p' in claim]))
+            for claim in claims:
+                if claim['verdict'] not in ('confirmed', 'refuted', 'differ', 'equivalent'):
+                    continue
+                decisive += 1
+                assert claim['p_holm'] < verdicts.ALPHA, (path, claim['text'])
+                if claim['statistic'] == 'probability of improvement':
+                    task = summary['tasks'][claim['task']]
+                    p = verdicts.mann_whitney_p(_runs_of(task, claim['better']), _runs_of(task, claim['worse']))
+                    assert p == pytest.approx(claim['p']) and p < verdicts.ALPHA, (path, claim['text'])
+    assert decisive > 10
