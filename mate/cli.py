@@ -493,7 +493,7 @@ def build_parser() -> argparse.ArgumentParser:
     psro = command('psro',
                    help='population training: PSRO-Nash, fictitious self-play or self-play, with exploitability',
                    description='Grow a camera pool and a target pool by best responses to the other pool\'s '
-                               'meta-strategy (spec training.md §5): HRL-MAPPO cameras, MAPPO targets, payoff '
+                               'meta-strategy (paper §5.3): HRL-MAPPO cameras, MAPPO targets, payoff '
                                'entries played in batches, exploitability (paper Eq. 2) per iteration. Everything is '
                                'saved after each stage; the same command resumes a killed run. "mate psro plot '
                                'DIR..." draws the figures.')

@@ -1,7 +1,7 @@
 """Fixed numbers of the MATE world: terrain, warehouses and vector dimensions.
 
 Lengths are in world units, angles in degrees. These values are part of the game's
-definition (spec `environment.md` §1.4) and never change with the configuration.
+definition (docs/environment/entities.md) and never change with the configuration.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 The channel is plain bookkeeping owned by an environment: it routes messages (a broadcast becomes one
 copy per teammate, the sender included), queues them per recipient, remembers everything delivered
 during the current step (for the info dicts) and counts sender -> recipient edges per step and per
-episode. It knows nothing about the simulation. See spec `environment.md` §6 and §4.9.
+episode. It knows nothing about the simulation. See docs/environment/communication.md.
 """
 
 from __future__ import annotations

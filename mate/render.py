@@ -3,9 +3,9 @@
 A `Renderer` draws the world of a `MultiAgentTracking` env (read through its public API:
 `env.get_world()` and `env.params`) onto an offscreen 800 x 800 canvas. World coordinates
 [-1050, 1050] on both axes fill the canvas (x to the right, y up); lengths are world units,
-angles degrees, colours RGB floats in [0, 1] (as in spec `environment.md` §8).
+angles degrees, colours RGB floats in [0, 1] (docs/rendering.md).
 
-Drawing order (spec §8):
+Drawing order:
     persistent layer (cached until obstacles or warehouse states change):
         terrain border, warehouses (square + vector icon), obstacles
     per-frame layer:

@@ -2,7 +2,7 @@
 
 Every function is memoised on its integer arguments `(num_cameras, num_targets, num_obstacles)`
 (N_c, N_t, N_o), so a space or index array is built once per team sizes; cached arrays are read-only.
-Layouts and bounds follow spec `environment.md` §5.2-5.6:
+Layouts and bounds (docs/environment/observations.md):
 
 * camera observation (D_c = 22 + 5 N_t + 4 N_o + 7 N_c): preserved (13) + own private state (9)
   + N_t x (target public + flag) + N_o x (obstacle + flag) + N_c x (camera public + flag);
@@ -53,7 +53,7 @@ A = MAX_CAMERA_VIEWING_ANGLE
 _WAREHOUSE_COORDINATES = slice(4, 4 + 2 * NUM_WAREHOUSES)
 """Warehouse coordinates inside the preserved part (indices 4..11)."""
 
-# (low, high) bounds of each part of the vectors (spec 5.4)
+# (low, high) bounds of each part of the vectors
 _PRESERVED = ([0.0] * 4 + [-C] * (2 * NUM_WAREHOUSES) + [0.0], [INF] * 4 + [C] * (2 * NUM_WAREHOUSES) + [TERRAIN_SIZE])
 _CAMERA_PUBLIC = ([-C, -C, 0.0, -C, -C, 0.0], [C, C, TERRAIN_SIZE, C, C, A])
 _CAMERA_EXTRA = ([0.0, 0.0, 0.0], [C, A, A])

@@ -113,3 +113,21 @@ def test_the_core_imports_nothing_from_the_rest():
             outside = {m for m in imports_of(name) if m != 'mate' and not m.startswith('mate.core')
                        and m not in ('mate.constants', 'mate.config', 'mate.config.schema', 'mate.config.loader')}
             assert not outside, (name, outside)
+
+
+OUTSIDE = ('spec training', 'spec environment', 'spec agents', 'spec `', 'agents-and-wrappers', 'decisions.md',
+           '(spec §', '../shared')
+
+
+def test_no_module_cites_a_document_outside_the_repository():
+    """Docstrings cite the paper or the project's own docs (docs/...), never the specification files the package
+    was written from, which are not part of the repository; a docs/ page a module names exists."""
+    import re
+
+    for name, path in MODULES.items():
+        text = path.read_text()
+        cited = [phrase for phrase in OUTSIDE if phrase in text]
+        assert not cited, f'{name} cites {cited}'
+        assert not re.search(r'(?<!paper\'s )(?<!paper )§', text), f'{name} cites a section of no document'
+        for page in re.findall(r'docs/[\w/-]+\.md', text):
+            assert (ROOT.parent / page).exists(), f'{name} names {page}, which does not exist'

@@ -1,6 +1,6 @@
 """Agent base classes: the per-agent life cycle, seeding, messages and observation decoders.
 
-Life cycle of one agent (spec agents-and-wrappers.md §5); `mate.group_step` drives it each env step:
+Life cycle of one agent (docs/agents.md, "Writing an agent"); `mate.group_step` drives it each env step:
 
     agent.reset(observation)                       # after env.reset(), once per episode
     agent.observe(observation, info)               # then two communication rounds:

@@ -1,6 +1,6 @@
 """Angle arithmetic in degrees and `Vector2D`, the small plane-vector type the agents reason with.
 
-Conventions (spec agents-and-wrappers.md §1, §3): all angles are in degrees;
+Conventions (as the environment's, docs/environment/entities.md): all angles are in degrees;
 `normalize_angle` maps onto [-180, 180); `arctan2_deg` returns values in (-180, 180].
 Every function works element-wise on floats and on numpy arrays alike.
 """

@@ -2,7 +2,7 @@
 
 Both share what they learn with teammates: cameras their own state (once) and the targets they
 see; targets the warehouses they found empty. Decision rules and their quirks follow the
-original MATE (spec agents-and-wrappers.md §7.4-7.5, decisions.md "kept quirks").
+original MATE (docs/agents.md; docs/differences.md, "Kept on purpose").
 
 The rules are written once, on arrays, in `mate.teams.rules`: these agents call them on their own
 row, and the batched teams of `mate.teams` on every agent of B games, so that a batched game plays

@@ -1,7 +1,7 @@
 """Heuristic agents: cameras assigned by a central controller from a pose score table; targets that
 run like greedy targets and drift away from the centres of the camera sectors they are in.
 
-Camera team protocol (spec agents-and-wrappers.md §7.6): every camera sends its observation to
+Camera team protocol (docs/agents.md): every camera sends its observation to
 the controller (the camera with index 0) in the requests round; the controller pools what the
 team sees, picks a pose (orientation, viewing angle) for every camera with targets in reach, and
 sends each its pose in the responses round. A camera without an answer plans alone.

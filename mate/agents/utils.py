@@ -1,4 +1,4 @@
-"""Agent-side observation helpers and read-only views of entity states (spec agents-and-wrappers.md §4).
+"""Agent-side observation helpers and read-only views of entity states (docs/agents.md).
 
 Observation helpers take `(observation, team, num_cameras, num_targets, num_obstacles)`; the
 observation may be one row (D,) or a batch (..., D), and may carry extra trailing columns

@@ -1,4 +1,4 @@
-"""Observation and state vectors (layouts of spec `environment.md` §5) and coverage statistics.
+"""Observation and state vectors (layouts in docs/environment/observations.md) and coverage statistics.
 
 Functions act on one world row b and write into caller-provided output rows, so a batch can
 fill one (B, N, D) buffer without allocating.

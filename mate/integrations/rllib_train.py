@@ -10,7 +10,7 @@ run directory and files (`mate.learn.Run`: `progress.csv`, `best.pt`, `final.pt`
 evaluation protocol (`mate.learn.evaluation`: `evaluations.jsonl`, `best-eval.pt`, `absolute.json`), the policies
 exported from the RLlib module to `mate` policy files (`mate.integrations.rllib_export`). The learner is RLlib's PPO
 (new API stack) with one policy shared by the team's agents, its value function per agent (of the agent's own
-observation, as IPPO's), and by default the paper's RLlib hyper-parameters (spec training.md §1.6).
+observation, as IPPO's), and by default the paper's RLlib hyper-parameters (its appendix; `mate.learn.ppo.PAPER_HYPERPARAMETERS`).
 
 This module imports nothing from Ray or torch until the command runs, so `mate --help` works without the optional
 extra. The training itself is `mate.integrations.rllib.train_run`.
@@ -42,8 +42,8 @@ rewards, the learner on the CPU)."""
 @dataclasses.dataclass
 class RLlibPPOConfig(RunConfig, TeamEnvConfig):
     """Settings of a `mate rllib-train` run: the team env's options and the run's (as `mate train`'s: `TeamEnvConfig`,
-    `RunConfig`), Ray's, then RLlib PPO's hyper-parameters (defaults: the paper's RLlib settings, spec training.md
-    §1.6, with mate's MLP actor of 256 256)."""
+    `RunConfig`), Ray's, then RLlib PPO's hyper-parameters (defaults: the paper's RLlib settings, as
+    `mate.learn.ppo.PAPER_HYPERPARAMETERS`, with mate's MLP actor of 256 256)."""
 
     # ---- the run (mate.learn.run.RunConfig), where it differs
     threads: int = option(0, 'torch threads of the driver (the learner, and the env runner when '

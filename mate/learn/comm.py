@@ -1,5 +1,5 @@
-"""Learned communication between the agents of a team: TarMAC (spec training.md §2.6, §4.1) and I2C
-(§2.7, §4.2, after the TarMAC part below).
+"""Learned communication between the agents of a team: TarMAC (Das et al. 2019) and I2C
+(Ding et al. 2020, after the TarMAC part below).
 
 TarMAC. Every agent broadcasts a message at each decision; every agent (the sender included) reads all N
 messages at the next decision through soft attention, one round per decision:
@@ -296,7 +296,7 @@ class I2CActor(nn.Module):
 
 
 class JointActionValue(nn.Module):
-    """Q_i(s, a_i, a_-i) of every agent i, its own network each (spec §4.2): MLP on [state, the teammates'
+    """Q_i(s, a_i, a_-i) of every agent i, its own network each (I2C's, Ding et al. 2020): MLP on [state, the teammates'
     one-hot actions in cyclic order ((N - 1) A), its own one-hot action (A)] -> a scalar.
 
     `forward(state (..., S), actions (..., N) long)` -> (..., N); `own_action_values` -> (..., N, A), every own
@@ -355,7 +355,7 @@ class JointActionValue(nn.Module):
 
 def causal_influence(own_values: torch.Tensor, paired_values: torch.Tensor,
                      temperature: float = I2C_TEMPERATURE) -> torch.Tensor:
-    """KL_ij = KL(p_full || p_marg) (..., N, N - 1) of every agent i and teammate slot j (spec §4.2):
+    """KL_ij = KL(p_full || p_marg) (..., N, N - 1) of every agent i and teammate slot j (I2C's):
     p_full(a_i) = softmax_a_i Q(s, a_i, a_-i) / tau from `own_values` (..., N, A); p_marg(a_i) = softmax_a_i
     log sum_a_j exp(Q(s, a_i, a_j, a_-ij) / tau) from `paired_values` (..., N, N - 1, A own, A teammate)."""
     log_full = torch.log_softmax(own_values / temperature, dim=-1).unsqueeze(-2)            # (..., N, 1, A)
@@ -402,7 +402,7 @@ class InfluenceThreshold(nn.Module):
 
 
 class I2CTraining(nn.Module):
-    """The training-only parts of I2C (spec §4.2): the joint action-value networks and the label buffer.
+    """The training-only parts of I2C: the joint action-value networks and the label buffer.
 
     `labels(state (R, S), actions (R, N))` -> (labels (R, N, N - 1) bool, KL (R, N, N - 1)), without gradient;
     `losses(logits (R, N, A), state, actions, returns (R, N))` -> (Q regression MSE, policy-correlation

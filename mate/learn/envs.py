@@ -22,7 +22,7 @@ What a learner sees per decision (the paper's wrapper stack, done on arrays):
   rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
 * `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (`own_rewards`: its
   tracking penalty and its deliveries), which sum to the team reward; rewards are then (B, N);
-* `camera_reward='mixed'` (cameras): the population players' reward (spec training.md §5.1), per env step
+* `camera_reward='mixed'` (cameras): the population players' reward (docs/population.md), per env step
   0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward;
 * `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of `mate.teams`
   (e.g. a mixture over a population, `mate psro`).
@@ -63,7 +63,7 @@ CREDITS = ('team', 'difference', 'own')
 rate ('difference'); a target's own part of the team's raw reward ('own')."""
 CAMERA_REWARDS = ('coverage', 'mixed')
 """What a camera team is rewarded with per env step: the coverage rate (the paper's cooperative runs), or
-0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, spec training.md §5.1)."""
+0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, docs/population.md)."""
 def game_of(config: str | None, team: str) -> tuple[str, str | None]:
     """(env_id, config path) of a `--config` value: a registered preset name (with or without '-v0'), a YAML/JSON
     path, or None for the paper preset of `team`. A bad name or file raises `ConfigError` listing the presets."""
@@ -140,7 +140,7 @@ class TeamEnvConfig:
 
 
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
-    """The population players' camera reward (spec training.md §5.1) from one env step's (B,) arrays."""
+    """The population players' camera reward (docs/population.md) from one env step's (B,) arrays."""
     return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
 
 

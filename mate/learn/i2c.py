@@ -9,7 +9,7 @@
                 GAE; the prior's labels on a sample of the rollout; K epochs on minibatches of whole env sequences
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-I2C ("individually inferred communication", spec training.md §2.7, §4.2): at every decision each agent's prior
+I2C ("individually inferred communication", Ding et al. 2020; docs/training.md, "I2C"): at every decision each agent's prior
 network decides, from its own observation, which teammates to ask; it attends to the current observations of those
 it asked, and the message joins its observation in an MLP -> LSTM -> head (`mate.learn.comm` has the computation).
 No delay, peer to peer, no shared weights. The memory rules are `mappo_lstm.py`'s: zeroed where an episode starts

@@ -9,7 +9,7 @@
             ->  `Run`: logs (progress line, CSV, TensorBoard when installed), checkpoints, best.pt, final.pt
 
 The actor's output is one or more independent categorical choices (`action_distribution`): one of 25 grid moves,
-or one keep/ignore bit per target slot for HRL cameras (`--hrl`, spec training.md §3), whose rule executor runs
+or one keep/ignore bit per target slot for HRL cameras (`--hrl`, the paper's hierarchical cameras), whose rule executor runs
 inside the env. Rewards are team rewards, repeated to every agent, or each camera's own share of the coverage
 (`--credit difference`; MAPPO's critic then gives one value per agent). Values are learned on normalised returns
 (running mean/std, "value normalisation"). The recurrent variant is `mappo_lstm.py`; with learned messages,

@@ -13,7 +13,7 @@ in one file that reads top to bottom (`mate train matd3`, alias `mate train madd
                 updates, soft target updates (tau) after each; a log row (an iteration) every `report_every`
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-Spec training.md §2.5: independent policies (no sharing); actor MLP [512, 256] tanh, output init 0.01, squashed to
+As the paper's MADDPG (docs/training.md, "MADDPG as MA-TD3"): independent policies (no sharing); actor MLP [512, 256] tanh, output init 0.01, squashed to
 the action box; critic: concat(state, joint action) -> MLP [512, 256] tanh -> Q, no layer norm; Huber critic loss
 (threshold 10); Adam, lr 1e-4 for both; tau 0.01 after every update; policy delay 2; smoothing noise 0.2 clipped at
 0.5; exploration: uniform actions for 10,000 decision steps, then Gaussian noise 0.1; replay 500,000 decision

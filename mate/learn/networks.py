@@ -1,4 +1,4 @@
-"""Network blocks shared by every trainer of `mate.learn` (spec training.md §1.5).
+"""Network blocks shared by every trainer of `mate.learn` (docs/training.md, "Network options").
 
 * `linear`, `mlp`: orthogonally initialised layers (each output row rescaled to a given norm), tanh or ReLU;
 * `Actor`: observation -> MLP -> logits (`num_actions` per agent);
@@ -36,7 +36,7 @@ ACTIVATIONS = {'tanh': (nn.Tanh, 5.0 / 3.0), 'relu': (nn.ReLU, math.sqrt(2.0))}
 
 
 def linear(inputs: int, outputs: int, scale: float, gain: float, bias: bool = True) -> nn.Linear:
-    """Orthogonal weights with every output row rescaled to L2 norm `scale * gain`; zero bias (§1.5), or none."""
+    """Orthogonal weights with every output row rescaled to L2 norm `scale * gain`; zero bias, or none."""
     layer = nn.Linear(inputs, outputs, bias=bias)
     with torch.no_grad():
         nn.init.orthogonal_(layer.weight)
@@ -303,7 +303,7 @@ class RecurrentActor(nn.Module):
 
 
 class DuelingQNetwork(nn.Module):
-    """Action values of a dueling network (spec training.md §2.3): observation -> MLP trunk -> a value
+    """Action values of a dueling network (IQL's, docs/training.md): observation -> MLP trunk -> a value
     stream and an advantage stream (one hidden ReLU layer of `stream` units each) -> Q = V + A - mean(A).
 
     The action may be `heads` independent choices among `choices` each (HRL cameras: keep/ignore per target
@@ -331,7 +331,7 @@ class DuelingQNetwork(nn.Module):
 
 
 class RecurrentQNetwork(nn.Module):
-    """QMIX's agent network (spec training.md §2.4): observation -> Linear(width) + ReLU -> GRU(width) ->
+    """QMIX's agent network (docs/training.md, "QMIX"): observation -> Linear(width) + ReLU -> GRU(width) ->
     Linear -> action values (..., heads * choices); with several heads (HRL cameras) the value of a joint
     choice is the sum of the heads' values, as in `DuelingQNetwork`. PyTorch's default initialisation.
 
@@ -376,7 +376,7 @@ def agentwise_matmul(x: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
 
 class AgentwiseMLP(nn.Module):
     """N independent MLPs (one per agent, no shared weights) evaluated in one batched call:
-    (..., N, inputs) -> (..., N, outputs). Each agent's layers are initialised as `linear` does (§1.5):
+    (..., N, inputs) -> (..., N, outputs). Each agent's layers are initialised as `linear` does:
     hidden rows to norm gain(activation), output rows to `out_scale`; zero biases.
 
     `outputs=None`: no output layer, the last hidden layer (activated) is the output, width `self.width`.
@@ -451,7 +451,7 @@ class AgentwiseLSTMCell(nn.Module):
 
 
 class IndependentActors(nn.Module):
-    """MADDPG's deterministic actors, one per agent (spec training.md §2.5): each agent's observation (..., N, D)
+    """MADDPG's deterministic actors, one per agent (docs/training.md, "MADDPG as MA-TD3"): each agent's observation (..., N, D)
     -> its own MLP -> tanh -> actions (..., N, A) in [-1, 1], the share of the agent's action bounds (the
     original's low + (high - low) sigmoid(2x) on the same box). Deployment reads the outputs as the actions."""
 

@@ -73,7 +73,7 @@ PAPER_HYPERPARAMETERS = dict(
     entropy_schedule=((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
     kl_coeff=0.2,
 )
-"""The paper's settings where `PPOConfig`'s defaults differ (spec training.md §1.5-1.6; `--paper`, which also
+"""The paper's settings where `PPOConfig`'s defaults differ (the paper's appendix; `--paper`, which also
 selects the MLP actor of `mappo`). Our defaults are tuned for budgets of a few million decision steps
 (docs/training.md has the measurements): the paper's schedules are stretched over 10 M steps and its entropy bonus
 of 0.05 keeps the policies nearly uniform for the first million steps; the per-target camera actor learns faster

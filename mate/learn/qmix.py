@@ -12,7 +12,7 @@ global state, in one file that reads top to bottom (`mate train qmix`).
                 row (an iteration) every `report_every` decision steps
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-Spec training.md §2.4: agent network Linear(256) + ReLU -> GRU(256) -> Q-values; mixer with embedding 128
+As the paper's QMIX (docs/training.md, "QMIX"): agent network Linear(256) + ReLU -> GRU(256) -> Q-values; mixer with embedding 128
 (hyper-network weights made non-negative by an absolute value, ELU hidden layer, a state-value MLP); double-Q 1-step
 targets of the mixed value, masked MSE, RMSprop (lr 1e-4, alpha 0.99, eps 1e-5), gradient norm clipped at 1000;
 epsilon 1.0 -> 0.02 over 50,000 decision steps. QMIX learns from the team reward (`--credit team` only). Horizon
@@ -92,7 +92,7 @@ def policy_spec(config: QMIXConfig, envs=None) -> PolicySpec:
 
 
 class QMixer(nn.Module):
-    """QMIX's mixing network (spec training.md §2.4): the agents' chosen values q (..., N) and the global
+    """QMIX's mixing network (Rashid et al. 2018): the agents' chosen values q (..., N) and the global
     state (..., S) -> Q_tot (...,) = ELU(q W1(s) + b1(s)) . W2(s) + V(s), with W1 = |Linear(s)| (N x E) and
     W2 = |Linear(s)| (E): non-negative weights, so dQ_tot/dq_i >= 0 (monotonic in every agent's value)."""
 

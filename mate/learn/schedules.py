@@ -1,4 +1,4 @@
-"""Schedules of a training run: piecewise functions of the decision-step count (spec training.md §1.6).
+"""Schedules of a training run: piecewise functions of the decision-step count (docs/training.md).
 
 A schedule is ((step, value), ...): a step function (`interpolate=False`: the value of the last breakpoint
 reached, e.g. learning rates) or linear between breakpoints (`interpolate=True`: entropy coefficients,

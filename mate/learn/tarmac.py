@@ -18,7 +18,7 @@ memory and its start flags kept so that the update unrolls each env sequence aga
 messages stay in the graph of that unroll: the loss of a receiver's action at t + 1 trains the sender's message
 head at t (within a rollout; the memory carried in from the previous one is a constant).
 
-The critic reads the N messages of the decision too (spec training.md §4.1): those the agents read at it (the
+The critic reads the N messages of the decision too (docs/training.md, "TarMAC"): those the agents read at it (the
 previous decision's; zeros at an episode's first), stored with the rollout as data (T, B, N, 64) and appended flat
 (N x 64) to the global state or to each agent's critic input. A horizon cut's bootstrap value reads the messages just
 sent (those the episode's next decision would read); the rollout's last value those the next decision reads.

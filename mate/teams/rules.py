@@ -15,8 +15,8 @@ again for the flagged agents (`todo`), so the generator is called exactly when t
 `self._draw()` would call it. Action-space stacks must hold at least 2 numbers before `camera_act`,
 `target_act`, `walk_towards` (and `walk_start`); refilling those early changes nothing.
 
-Observations are raw float64 (B, N, D) (the env's layout, spec environment.md §3). Angles are in
-degrees, lengths in world units. Spec agents-and-wrappers.md §7.4-7.5 and decisions.md ("kept
+Observations are raw float64 (B, N, D) (the env's layout, docs/environment/observations.md). Angles are in
+degrees, lengths in world units. docs/agents.md and docs/differences.md ("kept
 quirks") describe the rules. Their constants (the range factor, the idle camera's 0.1, the noise
 refresh chances, ...) live with the agents, in `mate.agents.greedy` and `mate.agents.naive`.
 """

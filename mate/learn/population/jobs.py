@@ -8,7 +8,7 @@
 Pool members travel as *payloads*: a batched agent name of `mate evaluate` ('random', 'greedy',
 'pretrained:NAME') or the bytes of a policy file, so that a worker on another machine of a Ray cluster
 needs no shared file system. A worker turns a payload into a batched team (`mate.learn.policy.make_team`);
-population members always sample their actions (spec training.md §5.1: they are stochastic).
+population members always sample their actions (they are stochastic policies).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def member_team(payload, team, num_envs: int, counts, seed: int | None, device='
 
 
 def rescaled_schedules(total_steps: int) -> dict:
-    """The PSRO best responses' schedules rescaled to a budget of T decision steps (spec training.md §5.2):
+    """The PSRO best responses' schedules rescaled to a budget of T decision steps (docs/population.md):
     learning rate 5e-4, 1e-4 from 0.4 T, 5e-5 from 0.8 T; entropy coefficient 0.05 -> 0.01 at 0.2 T ->
     0.001 at 0.4 T -> 0 at T (linear in between)."""
     T = int(total_steps)

@@ -19,7 +19,7 @@ with each side's policies and their training runs; `jobs.jsonl`, the log of jobs
 with the same command resumes at the stage it was in without redoing a finished job (an interrupted best-response
 training resumes from its own last checkpoint). Jobs are seeded by what they are (a best response by its iteration
 and side, an entry by its episodes' env seeds), so the state does not depend on where they ran, in which order,
-or how often a lost one was run again. Spec: training.md §5.
+or how often a lost one was run again. The paper's §5.3; docs/population.md.
 """
 
 from __future__ import annotations

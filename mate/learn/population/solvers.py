@@ -10,7 +10,7 @@ meta-strategy (a probability vector over each pool):
 * `'last'`:    all mass on each pool's newest policy (self-play).
 
 `exploitability` is the paper's Eq. 2 with the best responses approximated by the best policies of
-the extended pools (spec training.md §5.5).
+the extended pools (docs/population.md).
 """
 
 from __future__ import annotations
