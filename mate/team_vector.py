@@ -29,8 +29,8 @@ Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
   game's statistics with the mask `infos['_episode']` (Gymnasium's `RecordEpisodeStatistics` form): `r` the
   summed reward of the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps,
   `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end),
-  `camera_return` and `target_return` (the config's team rewards summed), `normalized_target_return` (the target return divided by
-  the preset's largest one: the targets' benchmark metric), `delivered_cargoes`.
+  `camera_return` and `target_return` (the config's team rewards summed), `normalized_target_return` (the target return
+  divided by the preset's largest one: the targets' benchmark metric), `delivered_cargoes`.
 
 **Seeding**: `reset(seed=s)` seeds game i with s + i and the opponent's row i with s + i too, so game i is the
 episode `mate evaluate --seed s` plays as its episode i (and `mate.score_policy`, the PettingZoo adapters and the

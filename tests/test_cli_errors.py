@@ -69,7 +69,7 @@ class _Payload:
 
 def _malicious_checkpoint(tmp_path: Path) -> Path:
     path = tmp_path / 'malicious.pt'
-    torch.save({'format': 'mate.learn/1', 'actor': _Payload(tmp_path / 'pwned'), 'meta': {}, 'config': {}}, path)
+    torch.save({'format': 'mate.learn/2', 'actor': _Payload(tmp_path / 'pwned'), 'spec': {}, 'config': {}}, path)
     return path
 
 

@@ -292,9 +292,9 @@ OWN_PSRO = ('--target-credit', 'own')
 team reward the paper used leaves MAPPO targets on the floor of MATE-4v8-0, and a population whose target best
 responses cannot learn would measure the cameras alone."""
 PAPER_PPO = ('--paper', '--epochs', '16', '--gae-lambda', '1.0')
-"""MAPPO with the paper's RLlib PPO hyper-parameters where ours differ (docs/training.md, "Network options"): `--paper` (adaptive
-KL penalty from 0.2, its learning-rate steps and entropy ramps stretched over 10 M decisions), 16 epochs, GAE lambda
-1."""
+"""MAPPO with the paper's RLlib PPO hyper-parameters where ours differ (docs/training.md, "Network options"): `--paper`
+(adaptive KL penalty from 0.2, its learning-rate steps and entropy ramps stretched over 10 M decisions), 16 epochs, GAE
+lambda 1."""
 AS_IPPO = ('--epochs', '4', '--minibatch-size', '1600', '--gae-lambda', '0.95', '--kl-coeff', '0', '--max-grad-norm',
            '10', '--lr-schedule', '[[0, 0.0005], [1499999, 0.0005], [1500000, 0.0002], [2999999, 0.0002], '
            '[3000000, 0.0001]]', '--entropy-schedule', '[[0, 0.01], [1000000, 0.001], [3000000, 0]]',

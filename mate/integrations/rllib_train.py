@@ -10,7 +10,8 @@ run directory and files (`mate.learn.Run`: `progress.csv`, `best.pt`, `final.pt`
 evaluation protocol (`mate.learn.evaluation`: `evaluations.jsonl`, `best-eval.pt`, `absolute.json`), the policies
 exported from the RLlib module to `mate` policy files (`mate.integrations.rllib_export`). The learner is RLlib's PPO
 (new API stack) with one policy shared by the team's agents, its value function per agent (of the agent's own
-observation, as IPPO's), and by default the paper's RLlib hyper-parameters (its appendix; `mate.learn.ppo.PAPER_HYPERPARAMETERS`).
+observation, as IPPO's), and by default the paper's RLlib hyper-parameters (its appendix;
+`mate.learn.ppo.PAPER_HYPERPARAMETERS`).
 
 This module imports nothing from Ray or torch until the command runs, so `mate --help` works without the optional
 extra. The training itself is `mate.integrations.rllib.train_run`.

@@ -6,8 +6,7 @@ as a dict), and either 'run' + 'state' (a run's checkpoint: its counters and the
 Numpy arrays travel as tensors tagged `{'__ndarray__': tensor}` (so that the file holds tensors and plain data
 only) and come back as arrays. Files are read with `torch.load(weights_only=True)`: nothing else is unpickled.
 
-Format `mate.learn/1` (checkpoints written before the policy spec): {'actor', 'meta' (a dict of the policy's
-settings), 'config', ...}; they still load: `read_spec` builds their spec from `meta`.
+Files of the first format, `mate.learn/1` (before the policy spec), are no longer read: the error says so.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from .spec import PolicySpec, SpecError
 __all__ = ['CHECKPOINT_FORMAT', 'CheckpointError', 'load_checkpoint', 'pack', 'read_spec', 'save_checkpoint', 'unpack']
 
 CHECKPOINT_FORMAT = 'mate.learn/2'
-FORMATS = ('mate.learn/1', CHECKPOINT_FORMAT)
+FORMATS = (CHECKPOINT_FORMAT,)
 """Formats this version reads."""
 
 
@@ -81,22 +80,18 @@ def load_checkpoint(path) -> dict:
                               'torch file of tensors and plain data (mate never unpickles other objects)') from None
     if not isinstance(data, dict) or data.get('format') not in FORMATS:
         found = data.get('format') if isinstance(data, dict) else type(data).__name__
-        raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected one of {FORMATS}')
-    required = ('actor', 'meta', 'config') if data['format'] == 'mate.learn/1' else ('spec', 'config')
-    missing = [key for key in required if key not in data]
+        older = ' (the first format, written before policy specs, is no longer read)' if found == 'mate.learn/1' \
+            else ''
+        raise CheckpointError(f'checkpoint {str(path)!r} has format {found!r}; expected one of {FORMATS}{older}')
+    missing = [key for key in ('spec', 'config') if key not in data]
     if missing:
         raise CheckpointError(f'checkpoint {str(path)!r} lacks {missing}')
-    if data['format'] == 'mate.learn/1' and not isinstance(data['meta'], dict):
-        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt: its 'meta' entry is a "
-                              f"{type(data['meta']).__name__}, not a dict")
     return unpack(data)
 
 
 def read_spec(data: dict, path='') -> PolicySpec:
-    """The `PolicySpec` of a loaded checkpoint (version 1: built from its `meta`); CheckpointError if invalid."""
+    """The `PolicySpec` of a loaded checkpoint; CheckpointError if invalid."""
     try:
-        if data['format'] == 'mate.learn/1':
-            return PolicySpec.from_meta(data['meta'], data['config'])
         return PolicySpec.from_dict(data['spec'])
     except (SpecError, KeyError, TypeError, ValueError) as exc:
         raise CheckpointError(f'checkpoint {str(path)!r} has no valid policy spec: {exc}') from None

@@ -109,6 +109,12 @@ class TarMACActor(nn.Module):
         self.query = linear(2 * self.lstm_size, self.key_size, 1.0, 1.0, bias=False)
         self.head = linear(self.width + self.lstm_size, self.num_actions + self.key_size + self.value_size, 1.0, 1.0)
 
+    @property
+    def heard_size(self) -> int:
+        """The size of each message the agents read (key + value): its memory's third part, (..., N, size), which
+        the PPO loop's critic reads too (`mate.learn.ppo_loop.heard`)."""
+        return self.key_size + self.value_size
+
     def initial_state(self, *shape: int) -> tuple[torch.Tensor, ...]:
         """Zero (h, c, messages) for `shape` = (B, N) agents; with a `delay` K, also the queue (B, K, N, key +
         value) of the messages of the K decisions before the last, oldest first."""
@@ -485,6 +491,16 @@ def channel_difference(saved: dict, wanted: dict) -> str | None:
             return f'trained without {flag}; this run has {flag} {now}'
         return f'trained with {flag} {before}; this run has {flag} {now}'
     return None
+
+
+def build_tarmac_actor(spec) -> TarMACActor:
+    """The TarMAC actor of `spec` (network 'tarmac', `mate.learn.actors`)."""
+    return TarMACActor(spec.obs_dim, spec.num_actions, spec.hidden, spec.activation, spec.lstm)
+
+
+def build_i2c_actor(spec) -> I2CActor:
+    """The I2C actors of `spec`, one network per agent (network 'i2c', `mate.learn.actors`)."""
+    return I2CActor(spec.num_agents, spec.obs_dim, spec.num_actions, spec.hidden, spec.activation, spec.lstm)
 
 
 class Channel:

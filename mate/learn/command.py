@@ -8,12 +8,14 @@ parser, so it is refused. The trainer's module (and torch) is imported only once
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..arguments import ArgumentParser, CommandError, resolving_arguments
+from .run_config import default_run_dir, run_name  # (no torch: `mate train -h` works without it)
 
 __all__ = ['TRAINERS', 'add_arguments', 'run']
 
@@ -90,9 +92,8 @@ def run(args: argparse.Namespace, console) -> int:
         with resolving_arguments():
             options = parser.parse_args([*file_arguments(parser, options.config_file), *args.options])
     config = config_from(parser, config_class, options, **TRAINERS[args.algo].fixed)
-    name = run_name(args.algo, config)
     if config.run_dir is None:
-        config.run_dir = f'runs/{name}-{config.team}-seed{config.seed}'
+        config = dataclasses.replace(config, run_dir=default_run_dir(args.algo, config))
     if config.wandb:
         from ..extras import require
 
@@ -111,6 +112,7 @@ def run(args: argparse.Namespace, console) -> int:
 
         device = resolve_device(config.device)
     _write_command(config.run_dir, ['mate', 'train', args.algo, *args.options])
+    name = run_name(args.algo, config)
     console.print(f'training {name.upper()} {config.team}s on {spec.env_id} ({spec.network} network'
                   f'{f", LSTM {spec.lstm}" if spec.lstm else ""}, {spec.action} actions, frame skip {spec.frame_skip}, '
                   f'{config.num_envs} envs, {config.steps:,} decision steps, {device}) -> {config.run_dir}',
@@ -153,24 +155,10 @@ def train_and_report(train: Callable, config, console, resuming: bool) -> int:
     return 0
 
 
-def run_name(algo: str, config) -> str:
-    """The run's name in its default directory: the algorithm (its config's `algo` when it has one: 'ippo-tarmac'
-    for `mate train tarmac --critic local`), 'hrl-' first for HRL cameras, the observability and the channel's
-    perturbations after."""
-    algo = getattr(config, 'algo', algo)
-    name = ('hrl-' if config.hrl else '') + algo + ('-full-obs' if config.full_observability else '')
-    tags = (('message_dropout', 'dropout'), ('communication_range', 'range'), ('message_delay', 'delay'))
-    for attribute, tag in tags:
-        value = getattr(config, attribute, None)
-        if value:
-            name += f'-{tag}{value:g}'
-    return name
-
-
 def already_done(saved: dict, config) -> tuple[str, str] | None:
     """Why the run of checkpoint `saved` needs no more training under `config`, and the flag to raise to train on;
     None if it does need more."""
-    counters = saved.get('run') or saved          # format 2: counters under 'run'; format 1: at the top
+    counters = saved.get('run', {})
     steps, seconds = int(counters.get('env_steps', 0)), float(counters.get('wall_seconds', 0.0))
     if steps >= config.steps:
         return f'{steps:,} decision steps >= --steps {config.steps:,}', '--steps'

@@ -1,4 +1,4 @@
-"""HRL cameras (the paper's hierarchical cameras; docs/training.md): the policy picks a subset of targets, a rule executor aims at it.
+"""HRL cameras (the paper's hierarchical cameras): the policy picks a subset of targets, a rule executor aims at it.
 
 High-level action: one keep/ignore bit per target slot, (..., Nt) in {0, 1}. The executor runs at every
 raw step on the camera's fresh raw observation:

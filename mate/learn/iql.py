@@ -11,12 +11,12 @@ reads top to bottom (`mate train iql`).
                 `report_every` decision steps
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-As the paper's IQL (docs/training.md, "IQL"): dueling head, double-Q, 1-step targets, Huber loss, Adam (eps 1e-8), no gradient clipping,
-epsilon 1.0 -> 0.02 over the first 50,000 decision steps, replay of 500,000 agent transitions, learning from 5,000
-decision steps on, target copy every 500. Counting as the PPO trainers do: a *decision step* is one env's decision
-(B per batched step); the replay holds *agent transitions* (B x N per batched step), each agent's own sample with
-the team reward repeated, or each camera's own reward with `--credit difference`. Horizon cuts are truncations:
-their targets bootstrap from the last observation.
+As the paper's IQL (docs/training.md, "IQL"): dueling head, double-Q, 1-step targets, Huber loss, Adam (eps 1e-8), no
+gradient clipping, epsilon 1.0 -> 0.02 over the first 50,000 decision steps, replay of 500,000 agent transitions,
+learning from 5,000 decision steps on, target copy every 500. Counting as the PPO trainers do: a *decision step* is
+one env's decision (B per batched step); the replay holds *agent transitions* (B x N per batched step), each agent's
+own sample with the team reward repeated, or each camera's own reward with `--credit difference`. Horizon cuts are
+truncations: their targets bootstrap from the last observation.
 
 HRL cameras (`--hrl`) choose a subset of the target slots. `--selection joint` (the spec's Discrete(2^Nt), the
 default): one choice among the 2^Nt subsets, those keeping an invisible target never taken (the executor would

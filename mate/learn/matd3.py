@@ -13,14 +13,14 @@ in one file that reads top to bottom (`mate train matd3`, alias `mate train madd
                 updates, soft target updates (tau) after each; a log row (an iteration) every `report_every`
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-As the paper's MADDPG (docs/training.md, "MADDPG as MA-TD3"): independent policies (no sharing); actor MLP [512, 256] tanh, output init 0.01, squashed to
-the action box; critic: concat(state, joint action) -> MLP [512, 256] tanh -> Q, no layer norm; Huber critic loss
-(threshold 10); Adam, lr 1e-4 for both; tau 0.01 after every update; policy delay 2; smoothing noise 0.2 clipped at
-0.5; exploration: uniform actions for 10,000 decision steps, then Gaussian noise 0.1; replay 500,000 decision
-steps, learning from 5,000. Deviations (docs/differences.md): the twin critics are two networks (the original
-routed the second through the first, so its clipped double-Q was off); the noises are in units of each agent's
-action bounds (actions live in [-1, 1]); the next actions of the target are every agent's target actor's (the
-textbook MADDPG), not the behaviour data's; one update per 128 decision steps instead of per 3,200.
+As the paper's MADDPG (docs/training.md, "MADDPG as MA-TD3"): independent policies (no sharing); actor MLP [512, 256]
+tanh, output init 0.01, squashed to the action box; critic: concat(state, joint action) -> MLP [512, 256] tanh -> Q,
+no layer norm; Huber critic loss (threshold 10); Adam, lr 1e-4 for both; tau 0.01 after every update; policy delay 2;
+smoothing noise 0.2 clipped at 0.5; exploration: uniform actions for 10,000 decision steps, then Gaussian noise 0.1;
+replay 500,000 decision steps, learning from 5,000. Deviations (docs/differences.md): the twin critics are two
+networks (the original routed the second through the first, so its clipped double-Q was off); the noises are in units
+of each agent's action bounds (actions live in [-1, 1]); the next actions of the target are every agent's target
+actor's (the textbook MADDPG), not the behaviour data's; one update per 128 decision steps instead of per 3,200.
 
 Actions in [-1, 1] are each agent's share of its own bounds (`TeamVecEnv` scales them: cameras' rotation and zoom
 steps, targets' step size). Rewards: the team's (repeated for every agent) or each camera's own with `--credit

@@ -451,8 +451,8 @@ class AgentwiseLSTMCell(nn.Module):
 
 
 class IndependentActors(nn.Module):
-    """MADDPG's deterministic actors, one per agent (docs/training.md, "MADDPG as MA-TD3"): each agent's observation (..., N, D)
-    -> its own MLP -> tanh -> actions (..., N, A) in [-1, 1], the share of the agent's action bounds (the
+    """MADDPG's deterministic actors, one per agent (docs/training.md, "MADDPG as MA-TD3"): each agent's observation
+    (..., N, D) -> its own MLP -> tanh -> actions (..., N, A) in [-1, 1], the share of the agent's action bounds (the
     original's low + (high - low) sigmoid(2x) on the same box). Deployment reads the outputs as the actions."""
 
     continuous = True
@@ -481,3 +481,33 @@ class Critic(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         values = self.head(self.body(x))
         return values.squeeze(-1) if self.outputs == 1 else values
+
+
+# ============================================================================ builders (`mate.learn.actors`)
+
+def build_mlp_actor(spec) -> nn.Module:
+    """The shared MLP actor of `spec` (network 'mlp'), inside a `RecurrentActor` when `spec.lstm` > 0."""
+    actor = Actor(spec.obs_dim, spec.num_actions, spec.hidden, spec.activation, context_extra=spec.lstm)
+    return RecurrentActor(actor, spec.lstm) if spec.lstm else actor
+
+
+def build_per_target_actor(spec) -> nn.Module:
+    """The camera per-target scorer of `spec` (network 'per-target'), inside a `RecurrentActor` when `spec.lstm` > 0."""
+    actor = PerTargetActor(spec.obs_dim, spec.counts, spec.hidden, spec.activation, num_actions=spec.num_actions,
+                           context_extra=spec.lstm, memory=bool(spec.memory), velocity=spec.velocity)
+    return RecurrentActor(actor, spec.lstm) if spec.lstm else actor
+
+
+def build_dueling_network(spec) -> nn.Module:
+    """IQL's dueling Q-network of `spec` (network 'dueling')."""
+    return DuelingQNetwork(spec.obs_dim, spec.heads, spec.choices, spec.hidden, spec.activation)
+
+
+def build_recurrent_q_network(spec) -> nn.Module:
+    """QMIX's GRU agent network of `spec` (network 'recurrent-q'; its width is the last hidden width)."""
+    return RecurrentQNetwork(spec.obs_dim, spec.heads, spec.choices, spec.hidden[-1])
+
+
+def build_independent_actors(spec) -> nn.Module:
+    """MA-TD3's deterministic actors of `spec`, one per agent (network 'independent')."""
+    return IndependentActors(spec.num_agents, spec.obs_dim, spec.num_actions, spec.hidden, spec.activation)

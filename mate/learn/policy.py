@@ -20,12 +20,12 @@ them), as their policy's training read:
 * sighting memory (`spec.memory`): each camera broadcasts the targets it sees in the first round of every step
   (`{'sightings': [(slot, x, y), ...]}`) and records its teammates' sightings, so every camera holds the memory the
   learner had (an agent whose `observe` was skipped updates its memory from `act`'s observation, without news);
-* TarMAC (`spec.network == 'tarmac'`): an agent keeps its LSTM state and its own last message; at a decision it
+* TarMAC (`spec.comm == 'tarmac'`): an agent keeps its LSTM state and its own last message; at a decision it
   reads N messages: its own (kept locally, never lost) and, per teammate, the last `{'tarmac': float32 array}`
   message from that sender since its previous decision, zeros when none came (dropped, out of range, delayed,
   silenced). After the decision it broadcasts its new message once, in the response round of the next env step,
   so it is read at the teammates' next decision: the one-decision delay of training;
-* I2C (`spec.network == 'i2c'`): at a decision an agent sends an empty request `{'i2c': None}` in the request round
+* I2C (`spec.comm == 'i2c'`): at a decision an agent sends an empty request `{'i2c': None}` in the request round
   to each teammate its prior network selects; a teammate answers every request of that step in its response round
   with its raw observation `{'i2c': float64 array}`; the agent reads the replies in the teammates' slots, zeros
   for a reply that did not come; only replies from the teammates it asked, in its decision step, count.
@@ -48,9 +48,8 @@ from ..agents.base import CameraAgentBase, TargetAgentBase
 from ..messages import Team
 from ..teams.protocol import as_team
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
-from .comm import I2CActor, TarMACActor
+from .actors import network_kind
 from .memory import SightingMemory, camera_sightings
-from .networks import Actor, DuelingQNetwork, IndependentActors, PerTargetActor, RecurrentActor, RecurrentQNetwork
 from .spec import PolicySpec, SpecError
 
 __all__ = ['AGENT_CLASSES', 'BATCHED_AGENTS', 'PRETRAINED_DIR', 'LoadedPolicy', 'PolicyCameraAgent',
@@ -65,26 +64,10 @@ _NEVER = np.iinfo(np.int64).max // 2
 
 
 def make_actor(spec: PolicySpec) -> nn.Module:
-    """The policy network of `spec` (`spec.network`, modules `networks` and `comm`): its outputs are
-    `spec.num_actions` logits per agent (Q-values for 'dueling' and 'recurrent-q', actions in [-1, 1] for
+    """The policy network of `spec`: the builder registered for `spec.network` (`mate.learn.actors`); its outputs
+    are `spec.num_actions` logits per agent (Q-values for 'dueling' and 'recurrent-q', actions in [-1, 1] for
     'independent')."""
-    D, A, hidden, activation = spec.obs_dim, spec.num_actions, spec.hidden, spec.activation
-    if spec.network == 'tarmac':
-        return TarMACActor(D, A, hidden, activation, spec.lstm)
-    if spec.network == 'i2c':
-        return I2CActor(spec.num_agents, D, A, hidden, activation, spec.lstm)
-    if spec.network == 'dueling':
-        return DuelingQNetwork(D, spec.heads, spec.choices, hidden, activation)
-    if spec.network == 'recurrent-q':
-        return RecurrentQNetwork(D, spec.heads, spec.choices, hidden[-1])
-    if spec.network == 'independent':
-        return IndependentActors(spec.num_agents, D, A, hidden, activation)
-    if spec.network == 'mlp':
-        actor = Actor(D, A, hidden, activation, context_extra=spec.lstm)
-    else:   # 'per-target'
-        actor = PerTargetActor(D, spec.counts, hidden, activation, num_actions=A, context_extra=spec.lstm,
-                               memory=bool(spec.memory), velocity=spec.velocity)
-    return RecurrentActor(actor, spec.lstm) if spec.lstm else actor
+    return network_kind(spec.network).builder()(spec)
 
 
 # ============================================================================ policy files
@@ -173,7 +156,7 @@ class LoadedPolicy:
 
 
 def _actor_weights(data: dict) -> dict:
-    """The actor's state dict of a loaded file: a policy file's, a format-2 run checkpoint's or a format-1 file's."""
+    """The actor's state dict of a loaded file: a policy file's or a run checkpoint's."""
     if 'actor' in data:
         return data['actor']
     if isinstance(data.get('state'), dict) and 'networks' in data['state']:
@@ -508,7 +491,7 @@ class _PolicyAgentMixin:
     def _outputs(self, features: np.ndarray) -> np.ndarray:
         """This agent's network outputs (A,) for its features (D,), its recurrent state and messages updated."""
         spec = self.spec
-        if spec.network == 'independent':   # MA-TD3: one actor per agent; this agent's row of the team input
+        if network_kind(spec.network).team_input:   # MA-TD3: one actor per agent; my row of the team input
             team_input = np.zeros((spec.num_agents, features.shape[-1]), dtype=np.float32)
             team_input[self.index] = features
             return self.policy.outputs(team_input)[self.index]

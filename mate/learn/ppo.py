@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import ClassVar
 
 import torch
 from torch import nn
@@ -31,9 +32,28 @@ __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'Va
            'ppo_update', 'sampled_kl', 'warm_start']
 
 
+PAPER_HYPERPARAMETERS = dict(
+    mask_invisible=False,
+    lr_schedule=((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)),
+    entropy_schedule=((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
+    kl_coeff=0.2,
+)
+"""The paper's settings where `PPOConfig`'s defaults differ (the paper's appendix; `--paper`, which also
+selects the MLP actor of `mappo`). Our defaults are tuned for budgets of a few million decision steps
+(docs/training.md has the measurements): the paper's schedules are stretched over 10 M steps and its entropy bonus
+of 0.05 keeps the policies nearly uniform for the first million steps; the per-target camera actor learns faster
+than the MLP. `mask_invisible` (HRL): the executor ignores selected targets that the camera does not see, so
+masking them changes no behaviour; it removes their random bits from the log-probabilities and the entropy, which
+otherwise add noise to every gradient (the paper's code had the mask, unused)."""
+PAPER_HELP = ("the paper's settings where ours differ: the adaptive KL penalty (0.2, target 0.01), schedules stretched "
+              'over 10M steps (lr 5e-4 -> 1e-4 @4M -> 5e-5 @8M; entropy 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M), no '
+              'HRL masking; options given explicitly still win')
+
 @dataclasses.dataclass
 class PPOConfig(RunConfig, TeamEnvConfig):
     """Settings of a PPO trainer: the team env's and the run's options, then PPO's hyper-parameters."""
+
+    PRESETS: ClassVar[dict] = {'paper': (PAPER_HELP, PAPER_HYPERPARAMETERS)}
 
     rollout_length: int = option(25, 'decisions per env per iteration (the paper: 25-step fragments)', minimum=1)
     epochs: int = option(4, 'passes over each rollout', minimum=1)
@@ -64,26 +84,9 @@ class PPOConfig(RunConfig, TeamEnvConfig):
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
         check_network_options(self, ('lr_schedule', 'entropy_schedule'))
-        object.__setattr__(self, 'hidden', tuple(self.hidden))
+        self.hidden = tuple(self.hidden)
 
 
-PAPER_HYPERPARAMETERS = dict(
-    mask_invisible=False,
-    lr_schedule=((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)),
-    entropy_schedule=((0, 0.05), (2_000_000, 0.01), (4_000_000, 0.001), (10_000_000, 0.0)),
-    kl_coeff=0.2,
-)
-"""The paper's settings where `PPOConfig`'s defaults differ (the paper's appendix; `--paper`, which also
-selects the MLP actor of `mappo`). Our defaults are tuned for budgets of a few million decision steps
-(docs/training.md has the measurements): the paper's schedules are stretched over 10 M steps and its entropy bonus
-of 0.05 keeps the policies nearly uniform for the first million steps; the per-target camera actor learns faster
-than the MLP. `mask_invisible` (HRL): the executor ignores selected targets that the camera does not see, so
-masking them changes no behaviour; it removes their random bits from the log-probabilities and the entropy, which
-otherwise add noise to every gradient (the paper's code had the mask, unused)."""
-PAPER_HELP = ("the paper's settings where ours differ: the adaptive KL penalty (0.2, target 0.01), schedules stretched "
-              'over 10M steps (lr 5e-4 -> 1e-4 @4M -> 5e-5 @8M; entropy 0.05 -> 0.01 @2M -> 0.001 @4M -> 0 @10M), no '
-              'HRL masking; options given explicitly still win')
-PPOConfig.PRESETS = {'paper': (PAPER_HELP, PAPER_HYPERPARAMETERS)}
 
 
 # ============================================================================ the formulas
@@ -280,7 +283,7 @@ def warm_start(path, spec, actor: nn.Module, critics: dict[str, nn.Module], algo
     except RuntimeError as exc:
         raise CheckpointError(f'warm start {str(path)!r}: actor weights do not fit: '
                               f'{str(exc).splitlines()[0]}') from None
-    saved_algo = data.get('algo') or data.get('meta', {}).get('algo')
+    saved_algo = data.get('algo')
     if saved_algo == algo and data['config'].get('credit', 'team') == credit:   # the critic's inputs and outputs
         for name, module in critics.items():
             if name in networks:

@@ -12,11 +12,11 @@ global state, in one file that reads top to bottom (`mate train qmix`).
                 row (an iteration) every `report_every` decision steps
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
-As the paper's QMIX (docs/training.md, "QMIX"): agent network Linear(256) + ReLU -> GRU(256) -> Q-values; mixer with embedding 128
-(hyper-network weights made non-negative by an absolute value, ELU hidden layer, a state-value MLP); double-Q 1-step
-targets of the mixed value, masked MSE, RMSprop (lr 1e-4, alpha 0.99, eps 1e-5), gradient norm clipped at 1000;
-epsilon 1.0 -> 0.02 over 50,000 decision steps. QMIX learns from the team reward (`--credit team` only). Horizon
-cuts are truncations: their targets bootstrap from the last observation.
+As the paper's QMIX (docs/training.md, "QMIX"): agent network Linear(256) + ReLU -> GRU(256) -> Q-values; mixer with
+embedding 128 (hyper-network weights made non-negative by an absolute value, ELU hidden layer, a state-value MLP);
+double-Q 1-step targets of the mixed value, masked MSE, RMSprop (lr 1e-4, alpha 0.99, eps 1e-5), gradient norm
+clipped at 1000; epsilon 1.0 -> 0.02 over 50,000 decision steps. QMIX learns from the team reward (`--credit team`
+only). Horizon cuts are truncations: their targets bootstrap from the last observation.
 
 The replay holds chunks of `sequence_length` decision steps that never cross an episode start (an episode that
 ends early leaves the rest of its chunk masked), each with the GRU state the acting network had at its first step;

@@ -46,11 +46,11 @@ import numpy as np
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
 from ..protocol import EVALUATION_SEEDS, training_reset_seed
 from .evaluation import Evaluator
-from .run_config import RunConfig
+from .run_config import RunConfig, default_run_dir, run_name
 from .spec import PolicySpec
 
-__all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'config_hash', 'episode_reward_phrase',
-           'mean_or_nan', 'write_run_config']
+__all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'config_hash', 'default_run_dir',
+           'episode_reward_phrase', 'mean_or_nan', 'write_run_config']
 
 EPISODE_WINDOW = 25
 """Episodes the episode metrics are averaged over (RLlib's smoothing, which the paper's curves show)."""
@@ -173,7 +173,7 @@ class Run:
     def of(cls, config: RunConfig, algo: str, spec: PolicySpec, callback=None, console=None) -> Run:
         """The run of a trainer's `config` (its `RunConfig` fields: directory, default runs/ALGO-TEAM-seedN, budget,
         checkpoints, progress, --fresh) training the policy of `spec` with algorithm `algo`."""
-        run_dir = config.run_dir or f'runs/{algo}-{config.team}-seed{config.seed}'
+        run_dir = config.run_dir or default_run_dir(algo, config)
         if config.seed + config.num_envs > EVALUATION_SEEDS:
             raise ValueError(f'--seed {config.seed} with --num-envs {config.num_envs} would train on evaluation seeds: '
                              f'seed + num_envs must be at most {EVALUATION_SEEDS:,} (mate.protocol.SEED_RANGES)')

@@ -7,7 +7,7 @@ import dataclasses
 
 from ..options import check_ranges, option
 
-__all__ = ['RunConfig']
+__all__ = ['RunConfig', 'default_run_dir', 'run_name']
 
 
 @dataclasses.dataclass
@@ -50,3 +50,23 @@ class RunConfig:
     def to_dict(self) -> dict:
         return {k: (list(map(list, v)) if k.endswith('schedule') else list(v) if isinstance(v, tuple) else v)
                 for k, v in dataclasses.asdict(self).items()}
+
+
+def run_name(algo: str, config) -> str:
+    """The run's name in its default directory: the algorithm (its config's `algo` when it has one: 'ippo-tarmac'
+    for `mate train tarmac --critic local`), 'hrl-' first for HRL cameras, the observability and the channel's
+    perturbations after."""
+    algo = getattr(config, 'algo', algo)
+    name = ('hrl-' if config.hrl else '') + algo + ('-full-obs' if config.full_observability else '')
+    tags = (('message_dropout', 'dropout'), ('communication_range', 'range'), ('message_delay', 'delay'))
+    for attribute, tag in tags:
+        value = getattr(config, attribute, None)
+        if value:
+            name += f'-{tag}{value:g}'
+    return name
+
+
+def default_run_dir(algo: str, config) -> str:
+    """The directory of a run whose config names none: runs/NAME-TEAM-seedN (`run_name`), the one default of
+    `mate train` and of `Run.of`."""
+    return f'runs/{run_name(algo, config)}-{config.team}-seed{config.seed}'

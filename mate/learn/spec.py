@@ -49,23 +49,18 @@ from ..spaces import observation_indices_of
 from ..teams.protocol import action_high, as_team
 from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
+from .actors import network_kind
 from .hrl import executor_actions, joint_allowed, selection_bits
 from .memory import MEMORY_FEATURES
 from .velocity import VELOCITY_FEATURES, target_displacements
 
-__all__ = ['ACTIONS', 'NETWORKS', 'SPEC_VERSION', 'PolicySpec', 'SpecError', 'action_high', 'as_team',
+__all__ = ['ACTIONS', 'SPEC_VERSION', 'PolicySpec', 'SpecError', 'action_high', 'as_team',
            'discrete_to_continuous', 'preprocess_observation']
 
 SPEC_VERSION = 2
-"""Version of the saved form (`to_dict`). Version 1 is the `meta` dict of older checkpoints (`from_meta`)."""
+"""Version of the saved form (`to_dict`)."""
 ACTIONS = ('grid', 'hrl', 'hrl-joint', 'continuous', 'discrete')
 """Action kinds (module docstring)."""
-NETWORKS = ('mlp', 'per-target', 'tarmac', 'i2c', 'dueling', 'recurrent-q', 'independent')
-"""Policy networks (`mate.learn.networks.make_actor`): a shared MLP, the camera per-target scorer (either with an
-LSTM when `lstm` > 0), the TarMAC and I2C communicating actors, IQL's dueling Q-network, QMIX's GRU agent network,
-MA-TD3's independent deterministic actors."""
-COMMUNICATING = ('tarmac', 'i2c')
-Q_NETWORKS = ('dueling', 'recurrent-q')
 
 
 class SpecError(ValueError):
@@ -111,7 +106,7 @@ class PolicySpec:
         velocity: the target displacement columns (cameras).
         full_observability: the policy saw every entity (the `EnhancedObservation` wrapper; deploy it with
             `mate evaluate --enhanced-observation TEAM`).
-        network: one of `NETWORKS`.
+        network: a registered network (`mate.learn.actors.NETWORK_KINDS`).
         hidden: widths of the network's hidden layers.
         activation: 'tanh' or 'relu'.
         lstm: LSTM cells of a recurrent actor (0: feed-forward; TarMAC and I2C always have one).
@@ -147,8 +142,10 @@ class PolicySpec:
             raise SpecError(f"team must be 'camera' or 'target', got {self.team!r}")
         if self.action not in ACTIONS:
             raise SpecError(f'action must be one of {", ".join(ACTIONS)}, got {self.action!r}')
-        if self.network not in NETWORKS:
-            raise SpecError(f'network must be one of {", ".join(NETWORKS)}, got {self.network!r}')
+        try:
+            kind = network_kind(self.network)
+        except ValueError as exc:
+            raise SpecError(str(exc)) from None
         if self.action.startswith('hrl') and self.team != 'camera':
             raise SpecError('HRL (target selection + rule executor) exists for cameras only (--hrl)')
         if self.action == 'grid' and not self.levels >= 2:
@@ -160,12 +157,12 @@ class PolicySpec:
                             '(--memory, --velocity)')
         if self.memory < 0:
             raise SpecError(f'memory must be a period of at least 1 env step, or 0 for none; got {self.memory}')
-        if self.network == 'per-target' and self.team != 'camera':
-            raise SpecError("network 'per-target' reads a camera's target slots: it needs --team camera")
-        if self.network in COMMUNICATING and self.lstm <= 0:
+        if kind.team is not None and self.team != kind.team:
+            raise SpecError(f"network {self.network!r} plays the {kind.team}s only: it needs --team {kind.team}")
+        if kind.needs_lstm and self.lstm <= 0:
             raise SpecError(f'network {self.network!r} needs an LSTM (lstm > 0), got {self.lstm}')
-        if self.network == 'independent' and self.action != 'continuous':
-            raise SpecError("network 'independent' (MA-TD3's actors) acts with continuous actions")
+        if kind.action is not None and self.action != kind.action:
+            raise SpecError(f'network {self.network!r} acts with {kind.action} actions, got {self.action!r}')
         object.__setattr__(self, 'counts', tuple(int(n) for n in self.counts))
         object.__setattr__(self, 'hidden', tuple(int(n) for n in self.hidden))
 
@@ -207,8 +204,7 @@ class PolicySpec:
         data = dict(data)
         version = data.pop('version', None)
         if version != SPEC_VERSION:
-            raise SpecError(f'policy spec version {version!r}; this mate reads version {SPEC_VERSION} (and version-1 '
-                            'checkpoints through their meta)')
+            raise SpecError(f'policy spec version {version!r}; this mate reads version {SPEC_VERSION}')
         fields = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - fields)
         missing = sorted(f.name for f in dataclasses.fields(cls)
@@ -216,31 +212,6 @@ class PolicySpec:
         if unknown or missing:
             raise SpecError(f'policy spec: unknown fields {unknown}, missing fields {missing}')
         return cls(**data)
-
-    @classmethod
-    def from_meta(cls, meta: dict, config: dict) -> PolicySpec:
-        """The spec of a version-1 checkpoint (`meta` and the trainer's `config` dicts, as written before specs)."""
-        comm = meta.get('comm', 'none')
-        network = comm if comm in COMMUNICATING else meta.get('actor', 'mlp')
-        if meta.get('continuous'):
-            action = 'continuous'
-        elif meta.get('hrl'):
-            action = 'hrl-joint' if meta.get('joint_selection') else 'hrl'
-        else:
-            action = 'grid'
-        hidden = config.get('hidden') or meta.get('hidden') or (256, 256)
-        lstm = int(config.get('lstm', meta.get('lstm', 0)) or 0)
-        if network == 'recurrent-q':
-            hidden = (int(hidden[-1]),)
-        return cls(team=meta['team'], env_id=meta.get('env_id') or config.get('env_id'), config=config.get('config'),
-                   counts=tuple(meta['counts']), frame_skip=int(meta.get('frame_skip', 1)), action=action,
-                   levels=int(meta.get('levels', 5)) if action == 'grid' else 0, memory=int(meta.get('memory', 0)),
-                   velocity=bool(meta.get('velocity', False)),
-                   full_observability=bool(meta.get('full_observability', False)), network=network,
-                   hidden=tuple(hidden), activation=config.get('activation', 'tanh'), lstm=lstm,
-                   obs_dim=int(meta['obs_dim']), state_dim=int(meta.get('state_dim', 0)),
-                   num_agents=int(meta.get('num_agents', meta['counts'][0 if meta['team'] == 'camera' else 1])),
-                   algo=meta.get('algo', ''), deterministic=bool(meta.get('deterministic', False)))
 
     def __str__(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
@@ -282,16 +253,16 @@ class PolicySpec:
     @property
     def comm(self) -> str:
         """The communication scheme: 'tarmac', 'i2c' or 'none'."""
-        return self.network if self.network in COMMUNICATING else 'none'
+        return network_kind(self.network).comm
 
     @property
     def recurrent(self) -> bool:
-        return self.lstm > 0 or self.network == 'recurrent-q' or self.network in COMMUNICATING
+        return self.lstm > 0 or network_kind(self.network).recurrent
 
     @property
     def value_based(self) -> bool:
         """The outputs are Q-values, acted on greedily (IQL, QMIX)."""
-        return self.network in Q_NETWORKS
+        return network_kind(self.network).value_based
 
     @property
     def game(self) -> str:

@@ -126,8 +126,7 @@ def run_variant(name: str, folder) -> dict:
                           for p in sorted((folder / 'players').glob('*/progress.csv'))},
                     weights={str(p.relative_to(folder)): weight_summary(p) for p in players},
                     state=without_timing({key: state[key] for key in PSRO_STATE_KEYS}))
-    # the networks of the run's end: its final checkpoint (format 2: the algorithm state's `networks`, recorded as
-    # the entries of the format-1 final.pt, which was a copy of the checkpoint)
+    # the networks of the run's end: its final checkpoint (the algorithm state's `networks`)
     return dict(logs={'progress.csv': read_log(folder / 'progress.csv')},
                 weights={'final.pt': weight_summary(folder / 'checkpoint.pt')})
 

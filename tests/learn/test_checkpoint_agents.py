@@ -87,15 +87,6 @@ def test_resume_continues_and_mismatch_is_refused(tmp_path):
         _tiny_camera_checkpoint(tmp_path, critic='local', total=6 * 8 * 8)
     with pytest.raises(CheckpointError, match='trained without --full-observability; this run has it'):
         _tiny_camera_checkpoint(tmp_path, total=6 * 8 * 8, full_observability=True)
-    # checkpoints written before `full_observability` existed (version 1, no such key in their meta) are
-    # partial-observability ones
-    spec = load_policy(tmp_path / 'final.pt').spec
-    meta = dict(team='camera', counts=list(spec.counts), obs_dim=spec.obs_dim, state_dim=spec.state_dim,
-                env_id=spec.env_id, frame_skip=5, levels=5, actor='mlp')
-    old = PolicySpec.from_meta(meta, dict(hidden=[16]))
-    assert old.full_observability is False and old.differences(spec) == []
-    assert old.differences(spec.replace(full_observability=True)) == [
-        'trained without --full-observability; this run has it']
 
 
 def test_corrupt_and_foreign_checkpoints(tmp_path):

@@ -325,7 +325,7 @@ def test_tarmac_messages_compare_by_value(target_policy):
 # ---------------------------------------------------------------------------- the critic reads the messages
 
 def test_critic_inputs_append_the_messages():
-    from mate.learn.mappo import critic_input_dim, critic_inputs
+    from mate.learn.ppo_loop import critic_input_dim, critic_inputs
 
     obs, state, messages = torch.randn(5, 3, 7), torch.randn(5, 11), torch.randn(5, 3, 4)
     mappo = critic_inputs('state', obs, state, messages)

@@ -167,24 +167,15 @@ def test_warm_start_keeps_the_critic_only_for_the_same_credit(tmp_path):
     assert team['critic']['head.weight'].shape[0] == 1                      # a fresh team-reward critic
 
 
-def test_version_1_checkpoints_were_trained_with_the_team_reward(tmp_path):
-    """Checkpoints written before the policy spec (format mate.learn/1) whose config has no 'credit' were trained with
-    the team reward: a team-credit warm start from one takes its critic too."""
+def test_a_first_format_checkpoint_is_refused_in_one_line(tmp_path):
+    """Files of the first format (mate.learn/1, before policy specs) are no longer read; the error says so."""
     import torch
 
-    train(_difference_config(tmp_path / 'first', credit='team'))
-    saved = load_checkpoint(tmp_path / 'first' / 'checkpoint.pt')
-    spec, networks = saved['spec'], saved['state']['networks']
-    config = {k: v for k, v in saved['config'].items() if k != 'credit'}
-    config.update(config=None, env_id=spec['env_id'])          # version 1 named the game by its env ID
-    meta = dict(team='camera', env_id=spec['env_id'], counts=spec['counts'], obs_dim=spec['obs_dim'],
-                state_dim=spec['state_dim'], frame_skip=spec['frame_skip'], levels=5, actor='mlp', algo='mappo')
     old = tmp_path / 'old.pt'
-    torch.save({'format': 'mate.learn/1', 'meta': meta, 'config': config, **networks}, old)
-    train(_difference_config(tmp_path / 'warm', credit='team', init_from=str(old), lr_schedule=((0, 0.0),), steps=16))
-    warm = load_checkpoint(tmp_path / 'warm' / 'checkpoint.pt')['state']['networks']
-    for name in ('actor', 'critic'):
-        assert all(torch.equal(warm[name][k], v) for k, v in networks[name].items()), name
+    torch.save({'format': 'mate.learn/1', 'meta': {'team': 'camera'}, 'config': {}, 'actor': {}}, old)
+    with pytest.raises(CheckpointError, match=r"format 'mate.learn/1'; expected one of \('mate.learn/2',\) \(the first "
+                                              'format, written before policy specs, is no longer read\)'):
+        load_checkpoint(old)
 
 
 def test_cli_credit_option(capsys):

@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.mappo import MAPPOConfig, critic_input_dim, critic_inputs, critic_outputs, per_agent, policy_spec, train
+from mate.learn.mappo import MAPPOConfig, policy_spec, train
+from mate.learn.ppo_loop import critic_input_dim, critic_inputs, critic_outputs, per_agent
 from mate.learn.policy import load_policy
 
 from .resume import assert_same_run, stopped_and_resumed
