@@ -58,30 +58,13 @@ from .protocol import agent_team_factory, paper_config
 from .teams.protocol import as_team
 from .vector import AutoresetMode, make_vec
 
-__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'opponent_factory', 'own_rewards',
-           'payments_before', 'step_rewards']
+__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'opponent_factory', 'step_rewards']
 
 REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
 """The reward kinds of each team (module docstring)."""
 EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                 'normalized_target_return', 'delivered_cargoes')
 """The statistics of `infos['episode']`."""
-
-
-def own_rewards(bounty: np.ndarray, freight: np.ndarray, tracked: np.ndarray, delivered: np.ndarray) -> np.ndarray:
-    """Each target's own part of one env step's raw target-team reward, (B, Nt) float64.
-
-    Args:
-        bounty, freight: (B, Nt) each target's remaining bounty and freight before the step.
-        tracked: (B, Nt) whether some camera tracks the target at the step.
-        delivered: (B, Nt) whether the target delivered its cargo at the step (`target_done`).
-
-    A tracked target that still carries bounty costs 1; a delivery pays the freight plus the bounty left after
-    this step's decay. Summed over the targets: the team's dense reward of the step.
-    """
-    penalty = (tracked & (bounty > 0)).astype(np.float64)
-    paid = np.where(delivered, freight + np.maximum(bounty - tracked, 0), 0)
-    return paid - penalty
 
 
 def difference_rewards(sees: np.ndarray) -> np.ndarray:
@@ -106,24 +89,18 @@ def opponent_factory(opponent, team: Team):
     return agent_team_factory(opponent, Team.TARGET if team is Team.CAMERA else Team.CAMERA, 'opponent')
 
 
-def payments_before(world, reward: str):
-    """What the rewards of kind `reward` need from the batched world before a step: the targets' bounty and freight
-    (B, Nt) for 'own' (a delivery pays what the step then changes), None otherwise."""
-    return (world.target_bounty.copy(), world.target_freight.copy()) if reward == 'own' else None
-
-
-def step_rewards(reward: str, world, team_reward, coverage_rate, before) -> np.ndarray:
+def step_rewards(reward: str, world, team_reward, coverage_rate) -> np.ndarray:
     """The rewards of kind `reward` (`REWARDS`) of the step just played in the batched world (B, ...): 'team' the
-    own team's reward (B,), 'coverage' the coverage rate (B,), 'difference' (B, Nc) and 'own' (B, Nt) per agent
-    (`before`: `payments_before` of the step)."""
+    own team's reward (B,), 'coverage' the coverage rate (B,), 'difference' (B, Nc) and 'own' (B, Nt) per agent:
+    each target's part of the team's dense reward as the core's step computed it (`World.target_reward_parts`: its
+    tracking penalty and its delivery's pay; they sum to the team reward)."""
     if reward == 'team':
         return np.array(team_reward, dtype=np.float64)
     if reward == 'coverage':
         return np.array(coverage_rate, dtype=np.float64)
     if reward == 'difference':
         return difference_rewards(world.camera_target_view_mask)
-    bounty, freight = before
-    return own_rewards(bounty, freight, world.camera_target_view_mask.any(axis=1), world.target_done)
+    return world.target_reward_parts.copy()
 
 
 class SingleTeamVecEnv(VectorEnv):
@@ -215,12 +192,10 @@ class SingleTeamVecEnv(VectorEnv):
         if self._other_obs is None:
             raise RuntimeError('SingleTeamVecEnv: call reset() before step()')
         actions = self._checked(actions)
-        before = payments_before(self.vec.world, self.reward_kind)
         restarting = self._pending.copy()
         observations, team_rewards, terminations, truncations, infos = self.vec.step(self._joint(actions))
         self._other_obs = observations[1 - self._own]
-        rewards = step_rewards(self.reward_kind, self.vec.world, team_rewards[self._own], infos['coverage_rate'],
-                               before)
+        rewards = step_rewards(self.reward_kind, self.vec.world, team_rewards[self._own], infos['coverage_rate'])
         live = ~restarting
         if self.reward_kind in ('own', 'difference'):
             rewards = np.where(live[:, None], rewards, 0.0)

@@ -31,6 +31,9 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'make_vec', 'AutoresetMode']
 
+STEP_OUTPUTS = frozenset({'target_reward_parts'})
+"""World arrays a step writes anew before anything reads them: a state saved by an earlier version without them
+still loads (they start at zero)."""
 INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step')
 """The (B,) arrays of a vector step's infos (World fields of the same names)."""
 
@@ -350,9 +353,12 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def load_state_dict(self, state: dict) -> None:
         """Restore `state_dict()`'s output in place (ValueError if it was taken from another game or batch)."""
         world = state['world']
-        if set(world) != set(self._world._fields):
+        if set(world) | STEP_OUTPUTS != set(self._world._fields) | STEP_OUTPUTS:
             raise ValueError('state_dict: the world fields differ from this env\'s (another version of mate?)')
         for name in self._world._fields:
+            if name not in world:          # a step's output, written anew by the next step (an older state)
+                getattr(self._world, name).fill(0)
+                continue
             target, value = getattr(self._world, name), np.asarray(world[name])
             if value.shape != target.shape:
                 raise ValueError(f'state_dict: world field {name} has shape {value.shape}, this env {target.shape} '

@@ -73,12 +73,17 @@ def transport_cargoes(p, w, b):
 
     Returns the target team's
     (dense, sparse) rewards: dense = -1 per tracked target with bounty left + (freight +
-    bounty) per delivery; sparse = freight + 2 bounty - full bounty per delivery.
+    bounty) per delivery; sparse = freight + 2 bounty - full bounty per delivery. Each target's part of the
+    reward (the dense one, or the sparse one with `sparse_reward`) is kept in `target_reward_parts` (they sum to
+    the team's): the one place the reward's rule lives, which per-target rewards (`mate.team_vector`, 'own') read.
     """
     dense, sparse = 0.0, 0.0
     for t in range(p.num_targets):
+        w.target_reward_parts[b, t] = 0.0
         if w.target_bounty[b, t] > 0 and is_tracked(p, w, b, t):
             dense -= 1.0
+            if not p.sparse_reward:
+                w.target_reward_parts[b, t] -= 1.0
             w.target_bounty[b, t] -= 1
         w.target_done[b, t] = False
     for t in range(p.num_targets):
@@ -90,7 +95,9 @@ def transport_cargoes(p, w, b):
             if goal == h:
                 reward = float(w.target_freight[b, t] + w.target_bounty[b, t])
                 dense += reward
-                sparse += reward - (w.target_load[b, t] * p.bounty_scale - w.target_bounty[b, t])
+                paid = reward - (w.target_load[b, t] * p.bounty_scale - w.target_bounty[b, t])
+                sparse += paid
+                w.target_reward_parts[b, t] += paid if p.sparse_reward else reward
                 w.num_delivered_cargoes[b] += w.target_load[b, t]
                 w.awaiting_cargo_counts[b, h] -= w.target_load[b, t]
             w.target_freight[b, t] = w.target_bounty[b, t] = 0

@@ -196,6 +196,7 @@ def set_snapshot(p: Params, w: World, b: int, snapshot: dict) -> None:
     w.target_empty_bits[b] = tgt[:, 10:14] != 0
     w.target_is_colliding[b] = False
     w.target_done[b] = False
+    w.target_reward_parts[b] = 0.0
     w.obstacle_pos[b] = s['obstacle_state'][:, :2]
     w.obstacle_radius[b] = s['obstacle_state'][:, 2]
     for key in ('target_freight', 'target_bounty', 'target_steps', 'target_tracked_steps', 'remaining_cargoes',

@@ -167,6 +167,7 @@ def clear_bookkeeping(p, w, b):
     w.target_tracked_steps[b] = 0
     w.target_is_colliding[b] = False
     w.target_done[b] = False
+    w.target_reward_parts[b] = 0.0
     w.num_delivered_cargoes[b] = 0
     w.episode_step[b] = 0
     w.target_team_episode_reward[b] = 0.0
@@ -189,6 +190,7 @@ def reset_row(p, w, b):
     clear_bookkeeping(p, w, b)
     transport_cargoes(p, w, b)  # bounties are all zero: only targets spawned in a warehouse load here
     w.target_done[b] = False
+    w.target_reward_parts[b] = 0.0
     if p.targets_start_with_cargoes:
         load_all_targets(p, w, b)
     for t in range(p.num_targets):

@@ -178,7 +178,6 @@ class _Opponent:
         self.factory = opponent_factory(opponent, self.team)
         self.players = self.factory(1, self.counts, None)
         self._other_obs = None
-        self._before = None
 
     def _other(self, camera_obs, target_obs) -> np.ndarray:
         return (target_obs if self.team is Team.CAMERA else camera_obs)[None]
@@ -191,11 +190,8 @@ class _Opponent:
 
     def act(self, camera_actions: np.ndarray, target_actions: np.ndarray) -> None:
         """Write the opponents' actions into their team's row of the joint action."""
-        from ..team_vector import payments_before
-
         other = self.players.act(self._other_obs)[0]
         (target_actions if self.team is Team.CAMERA else camera_actions)[:] = other
-        self._before = payments_before(self.env._world, self.reward)     # the single env's world: a batch of one
 
     def observed(self, camera_obs, target_obs, team_reward: float, infos) -> np.ndarray:
         """The own agents' rewards (N,) of the step just played (`team_reward`: the own team's), as
@@ -204,8 +200,7 @@ class _Opponent:
 
         self._other_obs = self._other(camera_obs, target_obs)
         own_infos = infos[0] if self.team is Team.CAMERA else infos[1]
-        rewards = step_rewards(self.reward, self.env._world, [team_reward], [own_infos[0]['coverage_rate']],
-                               self._before)[0]
+        rewards = step_rewards(self.reward, self.env._world, [team_reward], [own_infos[0]['coverage_rate']])[0]
         return np.full(len(own_infos), float(rewards)) if rewards.ndim == 0 else rewards
 
 

@@ -20,8 +20,8 @@ What a learner sees per decision (the paper's wrapper stack, done on arrays):
   paper's Fig. 6 ablation; the opponent keeps its partial view;
 * `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the coverage
   rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
-* `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (`own_rewards`: its
-  tracking penalty and its deliveries), which sum to the team reward; rewards are then (B, N);
+* `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (the core's
+  `World.target_reward_parts`: its tracking penalty and its deliveries), which sum to the team reward; rewards are then (B, N);
 * `camera_reward='mixed'` (cameras): the population players' reward (docs/population.md), per env step
   0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward;
 * `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of `mate.teams`
@@ -49,14 +49,14 @@ from ..messages import Team
 from ..options import option
 from ..protocol import PAPER_SETTINGS
 from ..registration import resolve_config
-from ..team_vector import SingleTeamVecEnv, difference_rewards, own_rewards  # noqa: F401  (own_rewards: re-exported)
+from ..team_vector import SingleTeamVecEnv, difference_rewards  # noqa: F401  (difference_rewards: re-exported)
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory, camera_sightings
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv', 'compress',
-           'difference_rewards', 'game_of', 'mixed_camera_reward', 'own_rewards']
+           'difference_rewards', 'game_of', 'mixed_camera_reward']
 
 CREDITS = ('team', 'difference', 'own')
 """How an agent's reward is assigned: the team's (both teams); a camera's own marginal contribution to the coverage

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mate.learn import CheckpointError, load_checkpoint
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards, own_rewards
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards
 from mate.learn.mappo import MAPPOConfig, train
 from mate.messages import Team
 from mate.spaces import observation_indices_of
@@ -73,14 +73,22 @@ def test_team_env_pays_each_camera_its_own_share():
     assert ended > 0 and reward.max() > 0
 
 
-def test_own_rewards_by_hand():
-    """Penalty 1 for a tracked target with bounty left; a delivery pays its freight and the bounty left after this
-    step's decay."""
-    bounty = np.array([[5, 0, 3, 1]])
-    freight = np.array([[100, 100, 200, 0]])
-    tracked = np.array([[True, True, False, True]])
-    delivered = np.array([[False, False, True, True]])
-    np.testing.assert_array_equal(own_rewards(bounty, freight, tracked, delivered), [[-1, 0, 203, -1 + 0]])
+def test_the_cores_reward_parts_by_hand():
+    """The core's step keeps each target's part of the dense reward (`World.target_reward_parts`): -1 for a tracked
+    target with bounty left; a delivery pays its freight and the bounty left after this step's decay."""
+    import mate
+
+    env = mate.make('MATE-2v4-0-v0')
+    env.reset(seed=0)
+    world, b = env._world, 0
+    for _ in range(400):                     # until a step has a tracked target with bounty and a delivery, or not
+        bounty, freight = world.target_bounty[b].copy(), world.target_freight[b].copy()
+        env.step(env.action_space.sample())
+        tracked = world.camera_target_view_mask[b].any(axis=0)
+        expected = np.where(world.target_done[b], freight + np.maximum(bounty - tracked, 0), 0) \
+            - (tracked & (bounty > 0))
+        np.testing.assert_array_equal(world.target_reward_parts[b], expected)
+        assert world.target_reward_parts[b].sum() == world.target_reward[b]
 
 
 def test_each_target_is_paid_its_own_part_of_the_team_reward():
