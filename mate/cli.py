@@ -242,12 +242,18 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
                   f'targets: {args.target_agent} {target_kwargs or ""}')
     _say_true_state(args)
     recorder = _recorder(args)
+    from .core.jit import compile_seconds
+
+    compiled = compile_seconds()
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         results = ev.play_batched(args.config, cameras, targets, args.episodes, args.seed, args.max_episode_steps,
                                   progress=lambda done, total: progress.update(completed=done), recorder=recorder)
+    compiled = compile_seconds() - compiled
     summary = _report(env, args, results)
+    compiling = f', {compiled:.1f} s of it compiling the simulation kernels: a first run; later runs load them ' \
+        'from the cache' if compiled >= 0.05 else ''
     console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
-                  'env-steps/s (whole batch)')
+                  f'env-steps/s (whole batch{compiling})')
     _finish_recording(recorder, args)
     _write_results(args, results, summary)
     return 0
@@ -506,15 +512,28 @@ def build_parser() -> argparse.ArgumentParser:
                         description="The paper's experiments as data: \"mate benchmark list\" names them, \"mate "
                                     'benchmark run NAME\" runs every missing (setting, seed) job with evaluations on '
                                     'held-out seeds, "mate benchmark report DIR..." writes figures, a markdown table '
-                                    'and marl_eval.json with interquartile means and 95 %% bootstrap intervals.')
+                                    'and marl_eval.json with interquartile means and 95 % bootstrap intervals.')
     add_benchmark_arguments(benchmark)
     benchmark.set_defaults(run=_benchmark)
     return parser
 
 
+def _chosen_parser(parser: argparse.ArgumentParser, args: argparse.Namespace) -> argparse.ArgumentParser:
+    """The parser of the (sub)command `args` chose: `mate evaluate`'s, `mate benchmark run`'s, ..."""
+    while True:
+        commands = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
+        chosen = getattr(args, commands[0].dest, None) if commands else None
+        if chosen not in (commands[0].choices if commands else {}):
+            return parser
+        parser = commands[0].choices[chosen]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run `mate ARGS`; returns the exit status (argparse's own errors exit with status 2; Ctrl-C: 130)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:                         # said by the subcommand that was given them: `mate evaluate: error: ...`
+        _chosen_parser(parser, args).error(f'unrecognized arguments: {" ".join(unknown)}')
     try:
         return args.run(args)
     except KeyboardInterrupt:

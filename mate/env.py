@@ -204,8 +204,8 @@ class MultiAgentTracking(GameDescription, gym.Env):
         self.action_space = spaces.Tuple((self.camera_joint_action_space, self.target_joint_action_space))
         self.camera_observation_space = mate_spaces.camera_observation_space_of(*counts)
         self.target_observation_space = mate_spaces.target_observation_space_of(*counts)
-        self.camera_joint_observation_space = spaces.Tuple((self.camera_observation_space,) * p.num_cameras)
-        self.target_joint_observation_space = spaces.Tuple((self.target_observation_space,) * p.num_targets)
+        self.camera_joint_observation_space = mate_spaces.TeamSpace(self.camera_observation_space, p.num_cameras)
+        self.target_joint_observation_space = mate_spaces.TeamSpace(self.target_observation_space, p.num_targets)
         self.observation_space = spaces.Tuple((self.camera_joint_observation_space,
                                                self.target_joint_observation_space))
         self.state_space = mate_spaces.state_space_of(*counts)

@@ -38,7 +38,7 @@ from mate.constants import (
 from mate.messages import Team
 
 __all__ = [
-    'TeamSpace',
+    'LayoutBox', 'TeamSample', 'TeamSpace',
     'camera_state_space', 'target_state_space', 'obstacle_state_space',
     'camera_observation_space_of', 'target_observation_space_of', 'observation_space_of', 'state_space_of',
     'camera_observation_indices_of', 'target_observation_indices_of', 'observation_indices_of',
@@ -70,9 +70,20 @@ assert len(_TARGET_PUBLIC[0]) + len(_TARGET_EXTRA[0]) == TARGET_STATE_DIM_PRIVAT
 
 class TeamSample(tuple):
     """A `TeamSpace` sample: the tuple of per-agent samples, and `array`, the (count, ...) array they are
-    views of."""
+    views of. It reads as that array too: `shape`, `dtype` and `np.asarray(sample)` are the array's."""
 
     array: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.array.shape
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.array.dtype
+
+    def __array__(self, dtype=None, copy=None):
+        return self.array if dtype is None else self.array.astype(dtype)
 
 
 class TeamSpace(spaces.Tuple):
@@ -98,7 +109,7 @@ class TeamSpace(spaces.Tuple):
         super().__init__((space,) * int(count), seed=seed)
         self.agent_space, self.count = space, int(count)
         self._shape = (self.count, *space.shape) if space.shape is not None else (self.count,)
-        if type(space) is spaces.Box and space.is_bounded('both') and np.issubdtype(space.dtype, np.floating):
+        if isinstance(space, spaces.Box) and space.is_bounded('both') and np.issubdtype(space.dtype, np.floating):
             self._kind = 'box'
             self._low = space.low.astype(np.float64)
             self._span = space.high.astype(np.float64) - self._low
@@ -162,10 +173,18 @@ def _concat(*parts: tuple[list, list]) -> tuple[np.ndarray, np.ndarray]:
     return low, high
 
 
+class LayoutBox(spaces.Box):
+    """A `Box` of one of mate's vector layouts (an observation, the state) whose repr says its shape and the range
+    of its per-entry bounds instead of printing the bounds of every entry (`low` and `high` hold them)."""
+
+    def __repr__(self) -> str:
+        return f'Box(per-entry bounds in [{self.low.min():g}, {self.high.max():g}], {self.shape}, {self.dtype})'
+
+
 def _box(*parts: tuple[list, list]) -> spaces.Box:
-    """float64 Box whose bounds are the concatenation of `parts`."""
+    """float64 Box (a `LayoutBox`) whose bounds are the concatenation of `parts`."""
     low, high = _concat(*parts)
-    return spaces.Box(low=low, high=high, dtype=np.float64)
+    return LayoutBox(low=low, high=high, dtype=np.float64)
 
 
 def _with_flag(part: tuple[list, list]) -> tuple[list, list]:

@@ -3,8 +3,8 @@
 The bounty rule changed (`bounty_factor` 3: three times the bounty, decaying one unit per tracked step; and the sparse
 reward, which pays a delivery's bounty differently): `mate evaluate`'s single env, `play_batch`, the single-team vector
 env (its team and per-target rewards, and its episode statistics) and the RLlib env report the same rewards and
-episode metrics, greedy against greedy, seed by seed. The per-target rewards are the core's (`World.target_reward_parts`)
-and sum to the team's."""
+episode metrics, greedy against greedy, seed by seed. The per-target rewards are the core's
+(`World.target_reward_parts`) and sum to the team's."""
 
 from __future__ import annotations
 

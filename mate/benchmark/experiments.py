@@ -1,6 +1,6 @@
 """The paper's experiments as data: one `Experiment` per figure, each a list of (algorithm, settings) x seeds x budget.
 
-    smoke                a seconds-long run of the whole pipeline (CI)
+    smoke                a run of the whole pipeline in under a minute (CI)
     smoke-psro           the same for a population experiment
     fig4a-cameras        camera learners on MATE-4v8-9 (flat and HRL), against the greedy targets
     fig4b-cameras-comm   HRL cameras with and without learned communication (TarMAC)

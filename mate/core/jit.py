@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 from numba import njit
 from numba.core import event
@@ -79,20 +80,42 @@ def compile_notice_wanted() -> bool:
 
 class _CompileNotice(event.Listener):
     """Prints `COMPILE_NOTICE` once per process, when numba starts compiling one of mate's
-    functions (a cache miss; loads from the cache send no compile event)."""
+    functions (a cache miss; loads from the cache send no compile event), and counts the wall time
+    spent compiling them (`compile_seconds`; nested compilations counted once)."""
 
     def __init__(self) -> None:
         self.shown = False
+        self.depth, self.started, self.seconds = 0, 0.0, 0.0
+
+    @staticmethod
+    def _ours(ev) -> bool:
+        return getattr(ev.data['dispatcher'].py_func, '__module__', '').startswith('mate.')
 
     def on_start(self, ev) -> None:
-        if self.shown or not getattr(ev.data['dispatcher'].py_func, '__module__', '').startswith('mate.'):
+        if not self._ours(ev):
+            return
+        if self.depth == 0:
+            self.started = time.perf_counter()
+        self.depth += 1
+        if self.shown:
             return
         self.shown = True
         if compile_notice_wanted():
             print(COMPILE_NOTICE.format(seconds=COMPILE_SECONDS), file=sys.stderr, flush=True)
 
     def on_end(self, ev) -> None:
-        pass
+        if not self._ours(ev) or self.depth == 0:
+            return
+        self.depth -= 1
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.started
 
 
-event.register('numba:compile', _CompileNotice())
+_NOTICE = _CompileNotice()
+event.register('numba:compile', _NOTICE)
+
+
+def compile_seconds() -> float:
+    """Wall seconds this process has spent compiling mate's kernels so far (0 when they all came from the cache):
+    what a first run's timings include."""
+    return _NOTICE.seconds

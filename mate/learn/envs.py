@@ -21,7 +21,8 @@ What a learner sees per decision (the paper's wrapper stack, done on arrays):
 * `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the coverage
   rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
 * `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (the core's
-  `World.target_reward_parts`: its tracking penalty and its deliveries), which sum to the team reward; rewards are then (B, N);
+  `World.target_reward_parts`: its tracking penalty and its deliveries), which sum to the team reward; rewards are
+  then (B, N);
 * `camera_reward='mixed'` (cameras): the population players' reward (docs/population.md), per env step
   0.5 coverage rate + 0.5 real coverage rate + 0.1 x the raw camera-team reward;
 * `opponent=factory`: the other team is `factory(num_envs, counts, seed)`, any batched team of `mate.teams`
