@@ -102,6 +102,9 @@ def _evaluate(args: argparse.Namespace) -> int:
 
     recorder = _recorder(args)
     results = []
+    from .core.jit import compile_seconds
+
+    compiled = compile_seconds()
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
         for episode in range(args.episodes):
             result = ev.play_episode(env, camera_factory, target_factory, args.seed + episode,
@@ -109,7 +112,11 @@ def _evaluate(args: argparse.Namespace) -> int:
             results.append(result)
             progress.update(advance=1, status=f'coverage {result.coverage_rate:.3f}, '
                                               f'{result.steps_per_second:,.0f} steps/s')
+    compiled = compile_seconds() - compiled
     summary = _report(env, args, results)
+    if compiled >= 0.05:
+        console.print(f'(the first episode\'s speed includes {compiled:.1f} s of compiling the simulation kernels: a '
+                      'first run; later runs load them from the cache)')
     _finish_recording(recorder, args)
     _write_results(args, results, summary)
     return 0
