@@ -1,4 +1,4 @@
-"""Import a Python file that is not part of the package (a script of scripts/) as a
+"""Import a Python file that is not part of the package (a tool of docs/tools/ or tests/tools/) as a
 module, for the tests that call its functions."""
 
 import importlib.util
@@ -16,5 +16,8 @@ def load_module(path: Path, name: str | None = None):
 
 
 def load_script(name: str):
-    """scripts/NAME.py as a module."""
-    return load_module(REPOSITORY / 'scripts' / f'{name}.py')
+    """docs/tools/NAME.py (or tests/tools/NAME.py) as a module."""
+    for folder in ('docs/tools', 'tests/tools'):
+        if (REPOSITORY / folder / f'{name}.py').exists():
+            return load_module(REPOSITORY / folder / f'{name}.py')
+    raise FileNotFoundError(f'no docs/tools/{name}.py or tests/tools/{name}.py')

@@ -599,7 +599,7 @@ def test_human_mode_without_a_display_fails_with_one_clear_line(display):
 
 def test_legend_script_draws_the_legend(tmp_path):
     path = tmp_path / 'legend.png'
-    subprocess.run([sys.executable, str(ROOT / 'scripts' / 'render_legend.py'), '--output', str(path)],
+    subprocess.run([sys.executable, str(ROOT / 'docs' / 'tools' / 'render_legend.py'), '--output', str(path)],
                    env={**os.environ, 'SDL_VIDEODRIVER': 'dummy',     # this checkout's mate, not an installed one
                         'PYTHONPATH': os.pathsep.join([str(ROOT), os.environ.get('PYTHONPATH', '')])},
                    capture_output=True, text=True, check=True)

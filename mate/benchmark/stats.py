@@ -16,7 +16,7 @@ value per batch entry: this is how the bootstrap evaluates all its resamples at 
 - `normalised`: (score - random) / (reference - random).
 
 Tested against rliable 1.2.0 (tests/benchmark/test_stats.py, tests/data/rliable-reference.json written by
-scripts/rliable_reference.py): point estimates equal, interval ends equal within the Monte Carlo error of
+tests/tools/rliable_reference.py): point estimates equal, interval ends equal within the Monte Carlo error of
 50,000 replications. Random streams differ from rliable's (which draws from numpy's global generator):
 ours come from `numpy.random.default_rng`, keyed by `seed` and the algorithm names, so an algorithm's
 interval does not depend on which other algorithms are in the dict.

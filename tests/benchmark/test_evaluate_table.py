@@ -1,4 +1,4 @@
-"""scripts/evaluate_table.py: the paired differences it reports (how a shipped policy is tested against the one
+"""docs/tools/evaluate_table.py: the paired differences it reports (how a shipped policy is tested against the one
 before it and the greedy agent), and the tables it writes, on two real `mate evaluate` runs."""
 
 from __future__ import annotations
@@ -59,5 +59,5 @@ def test_markdown_holds_the_command_and_both_tables(table, tmp_path):
             '--markdown', str(out), 'greedy', 'random']
     assert table.main(argv) == 0
     text = out.read_text()
-    assert text.startswith('`python scripts/evaluate_table.py --team camera')
+    assert text.startswith('`python docs/tools/evaluate_table.py --team camera')
     assert '| greedy |' in text and '| random |' in text and '| greedy - random |' in text

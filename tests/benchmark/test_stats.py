@@ -1,7 +1,7 @@
 """mate.benchmark.stats against rliable, and the invariants of its statistics.
 
 The reference, tests/data/rliable-reference.json, holds rliable 1.2.0's estimates on fixed score matrices
-(written by scripts/rliable_reference.py in a virtual environment of its own: rliable does not import
+(written by tests/tools/rliable_reference.py in a virtual environment of its own: rliable does not import
 beside mate's dependencies). Point estimates are deterministic: ours equal rliable's to 1e-12.
 
 Interval ends are Monte Carlo estimates (50,000 replications on both sides, different random streams), so

@@ -12,7 +12,7 @@ from modules import load_module
 
 from .markdown_blocks import ROOT, pages
 
-SCRIPT = ROOT / 'scripts' / 'docs_figures.py'
+SCRIPT = ROOT / 'docs' / 'tools' / 'docs_figures.py'
 IMAGE_LINK = re.compile(r'!\[[^\]]*\]\((?P<target>[^)\s]+)\)')
 
 
@@ -25,7 +25,7 @@ def test_result_figures_are_copies_of_their_sources():
     for name, source in figures.RESULT_FIGURES.items():
         copy = figures.IMAGES / 'results' / name
         assert copy.read_bytes() == (ROOT / source).read_bytes(), (
-            f'{copy.relative_to(ROOT)} differs from {source}: run python scripts/docs_figures.py results')
+            f'{copy.relative_to(ROOT)} differs from {source}: run python docs/tools/docs_figures.py results')
 
 
 def test_gallery_has_one_frame_per_preset():
@@ -65,4 +65,4 @@ def test_redrawing_gives_the_same_pixels(group, tmp_path, monkeypatch):
             old_frames = [np.asarray(frame.convert('RGB')) for frame in ImageSequence.Iterator(old)]
         assert len(new_frames) == len(old_frames) and all(
             np.array_equal(a, b) for a, b in zip(new_frames, old_frames)), (
-            f'docs/images/{name} is stale: run SDL_VIDEODRIVER=dummy python scripts/docs_figures.py {group}')
+            f'docs/images/{name} is stale: run SDL_VIDEODRIVER=dummy python docs/tools/docs_figures.py {group}')

@@ -10,7 +10,7 @@ from modules import load_module
 
 from .markdown_blocks import ROOT
 
-SCRIPT = ROOT / 'scripts' / 'docs_tables.py'
+SCRIPT = ROOT / 'docs' / 'tools' / 'docs_tables.py'
 
 
 @pytest.fixture(scope='module')
@@ -21,7 +21,7 @@ def docs_tables():
 def test_regenerating_the_tables_changes_no_page(docs_tables):
     pages = docs_tables.render_pages()
     stale = [str(path.relative_to(ROOT)) for path, (current, regenerated) in pages.items() if current != regenerated]
-    assert not stale, f'run python scripts/docs_tables.py; stale pages: {stale}'
+    assert not stale, f'run python docs/tools/docs_tables.py; stale pages: {stale}'
     assert len(pages) >= 4
 
 

@@ -1,5 +1,5 @@
 """The shipped policies' numbers in README and the docs are those of the committed tables that measured them
-(`docs/results/pretrained/NAME.md`, written by `scripts/evaluate_table.py --markdown`): a number edited by hand, or
+(`docs/results/pretrained/NAME.md`, written by `docs/tools/evaluate_table.py --markdown`): a number edited by hand, or
 a table measured again without the pages following, fails here."""
 
 from __future__ import annotations
@@ -23,14 +23,14 @@ def measured(name: str) -> dict[str, str]:
     mean = re.search(rf'^\| pretrained:{re.escape(name)} \| (\S+) ±', text, re.M)
     greedy = re.search(r'^\| greedy \| (\S+) ±', text, re.M)
     paired = re.search(rf'^\| pretrained:{re.escape(name)} - greedy \| (\S+ \[\S+, \S+\]) \|', text, re.M)
-    assert mean and greedy and paired, f'{TABLES / name}.md: not a table of scripts/evaluate_table.py --against greedy'
+    assert mean and greedy and paired, f'{TABLES / name}.md: not a table of docs/tools/evaluate_table.py --against greedy'
     return dict(mean=mean[1], greedy=greedy[1], paired=paired[1])
 
 
 @pytest.mark.parametrize('name', SHIPPED)
 def test_every_shipped_policy_has_its_table(name):
     text = (TABLES / f'{name}.md').read_text()
-    assert text.startswith('`python scripts/evaluate_table.py ') and '--episodes 320' in text.splitlines()[0]
+    assert text.startswith('`python docs/tools/evaluate_table.py ') and '--episodes 320' in text.splitlines()[0]
     measured(name)
 
 

@@ -1,4 +1,4 @@
-"""scripts/communication_robustness.py: the channel wrappers act on a deployed TarMAC team and the counts add up."""
+"""docs/tools/communication_robustness.py: the channel wrappers act on a deployed TarMAC team and the counts add up."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""scripts/target_roles.py: per-target features against a recorded trajectory, the role analysis on synthetic
+"""docs/tools/target_roles.py: per-target features against a recorded trajectory, the role analysis on synthetic
 data, RenderCommunication(kinds=True) frames, and one-line errors."""
 
 

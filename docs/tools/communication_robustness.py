@@ -1,9 +1,9 @@
 """How communicating policies hold up when the channel degrades: each policy played over the same seeds with an
 ideal channel, with message dropout and with a restricted communication range, plus the messages per step.
 
-    python scripts/communication_robustness.py --team target --config MATE-4v8-0 \\
+    python docs/tools/communication_robustness.py --team target --config MATE-4v8-0 \\
         results/runs/mappo-target-4v8-0-tarmac-seed*/final.pt --json robustness.json
-    python scripts/communication_robustness.py --team camera results/runs/mappo-hrl-tarmac-camera-4v8-9-seed0/final.pt
+    python docs/tools/communication_robustness.py --team camera results/runs/mappo-hrl-tarmac-camera-4v8-9-seed0/final.pt
 
 Each policy (`checkpoint:PATH`, or any agent spec of `mate evaluate` such as `pretrained:NAME`) plays E episodes
 (episode i: seed + i, the single agents talking through the env's channel with `mate.group_step`) against the

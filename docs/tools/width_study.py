@@ -2,8 +2,8 @@
 128 and 256 units, 3 seeds each, at equal decision budgets: learning per decision, then each final policy played
 on held-out seeds.
 
-    python scripts/width_study.py run [--steps N] [--widths 64 128 256] [--seeds 0 1 2] [--out runs/width]
-    python scripts/width_study.py report [--out runs/width] [--json scripts/results/width-study.json]
+    python docs/tools/width_study.py run [--steps N] [--widths 64 128 256] [--seeds 0 1 2] [--out runs/width]
+    python docs/tools/width_study.py report [--out runs/width] [--json docs/tools/results/width-study.json]
 
 `run` trains every missing (setting, width, seed) one after the other with `mate train` (every core for the
 update; a run already complete is skipped, an interrupted one resumes). `report` reads the runs: the training

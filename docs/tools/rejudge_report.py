@@ -1,6 +1,6 @@
 """Give a committed report whose runs' data were not kept the current verdict rule (`mate.benchmark.verdicts`).
 
-    python scripts/rejudge_report.py docs/results/fig5-targets-comm [...]
+    python docs/tools/rejudge_report.py docs/results/fig5-targets-comm [...]
 
 A report committed without its `benchmark/` directory still holds what the verdicts need: each run's score
 (`results.json`) and each run's absolute metric per held-out episode (`marl_eval.json`). The reference teams'
@@ -25,7 +25,7 @@ from mate.benchmark.report import _jsonable, _weigh, markdown
 from mate.benchmark.verdicts import decide
 from mate.protocol import ABSOLUTE_SEEDS, TEAM_METRIC
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 HEADER = ['# Benchmark results', '', 'Written by `mate benchmark report`; every number below is in `results.json`.', '']
 
 

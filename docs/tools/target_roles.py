@@ -1,6 +1,6 @@
 """What each target does, per agent index over episodes, and whether the team splits into distinct roles.
 
-    python scripts/target_roles.py --target-agent checkpoint:RUN/final.pt [--config MATE-4v8-0] [--episodes 20]
+    python docs/tools/target_roles.py --target-agent checkpoint:RUN/final.pt [--config MATE-4v8-0] [--episodes 20]
                                    [--camera-agent greedy] [--json OUT] [--gif PATH]
 
 Plays E episodes (episode i: seed i, as `mate evaluate`) of a target policy (`checkpoint:PATH`, `pretrained:NAME`

@@ -9,8 +9,8 @@ Each table sits between two marker comments in a page:
 and is built from the code (the observation index helpers, the state spaces, the config schema,
 the preset files), so that the pages cannot drift from it. Usage:
 
-    python scripts/docs_tables.py           # rewrite the pages in place
-    python scripts/docs_tables.py --check   # exit 1 naming the stale pages, change nothing
+    python docs/tools/docs_tables.py           # rewrite the pages in place
+    python docs/tools/docs_tables.py --check   # exit 1 naming the stale pages, change nothing
 
 tests/docs/test_generated_tables.py runs the check in memory.
 """
@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:  # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
 
@@ -123,7 +123,7 @@ def _entry_rows(names: list[str], box, first_index: int = 0) -> list[list[object
     """Rows (index, meaning, low, high) of a state part whose bounds are `box`."""
     if len(names) != box.shape[0]:
         raise StaleDocsError(f'{len(names)} entry names for a part of {box.shape[0]} entries: '
-                             'update the names in scripts/docs_tables.py')
+                             'update the names in docs/tools/docs_tables.py')
     return [[first_index + i, name, _number(low), _number(high)]
             for i, (name, low, high) in enumerate(zip(names, box.low, box.high))]
 
@@ -167,7 +167,7 @@ def layout_table(team: mate.Team) -> str:
     slices = spaces.observation_slices_of(team, *EXAMPLE_COUNTS)
     unknown = sorted(set(slices) - set(SLICE_MEANING))
     if unknown:
-        raise StaleDocsError(f'slices without a meaning in scripts/docs_tables.py: {", ".join(unknown)}')
+        raise StaleDocsError(f'slices without a meaning in docs/tools/docs_tables.py: {", ".join(unknown)}')
     opponents, teammates = ('targets', 'cameras') if team is mate.Team.CAMERA else ('cameras', 'targets')
     rows = []
     for name, piece in slices.items():
@@ -196,7 +196,7 @@ def entries_table(team: mate.Team) -> str:
     dim = int(spaces.observation_indices_of(team, *EXAMPLE_COUNTS)[-1])
     if [row[0] for row in rows] != list(range(dim)):
         raise StaleDocsError(f'the {team.name.lower()} entry names do not cover indices 0..{dim - 1}: '
-                             'update scripts/docs_tables.py')
+                             'update docs/tools/docs_tables.py')
     return _table(['index', 'part', 'entity', 'entry'], rows)
 
 
@@ -273,7 +273,7 @@ def _config_rows(fields: dict, prefix: str = '') -> list[list[object]]:
     for key, spec in fields.items():
         path = f'{prefix}{key}'
         if path not in CONFIG_MEANING:
-            raise StaleDocsError(f'config key {path!r} has no meaning in scripts/docs_tables.py CONFIG_MEANING')
+            raise StaleDocsError(f'config key {path!r} has no meaning in docs/tools/docs_tables.py CONFIG_MEANING')
         rows.append([f'`{path}`', _field_type(spec), _field_default(spec), _field_range(spec), CONFIG_MEANING[path]])
         if isinstance(spec, schema.Section):
             rows += _config_rows(spec.fields, f'{path}.')

@@ -1,6 +1,6 @@
 """Draw the legend of rendered frames (what each shape and colour means) with mate's own renderer.
 
-    SDL_VIDEODRIVER=dummy python scripts/render_legend.py [--output docs/images/legend.png]
+    SDL_VIDEODRIVER=dummy python docs/tools/render_legend.py [--output docs/images/legend.png]
 
 One hand-made world holds an example of everything a frame can show: two cameras (one seen by a
 target, one not; one tracking a target behind an obstacle's shadow, one seeing nothing), targets
@@ -208,7 +208,7 @@ def draw_legend(output: str | os.PathLike) -> Path:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--output', default=str(Path(__file__).resolve().parents[1] / 'docs' / 'images' / 'legend.png'),
+    parser.add_argument('--output', default=str(Path(__file__).resolve().parents[2] / 'docs' / 'images' / 'legend.png'),
                         help='PNG to write (default docs/images/legend.png)')
     args = parser.parse_args(argv)
     print(f'legend written to {draw_legend(args.output)}')

@@ -1,6 +1,6 @@
 """What camera teams do, measured per raw step in the flat learners' training setting.
 
-    python scripts/camera_behaviour.py [--policies RUN/final.pt ...] [--frame-skip 2] [--envs 64] [--seed 1]
+    python docs/tools/camera_behaviour.py [--policies RUN/final.pt ...] [--frame-skip 2] [--envs 64] [--seed 1]
 
 Plays one training episode (2500 raw steps) of B batched MATE-4v8-9 games against the batched greedy
 targets, for the greedy camera rule (`mate.teams.GreedyTeam`, snapped to the 25 grid actions and held for

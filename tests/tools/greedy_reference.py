@@ -1,7 +1,7 @@
 """Greedy vs greedy on MATE-4v8-9 with the Python agents, one episode per seed: the reference the batched
 greedy teams are tested against (tests/teams/test_greedy_statistics.py).
 
-    python scripts/greedy_reference.py [--seeds 300] [--json tests/data/greedy-4v8-9-python-300.json]
+    python tests/tools/greedy_reference.py [--seeds 300] [--json tests/data/greedy-4v8-9-python-300.json]
 
 Protocol (`mate evaluate`, reference/groundtruth.md): for seed s = 0, ..., S-1, `mate.evaluate.play_episode`
 with a fresh MATE-4v8-9 env reset with seed s, `GreedyCameraAgent(seed=s).spawn(4)` and
@@ -48,7 +48,7 @@ def main(argv=None) -> int:
         'coverage_rate': coverage, 'mean': float(values.mean()), 'std': std,
         'standard_error': std / float(np.sqrt(len(values))),
         'date': datetime.date.today().isoformat(),
-        'command': ' '.join(['python scripts/greedy_reference.py', *(argv if argv is not None else sys.argv[1:])]),
+        'command': ' '.join(['python tests/tools/greedy_reference.py', *(argv if argv is not None else sys.argv[1:])]),
         'seconds': round(time.perf_counter() - start, 1),
     }
     path = Path(args.json)

@@ -1,6 +1,6 @@
 """Pick the best policy snapshot of a training run, test it against the greedy agent, and export it.
 
-    python scripts/select_policy.py RUN_DIR [--top 6] [--val-episodes 10] [--test-episodes 20]
+    python docs/tools/select_policy.py RUN_DIR [--top 6] [--val-episodes 10] [--test-episodes 20]
                                     [--max-steps N] [--deterministic] [--export NAME]
 
 1. shortlist: the `--top` snapshots (RUN_DIR/snapshots/policy-STEPS.pt, written by

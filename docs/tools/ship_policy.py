@@ -2,7 +2,7 @@
 `final.pt`, ...), set to act deterministically (argmax, how shipped policies are scored), with a note saying where
 it comes from.
 
-    python scripts/ship_policy.py runs/pretrain/mappo-target-4v8-0/best-eval.pt mappo-target-4v8-0 --note '...'
+    python docs/tools/ship_policy.py runs/pretrain/mappo-target-4v8-0/best-eval.pt mappo-target-4v8-0 --note '...'
 """
 
 from __future__ import annotations

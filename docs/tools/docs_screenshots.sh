@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Build the documentation site and take screenshots of its home page and observation page with
 # headless Chromium, into docs/images/screenshots/. Needs the docs extra and chromium
-# (Debian: apt-get install -y chromium). Usage: scripts/docs_screenshots.sh [OUT_DIR]
+# (Debian: apt-get install -y chromium). Usage: docs/tools/docs_screenshots.sh [OUT_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-docs/images/screenshots}"

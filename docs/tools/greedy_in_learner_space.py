@@ -1,6 +1,6 @@
 """How well do rules do when restricted to what the camera learners can do?
 
-    python scripts/greedy_in_learner_space.py [--envs 64] [--steps 2500] [--seed 1]
+    python docs/tools/greedy_in_learner_space.py [--envs 64] [--steps 2500] [--seed 1]
 
 Plays B batched MATE-4v8-9 games against the batched greedy targets (the training opponent) for one
 training episode (2500 raw steps) and prints the mean coverage rate of:

@@ -1,14 +1,14 @@
 """Draw the pictures of the documentation site with mate's own renderer, into docs/images/.
 
-    SDL_VIDEODRIVER=dummy python scripts/docs_figures.py            # everything (about a minute)
-    SDL_VIDEODRIVER=dummy python scripts/docs_figures.py presets    # one group: presets, concepts, ranges, gif, results
+    SDL_VIDEODRIVER=dummy python docs/tools/docs_figures.py            # everything (about a minute)
+    SDL_VIDEODRIVER=dummy python docs/tools/docs_figures.py presets    # one group: presets, concepts, ranges, gif, results
 
 * presets: one frame per shipped preset (seed 0, after 40 steps of greedy play), docs/images/presets/;
 * concepts: one annotated frame naming the parts of the game, docs/images/concepts.png;
 * ranges: what one camera and one target observe, docs/images/observation-camera.png and
   observation-target.png;
 * gif: greedy cameras against greedy targets on MATE-4v8-9, docs/images/greedy-play.gif;
-* results: copies of the training and population figures of scripts/results/ (the site can only
+* results: copies of the training and population figures of docs/tools/results/ (the site can only
   show files under docs/), docs/images/results/.
 """
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:  # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
 os.environ.setdefault('SDL_VIDEODRIVER', 'dummy')
@@ -39,15 +39,15 @@ GIF_PIXELS = 320
 GIF_STEPS = 300
 GIF_EVERY = 5
 RESULT_FIGURES = {
-    'cameras-4v8-9.png': 'scripts/results/cameras-4v8-9.png',
-    'targets-2v4-0.png': 'scripts/results/targets-2v4-0.png',
-    'targets-4v8-0.png': 'scripts/results/targets-4v8-0.png',
-    'targets-2v4-0-observability.png': 'scripts/results/targets-2v4-0-observability.png',
-    'targets-4v8-0-communication.png': 'scripts/results/targets-4v8-0-communication.png',
-    'cameras-4v8-9-communication.png': 'scripts/results/cameras-4v8-9-communication.png',
-    'cameras-4v8-9-hrl.png': 'scripts/results/cameras-4v8-9-hrl.png',
-    'psro-exploitability.png': 'scripts/results/psro/exploitability.png',
-    'psro-meta-strategies-nash-seed0.png': 'scripts/results/psro/meta-strategies-nash-seed0.png',
+    'cameras-4v8-9.png': 'docs/tools/results/cameras-4v8-9.png',
+    'targets-2v4-0.png': 'docs/tools/results/targets-2v4-0.png',
+    'targets-4v8-0.png': 'docs/tools/results/targets-4v8-0.png',
+    'targets-2v4-0-observability.png': 'docs/tools/results/targets-2v4-0-observability.png',
+    'targets-4v8-0-communication.png': 'docs/tools/results/targets-4v8-0-communication.png',
+    'cameras-4v8-9-communication.png': 'docs/tools/results/cameras-4v8-9-communication.png',
+    'cameras-4v8-9-hrl.png': 'docs/tools/results/cameras-4v8-9-hrl.png',
+    'psro-exploitability.png': 'docs/tools/results/psro/exploitability.png',
+    'psro-meta-strategies-nash-seed0.png': 'docs/tools/results/psro/meta-strategies-nash-seed0.png',
 }
 """docs/images/results/NAME -> its source, relative to the repository root."""
 

@@ -7,7 +7,7 @@ imports neither mate nor anything of it:
 
     python -m venv /tmp/rliable-env
     /tmp/rliable-env/bin/pip install rliable 'pandas<2.2' 'numpy<2'
-    /tmp/rliable-env/bin/python scripts/rliable_reference.py [--reps 50000] [--json tests/data/rliable-reference.json]
+    /tmp/rliable-env/bin/python tests/tools/rliable_reference.py [--reps 50000] [--json tests/data/rliable-reference.json]
 
 (recorded with rliable 1.2.0, arch 7.2.0, numpy 1.26.4, pandas 2.1.4, scipy 1.17.1, Python 3.11: the file
 states the versions it was written with).
@@ -125,9 +125,9 @@ def main(argv=None) -> int:
     result = {
         'description': ('rliable point and interval estimates (stratified bootstrap, percentile method) '
                         'on fixed score matrices, for tests/benchmark/test_stats.py; written by '
-                        'scripts/rliable_reference.py'),
+                        'tests/tools/rliable_reference.py'),
         'date': datetime.date.today().isoformat(),
-        'command': ' '.join(['python', 'scripts/rliable_reference.py', *sys.argv[1:]]),
+        'command': ' '.join(['python', 'tests/tools/rliable_reference.py', *sys.argv[1:]]),
         'versions': {name: metadata.version(name) for name in ['rliable', 'arch', 'numpy', 'scipy', 'pandas']}
                     | {'python': platform.python_version()},
         'reps': args.reps,

@@ -1,8 +1,8 @@
 """Score trained policies with `mate evaluate` (seeds 0-19 by default, the Python greedy agents as opponents, no
 rendering) and print a markdown table: coverage rate for cameras, normalised target return for targets.
 
-    python scripts/evaluate_table.py --team camera results/runs/iql-hrl-camera-4v8-9-seed*/final.pt greedy
-    python scripts/evaluate_table.py --team target --config MATE-2v4-0 --max-episode-steps 5000 \\
+    python docs/tools/evaluate_table.py --team camera results/runs/iql-hrl-camera-4v8-9-seed*/final.pt greedy
+    python docs/tools/evaluate_table.py --team target --config MATE-2v4-0 --max-episode-steps 5000 \\
         results/runs/maddpg-target-2v4-0-seed*/final.pt pretrained:mappo-target-2v4-0 greedy
 
 A path is played as `checkpoint:PATH`; anything else (`greedy`, `pretrained:NAME`) is passed as the agent spec.
@@ -17,7 +17,7 @@ interval (10,000 resamples of the episodes, `mate.benchmark.stats.stratified_boo
 `pretrained:mappo-target-4v8-0` was tested against the file shipped before it (OLD.pt, `git show
 518904f:mate/pretrained/mappo-target-4v8-0.pt`), on seeds no run trained, evaluated or was chosen on:
 
-    python scripts/evaluate_table.py --team target --config MATE-4v8-0 --max-episode-steps 5000 \\
+    python docs/tools/evaluate_table.py --team target --config MATE-4v8-0 --max-episode-steps 5000 \\
         --episodes 320 --seed 3000000 --against OLD.pt --against greedy \\
         --markdown docs/results/pretrained/mappo-target-4v8-0.md \\
         pretrained:mappo-target-4v8-0 OLD.pt greedy
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
         print('\n'.join(paired))
         lines += paired
     if args.markdown:
-        command = ' '.join(['python scripts/evaluate_table.py', *(argv if argv is not None else sys.argv[1:])])
+        command = ' '.join(['python docs/tools/evaluate_table.py', *(argv if argv is not None else sys.argv[1:])])
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
         args.markdown.write_text(f'`{command}`\n\n' + '\n'.join(lines) + '\n')
     if args.json:
