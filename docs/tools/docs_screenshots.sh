@@ -3,7 +3,7 @@
 # headless Chromium, into docs/images/screenshots/. Needs the docs extra and chromium
 # (Debian: apt-get install -y chromium). Usage: docs/tools/docs_screenshots.sh [OUT_DIR]
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 out="${1:-docs/images/screenshots}"
 browser="${CHROMIUM:-$(command -v chromium || command -v chromium-browser || command -v google-chrome || true)}"
 if [ -z "$browser" ]; then
