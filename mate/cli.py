@@ -115,11 +115,15 @@ def _evaluate(args: argparse.Namespace) -> int:
     compiled = compile_seconds() - compiled
     summary = _report(env, args, results)
     if compiled >= 0.05:
-        console.print(f'(the first episode\'s speed includes {compiled:.1f} s of compiling the simulation kernels: a '
-                      'first run; later runs load them from the cache)')
+        console.print(f"(the first episode's speed includes {_compiling(compiled)})")
     _finish_recording(recorder, args)
     _write_results(args, results, summary)
     return 0
+
+
+def _compiling(seconds: float) -> str:
+    """What a first run's timing includes: '18.3 s of compiling the simulation kernels (...)'."""
+    return f'{seconds:.1f} s of compiling the simulation kernels: a first run; later runs load them from the cache'
 
 
 def _evaluation_path(args: argparse.Namespace) -> tuple[bool, str]:
@@ -257,10 +261,8 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
                                   progress=lambda done, total: progress.update(completed=done), recorder=recorder)
     compiled = compile_seconds() - compiled
     summary = _report(env, args, results)
-    compiling = f', {compiled:.1f} s of it compiling the simulation kernels: a first run; later runs load them ' \
-        'from the cache' if compiled >= 0.05 else ''
     console.print(f'{sum(r.episode_length for r in results):,} env steps at {results[0].steps_per_second:,.0f} '
-                  f'env-steps/s (whole batch{compiling})')
+                  f'env-steps/s (whole batch' + (f', including {_compiling(compiled)})' if compiled >= 0.05 else ')'))
     _finish_recording(recorder, args)
     _write_results(args, results, summary)
     return 0

@@ -83,7 +83,7 @@ class TeamSample(tuple):
         return self.array.dtype
 
     def __array__(self, dtype=None, copy=None):
-        return self.array if dtype is None else self.array.astype(dtype)
+        return np.array(self.array, dtype=dtype, copy=copy)
 
 
 class TeamSpace(spaces.Tuple):

@@ -21,12 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from mate.benchmark.experiments import experiment
-from mate.benchmark.report import _jsonable, _weigh, markdown
+from mate.benchmark.report import REPORT_HEADER, _jsonable, _weigh, markdown
 from mate.benchmark.verdicts import decide
 from mate.protocol import ABSOLUTE_SEEDS, TEAM_METRIC
 
 ROOT = Path(__file__).resolve().parents[2]
-HEADER = ['# Benchmark results', '', 'Written by `mate benchmark report`; every number below is in `results.json`.', '']
 
 
 def run_episodes(marl_eval: dict, name: str, task: str, label: str, metric: str, values: list) -> np.ndarray:
@@ -53,7 +52,7 @@ def rejudge(folder: Path, reps: int) -> None:
     summaries = json.loads((folder / 'results.json').read_text())
     marl_eval = json.loads((folder / 'marl_eval.json').read_text())
     figures = re.findall(r'^!\[[^]]*\]\(([^)]+)\)$', (folder / 'results.md').read_text(), flags=re.MULTILINE)
-    sections = list(HEADER)
+    sections = list(REPORT_HEADER)
     for name, summary in summaries.items():
         exp = experiment(name)
         metric = TEAM_METRIC[exp.team]

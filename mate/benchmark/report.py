@@ -539,15 +539,18 @@ def population_marl_eval_records(results: Results, environment: str) -> list:
     return records
 
 
+REPORT_HEADER = ('# Benchmark results', '',
+                 'Written by `mate benchmark report`; every number below is in `results.json`.', '')
+"""The lines `results.md` opens with, before the experiments' sections (`markdown`)."""
+
+
 def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[str], None] = print) -> dict[str, Path]:
     """Write the report of the benchmark directories to `out` (module docstring); returns the files written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     merged = collect(directories)
     files: dict[str, Path] = {}
-    sections, summaries, records = ['# Benchmark results', '',
-                                    'Written by `mate benchmark report`; every number below is in `results.json`.',
-                                    ''], {}, []
+    sections, summaries, records = list(REPORT_HEADER), {}, []
     for name, results in merged.items():
         summary = summarise(results, reps)
         summaries[name] = summary

@@ -40,7 +40,7 @@ class World(NamedTuple):
     target_is_colliding: np.ndarray    # (B, Nt) bool: last move altered by a disc or the border
     target_facing: np.ndarray          # (B, Nt, 2) direction the target faces (last move), for rendering
     target_done: np.ndarray            # (B, Nt) bool: delivered cargo this step
-    target_reward_parts: np.ndarray    # (B, Nt) each target's part of this step's dense target-team reward
+    target_reward_parts: np.ndarray    # (B, Nt) each target's part of this step's target team reward
     remaining_cargoes: np.ndarray      # (B, W, W) int64: units waiting at [src] for [dst]
     awaiting_cargo_counts: np.ndarray  # (B, W) int64: units still to be delivered to each warehouse
     num_delivered_cargoes: np.ndarray  # (B,) int64
