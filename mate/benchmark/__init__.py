@@ -7,12 +7,15 @@
 - `mate.benchmark.jobs`: an experiment's jobs (references, training runs, PSRO runs) for run seeds and a budget;
 - `mate.benchmark.runner`: the jobs run, resumable, in local processes or on Ray (`mate.runners`);
 - `mate.benchmark.directory`: a benchmark directory's manifest, the reuse of another's jobs, each job's status;
-- `mate.benchmark.report`: `results.md`, `results.json`, figures and `marl_eval.json` from benchmark directories;
+- `mate.benchmark.report`: `results.md`, `results.json`, figures and `marl_eval.json` from benchmark directories
+  (`results` reads the runs, `verdicts` judges the claims, `figures` draws);
+- `mate.benchmark.identity`: a job's resolved config (`job.json`), what `--reuse` and `--extend` compare;
 - `mate.benchmark.stats`: IQM, mean and probability of improvement with stratified-bootstrap confidence
   intervals (rliable's definitions, in numpy), curves with bands, normalised scores;
 - `mate.benchmark.marl_eval`: results in marl-eval's JSON layout.
 
-None imports torch (the training runs are `mate train` or `mate benchmark job` processes).
+None imports torch (the training runs are `mate train` or `mate benchmark job` processes) but `identity`, which
+reads a `mate train` command line with the trainer's own parser when a job starts or is compared.
 """
 
 from .experiments import Claim, Experiment, Setting

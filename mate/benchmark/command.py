@@ -11,6 +11,7 @@ import signal
 from pathlib import Path
 
 from ..arguments import CommandError, positive_int
+from .jobs import add_job_arguments
 
 __all__ = ['add_arguments', 'run']
 
@@ -104,11 +105,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     job = commands.add_parser('job', help=argparse.SUPPRESS,
                               description="One job of a user's command-line or function setting (what mate benchmark "
                                           'run starts; not for direct use).')
-    job.add_argument('dir', metavar='DIR', help='the benchmark directory (its manifest defines the experiment)')
-    job.add_argument('label', metavar='LABEL', help='the setting')
-    job.add_argument('preset', metavar='PRESET', help='the game')
-    job.add_argument('seed', type=int, metavar='SEED', help='the run seed')
-    job.add_argument('--threads', type=positive_int, default=1, help='torch threads (default 1)')
+    add_job_arguments(job)
 
 
 def run(args: argparse.Namespace, console) -> int:

@@ -8,10 +8,8 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import functools
 import json
 import os
-import re
 import shutil
 import time
 from collections.abc import Callable, Sequence
@@ -19,10 +17,11 @@ from pathlib import Path
 
 from ..progress import last_lines, last_logged_row, training_rate
 from .experiments import Experiment, experiment_of
+from .identity import JOB_CONFIG, ran_config, wanted_config
 from .jobs import SEED_STRIDE, Job, horizon_of, plan
 from .runner import JOB_LOCK, JOB_RUNNER, job_runner, locked
 
-__all__ = ['BENCHMARK_FORMAT', 'BENCHMARK_FORMATS', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES', 'PATH_OPTIONS',
+__all__ = ['BENCHMARK_FORMAT', 'BENCHMARK_FORMATS', 'EXTENDED_NOTE', 'JOB_STATES', 'KEPT_FILES',
            'REUSED_NOTE', 'extend_jobs', 'job_status', 'keep_results', 'read_manifest', 'reusable', 'reuse_jobs',
            'write_manifest']
 
@@ -89,83 +88,43 @@ def read_manifest(out) -> dict:
     return manifest
 
 
-PATH_OPTIONS = ('--run-dir', '--json', '--out')
-"""The options of a job's command lines whose values are paths inside the benchmark directory."""
 REUSED_NOTE = 'reused.txt'
 """The file a reused job's directory gets: where it was copied from, and why that is the same job."""
 EXTENDED_NOTE = 'extended.txt'
 """The file a job continued from a shorter run (`--extend`) gets: where the run was copied from, at which budget."""
 
 
-_PATH_VALUE = re.compile(r'(%s) (\S+)' % '|'.join(map(re.escape, PATH_OPTIONS)))
-_STEPS_VALUE = re.compile(r'(?<!\S)(--steps) (\d+)')
-
-
-def _masked(line: str, budget: bool = False) -> tuple[str, set[Path], set[int]]:
-    """A command line (after 'mate ') with the values of `PATH_OPTIONS` replaced by '<PATH>' (and with `budget`,
-    the value of `--steps` by '<STEPS>'); those paths, resolved from the current directory (as the benchmark command
-    that wrote them ran: reuse from the same working directory); and the `--steps` values masked."""
-    paths = {Path(match.group(2)).resolve() for match in _PATH_VALUE.finditer(line)}
-    line = _PATH_VALUE.sub(lambda match: f'{match.group(1)} <PATH>', line)
-    if not budget:
-        return line, paths, set()
-    steps = {int(match.group(2)) for match in _STEPS_VALUE.finditer(line)}
-    return _STEPS_VALUE.sub(lambda match: f'{match.group(1)} <STEPS>', line), paths, steps
-
-
-def _logged_commands(log: Path, budget: bool = False) -> tuple[set[str], set[Path], set[int]]:
-    """The distinct command lines a job's log ran ('$ mate ...' lines, written by `run_command`; a resumed run logs
-    its line once per session), `_masked`; and all their paths and budgets."""
-    lines, paths, steps = set(), set(), set()
-    for line in log.read_text(errors='replace').splitlines():
-        if line.startswith('$ mate '):
-            masked, found, budgets = _masked(line[len('$ mate '):], budget)
-            lines.add(masked)
-            paths |= found
-            steps |= budgets
-    return lines, paths, steps
-
-
 def reusable(job: Job, out, source, shorter: bool = False) -> Path | None:
     """The directory of the same job in the benchmark directory `source`, when it can stand for `job` of `out`:
-    it is complete there and its log ran exactly `job`'s command lines (every option, seed, budget, evaluation
-    and thread count), with `source` where `out` is; None otherwise. Experiments that share a setting (fig5's
-    MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a function of its command.
+    it is complete there and ran `job`'s resolved config (`mate.benchmark.identity`: every option, seed, budget,
+    evaluation and thread count, with defaults filled in; not its directory); None otherwise. Experiments that
+    share a setting (fig5's MAPPO is fig6's, fig4b's HRL-MAPPO is fig4a's) share its runs this way: a run is a
+    function of its config.
 
-    With `shorter`, the twin must instead be a `mate train` run complete at a smaller budget whose log ran the same
-    command lines but for `--steps`: its checkpoint is where a run of `job`'s budget is at that step (the
-    schedules count steps from 0, not in fractions of the budget) provided it stopped at an iteration where a run of
-    `job`'s budget evaluates too (`_ends_on_an_evaluation`) and did not cut its last iteration short for its budget
-    (`_cuts_its_last_iteration`), and `extend_jobs` continues it."""
+    With `shorter`, the twin must instead be a `mate train` run complete at a smaller budget whose config is
+    `job`'s but for `steps`: its checkpoint is where a run of `job`'s budget is at that step (the schedules count
+    steps from 0, not in fractions of the budget) provided it stopped at an iteration where a run of `job`'s budget
+    evaluates too (`_ends_on_an_evaluation`) and did not cut its last iteration short for its budget
+    (`RunConfig.cuts_its_last_iteration`), and `extend_jobs` continues it."""
     out, source = Path(out).resolve(), Path(source).resolve()
     twin = _complete_twin(job, out, source)
-    if twin is None:
-        return None
-    folder, log = twin.dir, twin.dir / 'job.log'
-    if shorter and not (job.kind == 'train' and job.commands[0][0] == 'train' and (folder / 'checkpoint.pt').exists()):
-        return None
-    expected, wanted_paths, wanted_steps = _wanted_commands(job, out, source, shorter)
-    logged, logged_paths, logged_steps = _logged_commands(log, shorter)
-    if logged != expected or logged_paths != wanted_paths:
+    if twin is None or (ran := ran_config(twin.dir)) is None or (wanted := wanted_config(job)) is None:
         return None
     if not shorter:
-        return folder
-    command, budget = job.commands[0], max(logged_steps)
-    if budget >= min(wanted_steps) or _cuts_its_last_iteration(command, budget):
+        return twin.dir if ran == wanted else None
+    if not (job.kind == 'train' and job.commands[0][0] == 'train' and (twin.dir / 'checkpoint.pt').exists()):
         return None
-    return folder if _ends_on_an_evaluation(folder, _trainer_setting(command, 'eval_every') or 0) else None
+    budget = ran[0]['settings']['steps'] if len(ran) == 1 and ran[0]['command'] == 'train' else None
+    if budget is None or budget >= wanted[0]['settings']['steps']:
+        return None
+    if ran != [dict(wanted[0], settings=dict(wanted[0]['settings'], steps=budget))]:
+        return None
+    from ..learn.command import trainer_config
 
-
-def _wanted_commands(job: Job, out: Path, source: Path, budget: bool = False) -> tuple[set[str], set[Path], set[int]]:
-    """`job`'s command lines as its twin in `source` would have logged them (`_masked`, with `budget` as given): the
-    masked lines, their paths moved from `out` to `source`, and their budgets."""
-    lines, paths, steps = set(), set(), set()
-    for command in job.commands:
-        line, found, budgets = _masked(' '.join(command), budget)     # as `run_command` logs it
-        lines.add(line)
-        paths |= {source / path.relative_to(out) for path in found}
-        steps |= budgets
-    return lines, paths, steps
+    _, config = trainer_config(job.commands[0][1], list(job.commands[0][2:]))
+    if dataclasses.replace(config, steps=budget).cuts_its_last_iteration():
+        return None
+    return twin.dir if _ends_on_an_evaluation(twin.dir, config.eval_every) else None
 
 
 def _twin(job: Job, out, source) -> Job:
@@ -177,36 +136,9 @@ def _twin(job: Job, out, source) -> Job:
 
 
 def _complete_twin(job: Job, out, source) -> Job | None:
-    """`_twin(job, out, source)` when it is done and has its command log (`job.log`), the two things a twin must have
-    before its command lines are compared with `job`'s; None otherwise."""
+    """`_twin(job, out, source)` when it is done; None otherwise."""
     twin = _twin(job, out, source)
-    return twin if twin.done() and (twin.dir / 'job.log').exists() else None
-
-
-@functools.cache
-def _trainer_parser(name: str):
-    """(parser, config class) of `mate train NAME`, built once per process (a job asks it for several settings)."""
-    from ..learn.command import trainer_parser
-
-    parser, _, config_class = trainer_parser(name)
-    return parser, config_class
-
-
-def _trainer_setting(command: Sequence[str], name: str):
-    """The value of the config field `name` (None when the trainer has none) in the `mate train` command line
-    `command`: as given, else the trainer's default (parsed by the trainer's own parser)."""
-    parser, config_class = _trainer_parser(command[1])
-    given = getattr(parser.parse_args(list(command[2:])), name, None)
-    return given if given is not None else getattr(config_class, name, None)
-
-
-def _cuts_its_last_iteration(command: Sequence[str], steps: int) -> bool:
-    """Whether the `mate train` command line `command` run for `steps` decision steps ends its last iteration early:
-    the trainers that log a row every `report_every` decision steps (IQL, QMIX, MA-TD3) end one at the budget too,
-    a row (and from there on, other iterations) a longer run does not have; the rollout trainers' iterations all have
-    the same size, and the last one goes past the budget."""
-    report_every = _trainer_setting(command, 'report_every')
-    return bool(report_every) and steps % report_every != 0
+    return twin if twin.done() else None
 
 
 def _ends_on_an_evaluation(folder: Path, every: int) -> bool:
@@ -253,38 +185,10 @@ def reuse_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], Non
     copied = []
     for job, folder in _twins(jobs, out, sources, shorter=False):
         _copy(folder, job.dir, REUSED_NOTE, f'copied from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: that '
-                                            'job ran the same command lines (its directory in place of this one)')
-        say(f'{job.name}: reused from {folder} (the same command lines)')
+                                            f'job ran the same config ({JOB_CONFIG})')
+        say(f'{job.name}: reused from {folder} (the same config)')
         copied.append(job)
-    for job in jobs:
-        if job.done() or _in_progress(job):
-            continue
-        for source in sources:
-            if (ran_in := _ran_elsewhere(job, out, source)) is not None:
-                say(f'{job.name}: not taken from {_twin(job, out, source).dir}: it ran the same command lines in '
-                    f'{ran_in}, and a kept copy stands for a run only at the path it ran in (copy it there and give '
-                    'that path to --reuse)')
-                break
     return copied
-
-
-def _ran_elsewhere(job: Job, out, source) -> Path | None:
-    """Where the complete twin of `job` in the benchmark directory `source` ran, when it ran `job`'s very command
-    lines but for their paths, in a directory other than `source` (a `keep_results` copy moved away from where
-    it ran, which `reusable` cannot take); None otherwise."""
-    out, source = Path(out).resolve(), Path(source).resolve()
-    if (twin := _complete_twin(job, out, source)) is None:
-        return None
-    expected, wanted, _ = _wanted_commands(job, out, source)
-    logged, logged_paths, _ = _logged_commands(twin.dir / 'job.log')
-    if logged != expected or not logged_paths or logged_paths == wanted:
-        return None
-    depth = len(job.dir.resolve().relative_to(out).parts)             # 'runs/NAME': the benchmark directory 2 up
-    for path in sorted(logged_paths):
-        for ancestor in (path, *path.parents):
-            if ancestor.name == job.dir.name and len(ancestor.parents) >= depth:
-                return ancestor.parents[depth - 1]
-    return Path(os.path.commonpath([str(path) for path in logged_paths]))
 
 
 def extend_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], None] = print) -> list[Job]:
@@ -298,14 +202,14 @@ def extend_jobs(jobs: list[Job], out, sources: Sequence, say: Callable[[str], No
     for job, folder in _twins(jobs, out, sources, shorter=True):
         steps = int(last_logged_row(folder)['env_steps'])
         _copy(folder, job.dir, EXTENDED_NOTE, f'continued from {folder} on {time.strftime("%Y-%m-%dT%H:%M:%S")}: '
-              f'that run ran the same command lines with a smaller --steps and stopped complete at {steps:,} decision '
-              'steps', leave_out=(*(path.name for path in job.outputs), 'final.pt', 'job.log', REUSED_NOTE))
-        say(f'{job.name}: continues {folder} from {steps:,} decision steps (the same command lines but --steps)')
+              f'that run ran the same config with a smaller budget (steps) and stopped complete at {steps:,} decision '
+              'steps', leave_out=(*(path.name for path in job.outputs), 'final.pt', 'job.log', JOB_CONFIG, REUSED_NOTE))
+        say(f'{job.name}: continues {folder} from {steps:,} decision steps (the same config but its budget)')
         copied.append(job)
     return copied
 
 
-KEPT_FILES = ('job.log', 'evaluations.jsonl', REUSED_NOTE, EXTENDED_NOTE)
+KEPT_FILES = ('job.log', JOB_CONFIG, 'config.json', 'evaluations.jsonl', REUSED_NOTE, EXTENDED_NOTE)
 """What `keep_results` copies of a complete job besides its result files (`Job.outputs`), when the job has them."""
 
 

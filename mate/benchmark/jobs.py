@@ -25,16 +25,18 @@ of a run are seeded `seed + row`) and every run stays below the evaluation seeds
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 from collections.abc import Iterable
 from pathlib import Path
 
+from ..arguments import positive_int
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from .experiments import Experiment, Setting
 
-__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'by_setting', 'horizon_of', 'job_name', 'job_values', 'parse_presets',
+__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'add_job_arguments', 'by_setting', 'horizon_of', 'job_name', 'job_values', 'parse_presets',
            'parse_seeds', 'parse_settings', 'plan']
 
 SEED_STRIDE = 1000
@@ -203,6 +205,16 @@ def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Jo
                          '--json', str(path)))
         outputs.append(path)
     return Job('reference', agent, preset, None, folder, tuple(commands), tuple(outputs), TEAM_METRIC[experiment.team])
+
+
+def add_job_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of `mate benchmark job DIR LABEL PRESET SEED [--threads N]`, the command line of a job of a
+    user's command-line or function setting (`_training`)."""
+    parser.add_argument('dir', metavar='DIR', help='the benchmark directory (its manifest defines the experiment)')
+    parser.add_argument('label', metavar='LABEL', help='the setting')
+    parser.add_argument('preset', metavar='PRESET', help='the game')
+    parser.add_argument('seed', type=int, metavar='SEED', help='the run seed')
+    parser.add_argument('--threads', type=positive_int, default=1, help='torch threads (default 1)')
 
 
 def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = None, threads: int = 1,

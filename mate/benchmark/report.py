@@ -23,7 +23,6 @@ experiment's seeds may be spread over several directories, e.g. run on several m
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from collections.abc import Callable, Iterable
@@ -31,144 +30,25 @@ from pathlib import Path
 
 import numpy as np
 
-from ..learn.evaluation import read_evaluations
 from ..learn.population.solvers import effective_policies
-from .experiments import Experiment, experiment_of
+from .experiments import Experiment
+from .figures import plot_curves, plot_exploitability, plot_meta_strategies
+from .jobs import by_setting
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
-from .directory import read_manifest
-from .jobs import by_setting, job_name
+from .results import Results, TrainingRun, collect, job_order
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 from .verdicts import decide, weigh
 
-__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'exploitability_histories', 'format_each',
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each',
            'format_interval', 'summarise', 'write_report']
 
 REPS = 50_000
 """Bootstrap replications of every interval."""
 
 
-@dataclasses.dataclass
-class TrainingRun:
-    """One complete training run: its periodic evaluations and its absolute metric (per-episode values)."""
-
-    label: str
-    preset: str
-    seed: int
-    steps: list[int]                    # decision steps at each evaluation
-    evaluations: list[list[float]]      # per evaluation, the metric of each episode
-    absolute: list[float]               # the absolute metric of each episode
-
-    @property
-    def score(self) -> float:
-        """The run's score: the mean absolute metric."""
-        return float(np.mean(self.absolute))
-
-
-@dataclasses.dataclass
-class Results:
-    """Everything read for one experiment."""
-
-    experiment: Experiment
-    steps: int                                           # decision steps per run (the budget run)
-    runs: list[TrainingRun] = dataclasses.field(default_factory=list)
-    incomplete: list[tuple] = dataclasses.field(default_factory=list)     # (label, preset, seed) of jobs not complete
-    references: dict = dataclasses.field(default_factory=dict)           # (agent, preset) -> {evaluation, absolute}
-    populations: dict = dataclasses.field(default_factory=dict)          # (label, preset, seed) -> state.json
-
-    def settings(self, preset: str) -> list[str]:
-        """The labels of the settings with complete runs on `preset`, in the experiment's order."""
-        present = {run.label for run in self.runs if run.preset == preset}
-        present |= {label for label, p, _ in self.populations if p == preset}
-        return [s.label for s in self.experiment.settings if s.label in present]
-
-    def runs_of(self, label: str, preset: str) -> list[TrainingRun]:
-        return sorted((r for r in self.runs if r.label == label and r.preset == preset), key=lambda r: r.seed)
-
-
-# ============================================================================ reading
-
-
-def collect(directories: Iterable) -> dict[str, Results]:
-    """The results of the benchmark directories, merged by experiment (same budget and protocol required);
-    ValueError for a directory that is not a benchmark or holds a run twice."""
-    merged: dict[str, Results] = {}
-    for directory in directories:
-        directory = Path(directory)
-        manifest = read_manifest(directory)
-        experiment = experiment_of(manifest)
-        results = merged.setdefault(experiment.name, Results(experiment, manifest['steps']))
-        if results.steps != manifest['steps']:
-            raise ValueError(f'{directory}: {experiment.name} at {manifest["steps"]:,} steps per run, another '
-                             f'directory at {results.steps:,}; report them apart')
-        for job in manifest['jobs']:
-            _read_job(results, directory, job)
-    return merged
-
-
-def _read_job(results: Results, directory: Path, job: dict) -> None:
-    folder = directory / job['dir']
-    kind, label, preset, seed = job['kind'], job['label'], job['preset'], job['seed']
-    name = job_name(label, preset, seed)
-    if kind == 'reference':
-        files = {part: folder / f'{part}.json' for part in ('evaluation', 'absolute')}
-        if not all(path.exists() for path in files.values()):
-            results.incomplete.append((label, preset, seed))
-            return
-        metric = _metric(results.experiment)
-        results.references[(label, preset)] = {
-            part: [episode[metric] for episode in json.loads(path.read_text())['episodes']]
-            for part, path in files.items()}
-        return
-    if kind == 'psro':
-        state_path = folder / 'state.json'
-        state = json.loads(state_path.read_text()) if state_path.exists() else None
-        if state is None or len(state['iterations']) <= int(state['settings']['iterations']):
-            results.incomplete.append((label, preset, seed))
-            return
-        _add_once(results.populations, (label, preset, seed), state, name)
-        return
-    absolute_path = folder / 'absolute.json'
-    if not absolute_path.exists():
-        results.incomplete.append((label, preset, seed))
-        return
-    absolute = json.loads(absolute_path.read_text())
-    evaluations = read_evaluations(folder)
-    run = TrainingRun(label, preset, int(seed), [int(e['env_steps']) for e in evaluations],
-                      [[ep[absolute['metric']] for ep in e['episodes']] for e in evaluations],
-                      [ep[absolute['metric']] for ep in absolute['episodes']])
-    if any(r.label == label and r.preset == preset and r.seed == run.seed for r in results.runs):
-        raise ValueError(f'{name} is in two of the directories; report each run once')
-    results.runs.append(run)
-
-
-def _job_order(job: tuple) -> tuple:
-    """Sort key of a (label, preset, seed) triple; a reference (seed None) before the seeds of its setting."""
-    label, preset, seed = job
-    return label, preset, -1 if seed is None else seed
-
-
-def _add_once(table: dict, key, value, name: str) -> None:
-    if key in table:
-        raise ValueError(f'{name} is in two of the directories; report each run once')
-    table[key] = value
-
-
-def _metric(experiment: Experiment) -> str:
-    from ..learn.evaluation import TEAM_METRIC
-
-    return TEAM_METRIC[experiment.team]
-
-
-# ============================================================================ statistics
-
-
 def _interval(point_low_high) -> dict:
     point, low, high = point_low_high
     return dict(point=point, low=low, high=high)
-
-
-def _reference_means(results: Results, preset: str, part: str) -> dict[str, float]:
-    return {agent: float(np.mean(values[part])) for (agent, p), values in results.references.items() if p == preset}
 
 
 def summarise(results: Results, reps: int = REPS) -> dict:
@@ -179,7 +59,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                    team=experiment.team, steps=results.steps, paper_steps=experiment.steps,
                    eval_every=experiment.eval_interval(results.steps), eval_episodes=experiment.eval_episodes,
                    iterations=experiment.iterations,
-                   incomplete=by_setting(sorted(results.incomplete, key=_job_order)), tasks={})
+                   incomplete=by_setting(sorted(results.incomplete, key=job_order)), tasks={})
     claims: list[dict] = []
     for preset in experiment.presets:
         task = dict(settings={}, references={}, improvement={})
@@ -209,7 +89,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
                     estimates = interval_estimates({label: spread}, reps=reps)[label]
                     entry['mean_effective_policies'][team] = dict(
                         {name: _interval(value) for name, value in estimates.items()}, values=spread.tolist())
-                histories = exploitability_histories(results, label, preset)
+                histories = results.exploitability_histories(label, preset)
                 if histories.shape[1]:        # the curve of the exploitability figure, IQM per iteration 1, 2, ...
                     points, lows, highs = curve_intervals({label: histories}, reps=reps)[label]['IQM']
                     entry['exploitability_by_iteration'] = [dict(point=float(a), low=float(b), high=float(c))
@@ -221,7 +101,7 @@ def summarise(results: Results, reps: int = REPS) -> dict:
             summary['tasks'][experiment.task(preset)] = task
             claims += _weigh(experiment, preset, scores, {}, {}, {}, reps)
             continue
-        references = _reference_means(results, preset, 'absolute')
+        references = results.reference_means(preset, 'absolute')
         task['references'] = {agent: dict(absolute=value, episodes=len(results.references[(agent, preset)]['absolute']),
                                           evaluation=float(np.mean(results.references[(agent, preset)]['evaluation'])))
                               for agent, value in references.items()}
@@ -258,108 +138,6 @@ def _weigh(experiment: Experiment, preset: str, scores: dict, references: dict, 
     """The evidence on the experiment's claims about `preset` (`mate.benchmark.verdicts.weigh`)."""
     return [weigh(claim, experiment.task(preset), scores, references, episodes, reference_episodes, reps)
             for claim in experiment.claims if claim.preset in (None, preset)]
-
-
-# ============================================================================ figures
-
-
-def plot_curves(results: Results, path, reps: int = REPS) -> Path | None:
-    """Periodic evaluations against decision steps: IQM with its 95 % CI band per setting, one panel per task, the
-    references' evaluation scores as dashed lines. None when no run has an evaluation."""
-    from ..plotting import pyplot, save_figure
-
-    experiment = results.experiment
-    presets = [p for p in experiment.presets if any(r.preset == p and r.evaluations for r in results.runs)]
-    if not presets:
-        return None
-    plt = pyplot()
-    figure, axes = plt.subplots(1, len(presets), figsize=(6.2 * len(presets), 4.2), squeeze=False)
-    for ax, preset in zip(axes[0], presets):
-        for label in results.settings(preset):
-            runs = [r for r in results.runs_of(label, preset) if r.evaluations]
-            length = min(len(r.evaluations) for r in runs)
-            scores = np.array([[np.mean(e) for e in r.evaluations[:length]] for r in runs])
-            steps = np.mean([r.steps[:length] for r in runs], axis=0)
-            points, lows, highs = curve_intervals({label: scores}, reps=reps)[label]['IQM']
-            line, = ax.plot(steps, points, marker='o', markersize=3,
-                            label=f'{label} ({len(runs)} run{"s" * (len(runs) != 1)})')
-            ax.fill_between(steps, lows, highs, alpha=0.2, color=line.get_color())
-        for agent, value in _reference_means(results, preset, 'evaluation').items():
-            ax.axhline(value, linestyle='--', linewidth=1, color='gray' if agent != 'upper-bound' else 'black')
-            ax.annotate(agent, (1.0, value), xycoords=('axes fraction', 'data'), fontsize=7, ha='right', va='bottom')
-        ax.set_title(experiment.task(preset))
-        ax.set_xlabel('decision steps')
-        ax.set_ylabel(f'{_metric(experiment).replace("_", " ")} (IQM, 95 % CI)')
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    return save_figure(figure, path)
-
-
-def exploitability_histories(results: Results, label: str, preset: str) -> np.ndarray:
-    """(runs, iterations): each population run's exploitability (mean of both terms) at iterations 1, 2, ... of the
-    setting `label` on `preset`, cut to the shortest run."""
-    histories = [[r['exploitability']['mean'] for r in state['iterations'] if r.get('exploitability')]
-                 for (lab, p, _), state in sorted(results.populations.items()) if lab == label and p == preset]
-    length = min(len(h) for h in histories)
-    return np.array([h[:length] for h in histories], dtype=float).reshape(len(histories), length)
-
-
-def plot_exploitability(results: Results, summary: dict, path) -> Path | None:
-    """Population experiments: the exploitability (mean of both terms) per iteration, IQM with its 95 % CI band over
-    the runs of each setting (`summarise`'s `exploitability_by_iteration`, drawn from `summary`)."""
-    from ..plotting import pyplot, save_figure
-
-    experiment = results.experiment
-    if not results.populations:
-        return None
-    plt = pyplot()
-    figure, axes = plt.subplots(1, len(experiment.presets), figsize=(6.2 * len(experiment.presets), 4.2),
-                                squeeze=False)
-    for ax, preset in zip(axes[0], experiment.presets):
-        for label, entry in summary['tasks'][experiment.task(preset)]['settings'].items():
-            curve = entry.get('exploitability_by_iteration')
-            if not curve:
-                continue
-            points, lows, highs = ([point[key] for point in curve] for key in ('point', 'low', 'high'))
-            x = np.arange(1, len(curve) + 1)
-            line, = ax.plot(x, points, marker='o', markersize=3,
-                            label=f'{label} ({entry["runs"]} run{"s" * (entry["runs"] != 1)})')
-            ax.fill_between(x, lows, highs, alpha=0.2, color=line.get_color())
-        ax.set_title(preset)
-        ax.set_xlabel('iteration')
-        ax.set_ylabel('exploitability (IQM, 95 % CI)')
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    return save_figure(figure, path)
-
-
-def plot_meta_strategies(results: Results, path) -> Path | None:
-    """Population experiments (Fig. 8): every run's meta-strategies, iteration x policy heat maps; a row per
-    (task, setting, team), a column per run."""
-    from ..learn.population.plots import draw_meta_strategies
-    from ..plotting import pyplot, save_figure
-
-    runs = sorted((key, state) for key, state in results.populations.items() if state['iterations'])
-    if not runs:
-        return None
-    groups = sorted({(preset, label) for (label, preset, _), _ in runs})
-    columns = max(sum(1 for (lab, p, _), _ in runs if (p, lab) == group) for group in groups)
-    iterations = max(len(state['iterations']) for _, state in runs)
-    plt = pyplot()
-    height = 0.22 * iterations + 1.4
-    figure, axes = plt.subplots(2 * len(groups), columns, figsize=(3.2 * columns, height * 2 * len(groups)),
-                                squeeze=False)
-    for row, (preset, label) in enumerate(groups):
-        members = [(seed, state) for (lab, p, seed), state in runs if (p, lab) == (preset, label)]
-        for team_row, team in enumerate(('camera', 'target')):
-            for column in range(columns):
-                ax = axes[2 * row + team_row][column]
-                if column >= len(members):
-                    ax.axis('off')
-                    continue
-                seed, state = members[column]
-                draw_meta_strategies(ax, state, team, f'{label} {team}s, {preset}, seed {seed}')
-    return save_figure(figure, path)
 
 
 # ============================================================================ files
@@ -490,7 +268,7 @@ def marl_eval_records(results: Results, environment: str) -> list:
     """Every complete run's evaluations (per episode) and absolute metric as marl-eval records. marl-eval needs the
     same runs for every (task, algorithm) and the same steps in every run: only the seeds complete for every setting
     and task are written, each cut to the evaluations all of them have."""
-    metric = _metric(results.experiment)
+    metric = results.metric
     groups = {(r.label, r.preset) for r in results.runs}
     seeds = set.intersection(*({r.seed for r in results.runs if (r.label, r.preset) == g} for g in groups)) \
         if groups else set()

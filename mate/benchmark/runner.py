@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shlex
 import signal
 import socket
 import subprocess
@@ -31,6 +32,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from .identity import wanted_config, write_job_config
 from .jobs import Job
 
 __all__ = ['BUSY', 'INTERRUPTED', 'JOB_LOCK', 'JOB_RUNNER', 'job_runner', 'locked', 'run_command', 'run_job',
@@ -67,7 +69,7 @@ def run_command(commands: Sequence[Sequence[str]], log: str, outputs: Sequence[s
             if _STOPPING.is_set():
                 returncode = INTERRUPTED
                 break
-            f.write(f'$ mate {" ".join(command)}\n')
+            f.write(f'$ mate {shlex.join(command)}\n')
             f.flush()
             child = subprocess.Popen(tied_to_parent([sys.executable, '-m', 'mate', *command]), stdout=f,
                                      stderr=subprocess.STDOUT, start_new_session=True)
@@ -87,7 +89,9 @@ def run_job(job: Job) -> dict:
     """`run_command` of `job` (its commands, its `job.log`), holding the lock of its directory (`JOB_LOCK`): when
     another runner holds it (two runners of the same seeds on one directory, on this machine or on others sharing
     it) nothing runs and the status is `BUSY`; a job another runner has completed meanwhile is not run again
-    (status 0, `elsewhere` true). The lock goes with the process that held it, however it ends."""
+    (status 0, `elsewhere` true). The lock goes with the process that held it, however it ends. As it starts the
+    job it writes the job's resolved config to `JOB_DIR/job.json` (`mate.benchmark.identity`), what `--reuse` and
+    `--extend` compare."""
     job.dir.mkdir(parents=True, exist_ok=True)
     with locked(job.dir / JOB_LOCK, wait=False) as holding:
         if not holding:
@@ -96,6 +100,8 @@ def run_job(job: Job) -> dict:
             return dict(returncode=0, seconds=0.0, elsewhere=True)
         runner = job.dir / JOB_RUNNER
         runner.write_text(f'{socket.gethostname()} {os.getpid()}\n')
+        if (configs := wanted_config(job)) is not None:     # a refused command line says why in the log
+            write_job_config(job, configs)
         try:
             return run_command(job.commands, str(job.dir / 'job.log'),
                                [str(p) for p in job.outputs] if job.kind == 'reference' else [])

@@ -17,7 +17,7 @@ from pathlib import Path
 from ..arguments import ArgumentParser, CommandError, resolving_arguments
 from .run_config import default_run_dir, run_name  # (no torch: `mate train -h` works without it)
 
-__all__ = ['TRAINERS', 'add_arguments', 'run']
+__all__ = ['TRAINERS', 'add_arguments', 'run', 'trainer_config']
 
 
 @dataclass(frozen=True)
@@ -81,17 +81,25 @@ def trainer_parser(name: str):
     return parser, module, config_class
 
 
+def trainer_config(name: str, options: list[str]):
+    """(module, config) of the command line `mate train NAME OPTIONS...`: the options (over a `--config-file`'s)
+    parsed by the trainer's parser into its config, every field resolved (`run_dir` None when not given). A mistake
+    exits as the command would (CommandError, or argparse's SystemExit)."""
+    from ..options import config_from, file_arguments
+
+    parser, module, config_class = trainer_parser(name)
+    parsed = parser.parse_args(options)
+    if parsed.config_file:
+        with resolving_arguments():
+            parsed = parser.parse_args([*file_arguments(parser, parsed.config_file), *options])
+    return module, config_from(parser, config_class, parsed, **TRAINERS[name].fixed)
+
+
 def run(args: argparse.Namespace, console) -> int:
     """Train as `args` say; 0 when done (or already done), 130 when stopped by a signal (resumable)."""
-    parser, module, config_class = trainer_parser(args.algo)
-    from ..options import config_from, file_arguments
     from .checkpoint import CheckpointError, load_checkpoint
 
-    options = parser.parse_args(args.options)
-    if options.config_file:
-        with resolving_arguments():
-            options = parser.parse_args([*file_arguments(parser, options.config_file), *args.options])
-    config = config_from(parser, config_class, options, **TRAINERS[args.algo].fixed)
+    module, config = trainer_config(args.algo, args.options)
     if config.run_dir is None:
         config = dataclasses.replace(config, run_dir=default_run_dir(args.algo, config))
     if config.wandb:

@@ -84,6 +84,10 @@ class MATD3Config(RunConfig, TeamEnvConfig):
     activation: Literal['tanh', 'relu'] = option('tanh', 'hidden activation')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
 
+    def cuts_its_last_iteration(self) -> bool:
+        """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
+        return self.steps % self.report_every != 0
+
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)

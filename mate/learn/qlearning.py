@@ -55,6 +55,10 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
     SCHEDULES: ClassVar[tuple[str, ...]] = ('epsilon_schedule',)
     """The schedule options of the config (a learner adds its learning rate's): checked once, in __post_init__."""
 
+    def cuts_its_last_iteration(self) -> bool:
+        """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
+        return self.steps % self.report_every != 0
+
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)

@@ -68,8 +68,9 @@ each agent learns from, hence the critic's outputs)."""
 
 NOT_IN_THE_HASH = ('run_dir', 'fresh', 'progress', 'threads', 'device', 'minutes', 'checkpoint_every',
                    'snapshot_every', 'wandb', 'wandb_project')
-"""Config fields that do not change what a run computes (where it runs, how it shows and saves it), left out of
-`config_hash`. The budget (`steps`) is in: a run of another budget is another run."""
+"""Config fields that do not define the run (where it runs, how it shows and saves it), left out of `config_hash`.
+The budget (`steps`) is in: a run of another budget is another run. Threads and device may change the last bits of
+the floats (another summation order), so the benchmark's job identity (`mate.benchmark.identity`) keeps them."""
 
 
 def config_hash(algo: str, config_dict: dict) -> str:

@@ -42,6 +42,13 @@ class RunConfig:
         parse_device(self.device)          # a bad name is refused now, with the valid forms
         check_ranges(self)                 # the options' ranges, as the command line checks them
 
+    def cuts_its_last_iteration(self) -> bool:
+        """Whether a run of this config ends its last iteration early at its budget `steps`, logging a row (and
+        from there on, iterations) a run of a larger budget does not have. The rollout trainers' iterations all have
+        one size and the last goes past the budget: never. A trainer that logs a row every so many decision steps
+        and one at the budget (IQL, QMIX, MA-TD3) says so by overriding this."""
+        return False
+
     @property
     def time_limit(self) -> float:
         """The time budget in seconds (0: none)."""

@@ -14,8 +14,9 @@ import pytest
 from mate.benchmark import verdicts
 
 from mate.benchmark.experiments import EXPERIMENTS, Setting, experiment
-from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _cuts_its_last_iteration, _ends_on_an_evaluation,
-                                      job_status, reusable, reuse_jobs, write_manifest)
+from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _ends_on_an_evaluation, job_status, reusable,
+                                      reuse_jobs, write_manifest)
+from mate.benchmark.identity import JOB_CONFIG, command_config, job_config, ran_config
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, parse_settings, plan
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
@@ -382,10 +383,15 @@ def test_extend_continues_a_shorter_run_to_the_same_numbers_as_a_fresh_run(smoke
             assert reusable(job, tmp_path / 'w', runs, shorter=True) is None
             assert not _ends_on_an_evaluation(twin, exp.eval_every)
     # IQL, QMIX and MA-TD3 log a row every --report-every decisions and cut one short at a budget off that grid
-    assert _cuts_its_last_iteration(('train', 'iql', '--report-every', '40'), 140)
-    assert not _cuts_its_last_iteration(('train', 'iql', '--report-every', '40'), 160)
-    assert _cuts_its_last_iteration(('train', 'matd3', '--team', 'camera'), 2_000_000)       # its default: 5,120
-    assert not _cuts_its_last_iteration(('train', 'mappo', '--team', 'target'), 2_000_001)
+    from mate.learn.command import trainer_config
+
+    def cuts(*argv):
+        return trainer_config(argv[0], list(argv[1:]))[1].cuts_its_last_iteration()
+
+    assert cuts('iql', '--report-every', '40', '--steps', '140')
+    assert not cuts('iql', '--report-every', '40', '--steps', '160')
+    assert cuts('matd3', '--team', 'camera', '--steps', '2000000')       # its default: 5,120
+    assert not cuts('mappo', '--team', 'target', '--steps', '2000001')
     assert main(['benchmark', 'run', 'smoke', '--out', str(tmp_path / 'z'), '--extend', str(tmp_path / 'none')]) == 2
     assert "--extend: '" in capsys.readouterr().err
 
@@ -403,7 +409,8 @@ def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_
     assert main(['benchmark', 'keep', str(partial), str(kept_dir)]) == 0
     assert f'kept {len(plan(exp, range(exp.seeds), runs)) - 1} complete jobs' in capsys.readouterr().out
     names = {path.name for path in kept_dir.rglob('*') if path.is_file()}
-    assert names <= {'benchmark.json', 'absolute.json', 'evaluation.json', 'evaluations.jsonl', 'job.log'}
+    assert names <= {'benchmark.json', 'absolute.json', 'evaluation.json', 'evaluations.jsonl', 'job.log', 'job.json',
+                     'config.json'}
     assert not (kept_dir / dropped.dir.relative_to(partial)).exists()
     assert main(['benchmark', 'status', str(kept_dir)]) == 0
     assert '1 waiting' in capsys.readouterr().out
@@ -419,26 +426,46 @@ def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_
     assert 'is the benchmark directory itself' in capsys.readouterr().err
 
 
-def test_reuse_from_a_kept_copy_elsewhere_says_where_its_jobs_ran(smoke, tmp_path):
-    """A kept copy (`mate benchmark keep`) holds its jobs' logs with the paths they ran at, so `--reuse` takes its
-    jobs only at that path: from anywhere else none is copied and each is named with the directory it ran in (the
-    runner would otherwise train them again without a word); from where they ran, all are taken."""
+def test_a_job_is_known_by_its_resolved_config_wherever_it_is(smoke, tmp_path):
+    """Every job's directory holds its resolved config (`job.json`): its command lines parsed by the commands'
+    own parsers, defaults filled in, no paths. `--reuse` compares configs, so a kept copy (`mate benchmark keep`)
+    stands for its jobs wherever it lies, and a directory written before jobs had a `job.json` is read from its
+    `job.log`; a job of another thread count or evaluation is another job."""
     runs, _ = smoke
+    exp = experiment('smoke')
+    manifest = json.loads((runs / 'benchmark.json').read_text())
+    threads = int(_option(next(j for j in manifest['jobs'] if j['kind'] == 'train')['commands'][0], '--threads'))
+    jobs = plan(exp, range(exp.seeds), runs, threads=threads)
+    for job in jobs:
+        saved = json.loads((job.dir / JOB_CONFIG).read_text())
+        assert saved['configs'] == job_config(job) == ran_config(job.dir)
+        assert not any(key in config['settings'] for config in saved['configs']
+                       for key in ('run_dir', 'json', 'out', 'dir', 'progress'))
+    train = next(job for job in jobs if job.kind == 'train')
+    config = json.loads((train.dir / 'config.json').read_text())['config']
+    assert job_config(train)[0]['settings'] == {k: v for k, v in config.items()
+                                                 if k not in ('run_dir', 'progress', 'fresh', 'wandb', 'wandb_project',
+                                                              'checkpoint_every')}
+    # the order of options and an option given at its default do not make another job; another value does
+    command = ['evaluate', '--config', 'MATE-2v4-0', '--episodes', '4', '--json', 'a.json']
+    assert command_config(command) == command_config(['evaluate', '--json', 'b.json', '--episodes', '4', '--config',
+                                                       'MATE-2v4-0', '--seed', '0'])
+    assert command_config(command) != command_config([*command, '--seed', '1'])
     kept = tmp_path / 'kept'
     assert main(['benchmark', 'keep', str(runs), str(kept)]) == 0
-    exp = experiment('smoke')
-    other = tmp_path / 'other'
-    log = next((runs / 'runs').glob('*/job.log')).read_text()
-    threads = int(re.search(r'--threads (\d+)', log).group(1))           # the fixture's: the machine's cores
-    jobs = plan(exp, range(exp.seeds), other, threads=threads)
-    said = []
-    assert reuse_jobs(jobs, other, [kept], say=said.append) == []
-    assert len(said) == len(jobs)
-    assert all('not taken from' in line and f'ran the same command lines in {runs.resolve()},' in line
-               for line in said), said[:2]
-    said.clear()
-    assert len(reuse_jobs(jobs, other, [runs], say=said.append)) == len(jobs)
-    assert not any('not taken' in line for line in said)
+    old = tmp_path / 'old'                           # a kept directory of a mate before job.json: its job.log
+    shutil.copytree(kept, old)
+    for path in old.rglob(JOB_CONFIG):
+        path.unlink()
+    for source in (kept, old):
+        other = tmp_path / f'from-{source.name}'
+        said = []
+        assert len(reuse_jobs(plan(exp, range(exp.seeds), other, threads=threads), other, [source],
+                              say=said.append)) == len(jobs)
+        assert all('(the same config)' in line for line in said)
+    other = tmp_path / 'threads'
+    assert reuse_jobs(plan(exp, range(exp.seeds), other, threads=threads + 1), other, [kept], say=print) == \
+        [job for job in plan(exp, range(exp.seeds), other, threads=threads + 1) if job.kind == 'reference']
 
 
 def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
