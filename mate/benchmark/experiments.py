@@ -121,7 +121,8 @@ class Claim:
 
     Args:
         text: the claim in words.
-        better, worse: setting labels of the experiment, or a reference it plays (its `references`).
+        better: a setting label of the experiment, or a reference it plays (its `references`).
+        worse: the same, for the side claimed to score lower.
         preset: the game it is about (None: each of the experiment's).
         kind: 'better', or 'agree' (two settings).
         margin: for an agreement claim, the largest difference of the settings' mean scores (in the metric's units)

@@ -8,9 +8,16 @@ README and docs) and the experiment:
     ... the headline table, written by `mate benchmark quote` ...
     <!-- end of mate benchmark quote -->
 
-`quote_blocks` rewrites every such block from its report (`headline`); `mate benchmark quote --check`
-says which blocks differ from their report (exit status 1), which is what the test of the repository's own
-README and docs runs: a number in those tables that is not in a committed report fails it.
+A block whose marker names `verdicts` and one or more reports' `results.json` instead gets one table of every claim
+of those reports (`verdicts`): the experiment and its budget, linked to its report, the task, the claim, the verdict
+and the test's p, a line per claim with data; the results summary page and the README quote it:
+
+    <!-- mate benchmark quote: verdicts docs/results/fig4a-cameras-10M/results.json docs/results/fig7-psro/results.json -->
+    <!-- end of mate benchmark quote -->
+
+`quote_blocks` rewrites every such block from its reports; `mate benchmark quote --check` says which blocks differ
+from their reports (exit status 1), which is what the test of the repository's own README and docs runs: a number
+in those tables that is not in a committed report fails it.
 """
 
 from __future__ import annotations
@@ -21,11 +28,11 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from .report import claim_rows, format_each, format_interval, format_number
+from .report import claim_rows, format_each, format_interval, format_number, p_value
 
-__all__ = ['headline', 'quote_blocks', 'quote_files']
+__all__ = ['headline', 'quote_blocks', 'quote_files', 'verdicts']
 
-START = re.compile(r'^<!-- mate benchmark quote: (?P<path>\S+) (?P<experiment>\S+) -->$', re.MULTILINE)
+START = re.compile(r'^<!-- mate benchmark quote: (?P<path>\S+) (?P<experiment>\S+(?: \S+)*) -->$', re.MULTILINE)
 END = '<!-- end of mate benchmark quote -->'
 
 
@@ -72,6 +79,26 @@ def headline(summary: dict, link: str) -> str:
     return '\n'.join(lines)
 
 
+def verdicts(summaries: list[tuple[dict, str]]) -> str:
+    """One table of the claims of several reports (`summaries`: (an entry of a `results.json`, the link to its
+    `results.md`)): per claim with data, the experiment at its budget (linked), the task, the claim, the verdict in
+    bold and the test's p after Holm's correction over the report's claims."""
+    lines = ['| experiment, budget | task | claim | verdict | p (Holm) |', '|---|---|---|---|---|']
+    for summary, link in summaries:
+        unit = 'per best response' if summary['team'] == 'both' else 'per run'
+        name = f'[{summary["experiment"]}, {_budget(summary["steps"])} {unit}]({link})'
+        for claim in summary.get('claims', ()):
+            if 'p' in claim:
+                lines.append(f'| {name} | {claim["task"]} | {claim["text"]} | **{claim["verdict"]}** | '
+                             f'{p_value(claim["p_holm"])} |')
+    return '\n'.join(lines)
+
+
+def _budget(steps: int) -> str:
+    """'500k', '2 M', '10 M' decision steps."""
+    return f'{steps / 1e6:g} M' if steps >= 1_000_000 else f'{steps / 1e3:g}k'
+
+
 def _summary(path: str, experiment: str, root: Path) -> dict:
     file = root / path
     if not file.exists():
@@ -94,12 +121,35 @@ def quote_blocks(text: str, root: Path, here: Path) -> str:
         end = text.find(END, start.end())
         if end < 0:
             raise ValueError(f'the quote of {start["path"]} has no end marker ({END})')
-        link = os.path.relpath((root / start['path']).parent / 'results.md', here)
-        block = headline(_summary(start['path'], start['experiment'], root), Path(link).as_posix())
+        block = _block(start['path'], start['experiment'].split(), root, here)
         pieces += [text[position:start.end()], '\n', block, '\n']
         position = end
     pieces.append(text[position:])
     return ''.join(pieces)
+
+
+def _block(first: str, rest: list[str], root: Path, here: Path) -> str:
+    """The block of a start marker: `headline` of `first`'s experiment `rest[0]`, or for `verdicts REPORT...` the
+    table of every experiment of every report named."""
+    def link(path: str) -> str:
+        return Path(os.path.relpath((root / path).parent / 'results.md', here)).as_posix()
+
+    if first != 'verdicts':
+        if len(rest) != 1:
+            raise ValueError(f'a quote of {first} names one experiment, got {" ".join(rest)}')
+        return headline(_summary(first, rest[0], root), link(first))
+    found = []
+    for path in rest:
+        for experiment in _experiments(path, root):
+            found.append((_summary(path, experiment, root), link(path)))
+    return verdicts(found)
+
+
+def _experiments(path: str, root: Path) -> list[str]:
+    file = root / path
+    if not file.exists():
+        raise ValueError(f'a quote names {path}, which does not exist (paths are relative to {root})')
+    return list(json.loads(file.read_text()))
 
 
 def quote_files(files, root, check: bool = False, say: Callable[[str], None] = print) -> list[Path]:

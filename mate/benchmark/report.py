@@ -39,7 +39,7 @@ from .results import Results, TrainingRun, collect, job_order
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
 from .verdicts import decide, weigh
 
-__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each',
+__all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each', 'p_value',
            'format_interval', 'summarise', 'write_report']
 
 REPS = 50_000
@@ -167,12 +167,12 @@ def claim_rows(claims: list[dict]) -> list[str]:
     rows = ['| claim | task | verdict | evidence [95 % CI] | test: p (Holm) |', '|---|---|---|---|---|']
     for claim in claims:
         evidence = '-' if 'point' not in claim else f'{claim["statistic"]}: {format_interval(claim)}'
-        test = '-' if 'p' not in claim else f'{claim["test"]}: {_p_value(claim["p"])} ({_p_value(claim["p_holm"])})'
+        test = '-' if 'p' not in claim else f'{claim["test"]}: {p_value(claim["p"])} ({p_value(claim["p_holm"])})'
         rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} | {test} |')
     return rows
 
 
-def _p_value(p: float) -> str:
+def p_value(p: float) -> str:
     """'0.0079', '0.10', '<0.0001': two significant digits."""
     return '<0.0001' if p < 1e-4 else f'{p:.2g}' if p < 0.1 else f'{p:.2f}'
 

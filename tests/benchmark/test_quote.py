@@ -98,3 +98,22 @@ def test_a_quoted_table_names_the_runs_its_report_left_out():
     assert headline(summary, 'results.md').endswith(
         '\n\nNot in the table (not complete when the report was written): own credit on MATE-4v8-0 (seed 3), '
         'team credit on MATE-4v8-0 (seeds 2, 4), greedy on MATE-4v8-0.')
+
+
+def test_a_verdicts_block_lists_every_claim_with_data_of_the_reports_it_names(tmp_path):
+    """`<!-- mate benchmark quote: verdicts REPORT... -->`: one row per claim that has a test (claims without runs
+    are left out), each with its experiment and budget linked to the report, its verdict and Holm's p; a report that
+    is not there is a one-line error."""
+    reports = ['docs/results/fig4a-cameras-10M/results.json', 'docs/results/fig7-psro/results.json']
+    text = f'<!-- mate benchmark quote: verdicts {" ".join(reports)} -->\n{END}\n'
+    quoted = quote_blocks(text, ROOT, ROOT)
+    rows = [line for line in quoted.splitlines() if line.startswith('| [')]
+    claims = [claim for path in reports for summary in json.loads((ROOT / path).read_text()).values()
+              for claim in summary['claims']]
+    assert len(rows) == sum('p' in claim for claim in claims) < len(claims)      # fig4a-10M has claims with no data
+    assert rows[0].startswith('| [fig4a-cameras, 10 M per run](docs/results/fig4a-cameras-10M/results.md) |')
+    assert any(row.startswith('| [fig7-psro, 100k per best response](docs/results/fig7-psro/results.md)') for row in rows)
+    for row, claim in zip(rows, [c for c in claims if 'p' in c]):
+        assert f'| {claim["text"]} | **{claim["verdict"]}** |' in row
+    with pytest.raises(ValueError, match='does not exist'):
+        quote_blocks(f'<!-- mate benchmark quote: verdicts docs/results/none/results.json -->\n{END}\n', ROOT, ROOT)

@@ -13,7 +13,7 @@ from mate.learn.policy import PRETRAINED_DIR
 from .markdown_blocks import ROOT
 
 TABLES = ROOT / 'docs' / 'results' / 'pretrained'
-PAGES = ('README.md', 'docs/pretrained.md', 'docs/training.md')
+PAGES = ('README.md', 'docs/pretrained.md', 'docs/contributors/training-record.md')
 SHIPPED = sorted(p.stem for p in PRETRAINED_DIR.glob('*.pt'))
 
 
@@ -43,5 +43,5 @@ def test_the_pages_quote_the_table(page, name):
     assert rows, f'{page}: no table row of {name}'
     for row in rows:
         assert numbers['paired'] in row, f'{page}: the row of {name} does not say {numbers["paired"]}: {row}'
-        if page != 'docs/training.md':
+        if page != 'docs/contributors/training-record.md':
             assert f"({numbers['mean']} vs {numbers['greedy']})" in row, f'{page}: {row}'
