@@ -12,6 +12,7 @@ extras add the rest:
 | `rllib`      | ray[rllib]                              | `mate rllib-train`, `mate.integrations.rllib`           |
 | `wandb`      | wandb                                   | `mate train --wandb` (Weights & Biases logging)         |
 | `docs`       | mkdocs, mkdocs-material, mkdocstrings   | the documentation site                                  |
+| `gpu`        | numba-cuda (with NVVM)                  | the core on a CUDA device (`mate.core.device`)          |
 | `all`        | render, pettingzoo, train               |                                                         |
 | `test`       | pytest, hypothesis and what the tests use |                                                       |
 
@@ -35,6 +36,7 @@ EXTRAS = {
     'rllib': ('ray',),
     'wandb': ('wandb',),
     'docs': ('mkdocs',),
+    'gpu': ('numba_cuda',),
 }
 """extra -> the top-level modules it installs that the package imports (the table of the module docstring)."""
 

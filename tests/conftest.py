@@ -17,7 +17,8 @@ os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # before mate and torch load: 
 import pytest  # noqa: E402
 
 EXTRAS = {'ray': 'rllib', 'ray.rllib': 'rllib', 'torch': 'train', 'tensorboard': 'train', 'pettingzoo': 'pettingzoo',
-          'pygame': 'render', 'matplotlib': 'train', 'scipy': 'train', 'mkdocs': 'docs', 'griffe': 'docs'}
+          'pygame': 'render', 'matplotlib': 'train', 'scipy': 'train', 'mkdocs': 'docs', 'griffe': 'docs',
+          'numba_cuda': 'gpu'}
 """Optional modules and the extra of pyproject.toml that installs each."""
 
 

@@ -1,0 +1,227 @@
+"""The core on a CUDA device: the same row kernels, compiled by numba-cuda, one GPU thread per game.
+
+The CPU core steps its B games in loops over rows (`engine._step_rows`): `advance_row` (cameras act, targets move,
+perception with occlusion, cargo, rewards, counters, episode end), then `joint_observation`; a reset runs
+`reset_row` (spawn, from each row's own random stream), `update_coverage` and `joint_observation`. Here each of those
+loops is a CUDA kernel whose thread b runs the very same functions on row b: the rules of the game are written once,
+in `mate.core`, and numba-cuda compiles them as device functions (numba's CPU functions called from a CUDA kernel are
+compiled for the device). The world, the parameters and the observation buffers live on the device as named tuples
+of device arrays (`DeviceCore`); a step moves nothing to the host.
+
+Without a GPU the kernels still compile to PTX (`compile_ptx`: what CI checks), and numba's CUDA simulator
+(`NUMBA_ENABLE_CUDASIM=1`) runs them, each thread calling the CPU-compiled row functions: the launch, the masks and
+the buffers are then checked against the CPU core game for game (tests/core/test_device_core.py). On a GPU, the
+device's own math library rounds some results differently (float64: to the last bits); `benchmarks/gpu.py` measures
+the speed and the transitions' differences there.
+
+Needs the gpu extra (numba-cuda): `pip install -e '.[gpu]'`.
+
+    from mate.config import read_config
+    from mate.core.device import DeviceCore
+    from mate.core.params import params_from_config
+
+    core = DeviceCore(params_from_config(read_config('MATE-4v8-9')), batch_size=16384, observation_dims=(126, 131))
+    core.reset(seeds=range(16384))
+    core.step(camera_actions, target_actions)      # device (or host) arrays (B, Nc, 2), (B, Nt, 2)
+    core.camera_obs                                # a device array (B, Nc, D_c), torch.as_tensor(..., device='cuda')
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import types
+from collections.abc import Iterable
+from typing import NamedTuple
+
+import numpy as np
+
+from .engine import advance_row
+from .observe import joint_observation, update_coverage
+from .params import Params
+from .rng import key_from_seed
+from .spawn import reset_row
+from .world import World, empty_world
+
+__all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Rows', 'compile_ptx', 'cuda_module', 'kernels']
+
+BLOCK = 128
+"""Threads (games) per CUDA block."""
+
+
+class Rows(NamedTuple):
+    """The per-row arrays a kernel reads and writes beside the world: the actions (B, Nc, 2), (B, Nt, 2), the
+    observation buffers (B, Nc, D_c), (B, Nt, D_t) and the reset mask (B,). One named tuple, so that numba's CUDA
+    simulator hands the arrays to the row functions as they are."""
+
+    camera_actions: object
+    target_actions: object
+    camera_obs: object
+    target_obs: object
+    mask: object
+
+
+def cuda_module():
+    """`numba.cuda`, or ImportError naming the extra that installs it."""
+    global cuda
+    try:
+        from numba import cuda as module
+    except ImportError:
+        raise ImportError("the device core needs numba-cuda, from the gpu extra: pip install -e '.[gpu]'") from None
+    cuda = module
+    return module
+
+
+cuda = None
+"""numba.cuda once `cuda_module` imported it: the kernels below read `cuda.grid` from this module's globals, where
+numba's CUDA simulator finds it too."""
+
+
+def _step(p, w, rows):
+    b = cuda.grid(1)
+    if b < w.episode_step.shape[0]:
+        advance_row(p, w, b, rows.camera_actions[b], rows.target_actions[b])
+        joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+
+
+def _reset(p, w, rows):
+    b = cuda.grid(1)
+    if b < w.episode_step.shape[0] and rows.mask[b]:
+        reset_row(p, w, b)
+        update_coverage(p, w, b)
+        joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+
+
+def _kernel_functions() -> dict:
+    """The kernels' Python functions (thread b: row b), by name."""
+    cuda_module()
+    return {'step': _step, 'reset': _reset}
+
+
+KERNEL_NAMES = ('step', 'reset')
+"""The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games."""
+
+
+@functools.cache
+def kernels() -> dict:
+    """The CUDA kernels by name (`KERNEL_NAMES`), compiled at their first launch (numba.cuda.jit)."""
+    return {name: cuda_module().jit(function) for name, function in _kernel_functions().items()}
+
+
+def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64, cc: tuple[int, int] = (9, 0)) -> str:
+    """The PTX of the kernel `name` ('step' or 'reset') for compute capability `cc`, for games of `params` and
+    observations of `dtype`; needs no GPU (numba-cuda with NVVM, from the gpu extra). What CI checks: every rule of
+    the core compiles for the device."""
+    from numba import typeof
+
+    functions = _kernel_functions()
+    world = empty_world(params, batch_size)
+    rows = _host_rows(params, batch_size, (1, 1), dtype)     # (the observations' lengths do not change the code)
+    signature = tuple(typeof(argument) for argument in (params, world, rows))
+    with _compute_capability(cc):
+        ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
+    return ptx
+
+
+def _simulated() -> bool:
+    """Whether numba's CUDA simulator stands in for a GPU (`NUMBA_ENABLE_CUDASIM=1`)."""
+    from numba import config
+
+    return bool(config.ENABLE_CUDASIM)
+
+
+@contextlib.contextmanager
+def _compute_capability(cc: tuple[int, int]):
+    """numba-cuda asks the current device for its compute capability when it compiles a function called from a
+    kernel; without a GPU, answer `cc`."""
+    import sys
+
+    dispatcher = sys.modules['numba.cuda.dispatcher']
+    original = dispatcher.get_current_device
+    dispatcher.get_current_device = lambda: types.SimpleNamespace(compute_capability=cc)
+    try:
+        yield
+    finally:
+        dispatcher.get_current_device = original
+
+
+def _host_rows(params: Params, batch_size: int, observation_dims: tuple[int, int], dtype) -> Rows:
+    """Zeroed host arrays of `Rows` for B games: actions float64, observations of `dtype`."""
+    B, nc, nt = batch_size, params.num_cameras, params.num_targets
+    return Rows(np.zeros((B, nc, 2)), np.zeros((B, nt, 2)), np.zeros((B, nc, observation_dims[0]), dtype),
+                np.zeros((B, nt, observation_dims[1]), dtype), np.zeros(B, bool))
+
+
+class DeviceCore:
+    """B games of one configuration on a CUDA device: the world, the parameters and the observation buffers as
+    device arrays; `reset` and `step` launch one thread per game.
+
+    Args:
+        params: the game's parameters (`params_from_config`).
+        batch_size: B, the games played at once.
+        observation_dims: (D_c, D_t), the lengths of a camera's and a target's observation
+            (`mate.spaces.camera_observation_space_of(...).shape[0]`, ...).
+        dtype: the observations' dtype (float64 or float32; the world is float64).
+        block: threads per CUDA block.
+    """
+
+    def __init__(self, params: Params, batch_size: int, observation_dims: tuple[int, int], dtype=np.float64,
+                 block: int = BLOCK):
+        self.cuda = cuda_module()
+        self.params_host = params
+        self.batch_size = int(batch_size)
+        self.block = int(block)
+        to_device = self.cuda.to_device
+        self.params = Params(*(to_device(field) if isinstance(field, np.ndarray) else field for field in params))
+        self.world = World(*(to_device(field) for field in empty_world(params, self.batch_size)))
+        host = _host_rows(params, self.batch_size, tuple(observation_dims), dtype)
+        self.rows = Rows(*(to_device(array) for array in host))
+
+    @property
+    def camera_obs(self):
+        """(B, Nc, D_c) device array: every camera's observation after the last reset or step."""
+        return self.rows.camera_obs
+
+    @property
+    def target_obs(self):
+        """(B, Nt, D_t) device array: every target's observation after the last reset or step."""
+        return self.rows.target_obs
+
+    def _launch(self, name: str) -> None:
+        grid = (self.batch_size + self.block - 1) // self.block
+        arguments = (self.params, self.world, self.rows)
+        if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
+            arguments = tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in arguments)
+        kernels()[name][grid, self.block](*arguments)
+
+    def reset(self, mask=None, seeds: Iterable[int | None] | None = None) -> None:
+        """Start new episodes in the games where `mask` (B,) is true (None: all); with `seeds` (one int or None per
+        game reset), their random streams start anew from them, as `engine.seed_rows` does on the CPU."""
+        mask = np.ones(self.batch_size, bool) if mask is None else np.asarray(mask, bool)
+        if mask.shape != (self.batch_size,):
+            raise ValueError(f'reset mask: expected shape ({self.batch_size},), got {mask.shape}')
+        if seeds is not None:
+            rng = self.world.rng.copy_to_host()
+            rows = np.flatnonzero(mask)
+            seeds = list(seeds)
+            if len(seeds) != len(rows):
+                raise ValueError(f'reset: {len(rows)} games reset, {len(seeds)} seeds given')
+            for b, seed in zip(rows, seeds):
+                rng[b, 0], rng[b, 1] = key_from_seed(seed), 0
+            self.world.rng.copy_to_device(rng)
+        self.rows.mask.copy_to_device(mask)
+        self._launch('reset')
+
+    def step(self, camera_actions, target_actions) -> None:
+        """Advance every game one step with the actions (B, Nc, 2) in degrees (rotation, zoom) and (B, Nt, 2)
+        displacements, float64, on the device or the host (copied in)."""
+        for name, actions, buffer in (('camera_actions', camera_actions, self.rows.camera_actions),
+                                      ('target_actions', target_actions, self.rows.target_actions)):
+            if getattr(actions, 'shape', None) != buffer.shape:
+                raise ValueError(f'{name}: expected shape {buffer.shape}, got {getattr(actions, "shape", None)}')
+            buffer.copy_to_device(actions)
+        self._launch('step')
+
+    def world_to_host(self) -> World:
+        """A host copy of the world (numpy arrays), for checks and snapshots."""
+        return World(*(field.copy_to_host() for field in self.world))
