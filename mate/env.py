@@ -24,7 +24,7 @@ from .constants import (
 from .core import engine
 from .core.params import params_from_config
 from .core.snapshot import get_snapshot, goal_bits, set_snapshot
-from .core.world import empty_world, obstacle_states, target_headings
+from .core.world import empty_world, episode_statistics, obstacle_states, target_headings
 from .messages import Message, MessageChannel, Team
 
 __all__ = ['MultiAgentTracking', 'GameDescription']
@@ -292,6 +292,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
             'real_coverage_rate': float(w.real_coverage_rate[0]),
             'mean_transport_rate': float(w.mean_transport_rate[0]),
             'num_delivered_cargoes': int(w.num_delivered_cargoes[0]),
+            **{key: float(value[0]) for key, value in episode_statistics(self.params, w).items()},
         }
         return (self._team_infos(Team.CAMERA, -target_reward, shared),
                 self._team_infos(Team.TARGET, target_reward, shared))

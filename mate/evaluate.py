@@ -159,7 +159,6 @@ def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
     targets = target_factory(seed=seed).spawn(env.num_targets)
     group_reset(cameras, camera_obs)
     group_reset(targets, target_obs)
-    coverage, real_coverage, returns = [], [], np.zeros(2)
     callback_seconds = 0.0
 
     def observe(step: int, joint_action) -> None:
@@ -176,18 +175,15 @@ def play_episode(env, camera_factory, target_factory, seed: int, max_steps: int,
                         group_step(env, targets, target_obs, target_infos))
         (camera_obs, target_obs), rewards, terminated, truncated, (camera_infos, target_infos) = env.step(joint_action)
         info = target_infos[0] if target_infos else camera_infos[0]
-        coverage.append(info['coverage_rate'])
-        real_coverage.append(info['real_coverage_rate'])
-        returns += rewards
         observe(step, joint_action)
         if terminated or truncated:
             break
     elapsed = time.perf_counter() - start - callback_seconds
+    target_return = info['episode_target_return']        # the episode's statistics, as the core counted them
     return EpisodeResult(
-        seed=seed, coverage_rate=float(np.mean(coverage)), real_coverage_rate=float(np.mean(real_coverage)),
-        transport_rate=float(info['mean_transport_rate']), camera_return=float(returns[0]),
-        target_return=float(returns[1]),
-        normalized_target_return=float(returns[1] / env.max_target_team_episode_reward),
+        seed=seed, coverage_rate=info['episode_coverage_rate'], real_coverage_rate=info['episode_real_coverage_rate'],
+        transport_rate=float(info['mean_transport_rate']), camera_return=-target_return, target_return=target_return,
+        normalized_target_return=float(target_return / env.max_target_team_episode_reward),
         delivered_cargoes=int(info['num_delivered_cargoes']), episode_length=step,
         steps_per_second=step / max(elapsed, 1e-9))
 

@@ -154,7 +154,7 @@ class SingleTeamVecEnv(VectorEnv):
         self._make_opponent = opponent_factory(opponent, self.team)
         self.opponent = self._make_opponent(self.num_envs, self.counts, None)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
-        self._sums = {key: np.zeros(self.num_envs) for key in EPISODE_KEYS}
+        self._sums = {'r': np.zeros(self.num_envs)}    # the learner's reward (the game's statistics: the core's)
         self._other_obs = None
         self._pending = np.zeros(self.num_envs, dtype=bool)    # next_step: rows that restart at the next step
 
@@ -200,9 +200,9 @@ class SingleTeamVecEnv(VectorEnv):
         if self.reward_kind in ('own', 'difference'):
             rewards = np.where(live[:, None], rewards, 0.0)
         ended = live & (terminations | truncations)
-        self._accumulate(live, rewards, team_rewards, infos)
+        self._sums['r'] += np.where(live, rewards if rewards.ndim == 1 else rewards.sum(axis=1), 0.0)
         if ended.any():
-            infos['episode'], infos['_episode'] = self._episode_statistics(ended), ended
+            infos['episode'], infos['_episode'] = self._episode_statistics(ended, infos), ended
         if self.vec.autoreset_mode is AutoresetMode.NEXT_STEP:
             if restarting.any():
                 self.opponent.reset(self._other_obs, restarting)
@@ -214,27 +214,23 @@ class SingleTeamVecEnv(VectorEnv):
                                           dtype=object)
         return observations[self._own], rewards, terminations, truncations, infos
 
-    def _accumulate(self, live, rewards, team_rewards, infos) -> None:
-        steps = {'r': rewards if rewards.ndim == 1 else rewards.sum(axis=1), 'l': 1.0,
-                 'coverage_rate': infos['coverage_rate'], 'real_coverage_rate': infos['real_coverage_rate'],
-                 'camera_return': team_rewards[0], 'target_return': team_rewards[1]}
-        for key, value in steps.items():
-            self._sums[key] += np.where(live, value, 0.0)
-        for key, info in (('transport_rate', 'mean_transport_rate'), ('delivered_cargoes', 'num_delivered_cargoes')):
-            self._sums[key] = np.where(live, infos[info], self._sums[key])    # the game's running figures
-
-    def _episode_statistics(self, ended) -> dict:
-        sums, length = self._sums, np.maximum(self._sums['l'], 1.0)
-        stats = {key: np.where(ended, sums[key], 0.0) for key in ('r', 'camera_return', 'target_return')}
-        stats['l'] = np.where(ended, sums['l'], 0).astype(np.int64)
+    def _episode_statistics(self, ended, infos) -> dict:
+        """`infos['episode']` of the games that ended at this step (zeros elsewhere): the learner's summed reward, and
+        the game's own statistics as the core counted them (`mate.core.world.episode_statistics`; with same_step
+        autoreset, from `final_info`, the ended games' last step before their reset)."""
+        game = infos.get('final_info', infos)
+        target_return = game['episode_target_return']
+        stats = {'r': np.where(ended, self._sums['r'], 0.0),
+                 'l': np.where(ended, game['episode_step'], 0).astype(np.int64),
+                 'camera_return': np.where(ended, -target_return, 0.0),
+                 'target_return': np.where(ended, target_return, 0.0),
+                 'normalized_target_return': np.where(ended, target_return / self._max_reward, 0.0),
+                 'transport_rate': np.where(ended, game['mean_transport_rate'], 0.0),
+                 'delivered_cargoes': np.where(ended, game['num_delivered_cargoes'], 0).astype(np.int64)}
         for key in ('coverage_rate', 'real_coverage_rate'):
-            stats[key] = np.where(ended, sums[key] / length, 0.0)
-        stats['transport_rate'] = np.where(ended, sums['transport_rate'], 0.0)
-        stats['normalized_target_return'] = np.where(ended, sums['target_return'] / self._max_reward, 0.0)
-        stats['delivered_cargoes'] = np.where(ended, sums['delivered_cargoes'], 0).astype(np.int64)
-        for values in sums.values():
-            values[ended] = 0.0
-        return stats
+            stats[key] = np.where(ended, game[f'episode_{key}'], 0.0)
+        self._sums['r'][ended] = 0.0
+        return {key: stats[key] for key in EPISODE_KEYS}
 
     # ------------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict:
@@ -255,8 +251,11 @@ class SingleTeamVecEnv(VectorEnv):
         self.opponent.load_state_dict(state['opponent'])
         self._other_obs = self.vec.observations[1 - self._own]
         self._pending[:] = state.get('pending', False)
-        for key, values in self._sums.items():
-            values[:] = state.get('sums', {}).get(key, 0.0)
+        sums = state.get('sums', {})
+        self._sums['r'][:] = sums.get('r', 0.0)
+        for key in ('coverage_rate', 'real_coverage_rate'):   # a state of an earlier version kept these sums here
+            if f'{key}_sum' not in state['vec']['world'] and key in sums:
+                getattr(self.vec.world, f'{key}_sum')[:] = sums[key]
 
     # ------------------------------------------------------------------ extras
     def state(self) -> np.ndarray:

@@ -18,7 +18,7 @@ from gymnasium.vector.utils import batch_space
 from . import registration
 from .core import engine
 from .core.snapshot import get_snapshot
-from .core.world import empty_world, obstacle_states
+from .core.world import EPISODE_STATISTICS, empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 
 try:
@@ -31,11 +31,13 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'make_vec', 'AutoresetMode']
 
-STEP_OUTPUTS = frozenset({'target_reward_parts'})
-"""World arrays a step writes anew before anything reads them: a state saved by an earlier version without them
-still loads (they start at zero)."""
-INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step')
-"""The (B,) arrays of a vector step's infos (World fields of the same names)."""
+STEP_OUTPUTS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
+"""World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
+episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
+INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step',
+             *EPISODE_STATISTICS)
+"""The (B,) arrays of a vector step's infos: World fields of the same names, and the episode so far
+(`mate.core.world.episode_statistics`: its mean coverage rates and the target team's raw return)."""
 
 
 def _autoreset_mode(mode) -> AutoresetMode:
@@ -313,8 +315,9 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def _infos(self) -> dict[str, np.ndarray]:
         world = self._world
         infos: dict[str, np.ndarray] = {}
+        statistics = episode_statistics(self.params, world)
         for key in INFO_KEYS:
-            infos[key] = getattr(world, key).copy()
+            infos[key] = statistics[key] if key in statistics else getattr(world, key).copy()
             infos[f'_{key}'] = self._info_mask
         return infos
 

@@ -33,7 +33,8 @@ PRESET_TABLE = [
 
 INFO_KEYS = {'raw_reward', 'normalized_raw_reward', 'messages', 'out_communication_edges',
              'in_communication_edges', 'coverage_rate', 'real_coverage_rate', 'mean_transport_rate',
-             'num_delivered_cargoes'}
+             'num_delivered_cargoes', 'episode_coverage_rate', 'episode_real_coverage_rate',
+             'episode_target_return'}
 
 
 def _random_action(env, rng, scale=1.0):

@@ -48,6 +48,8 @@ def advance_row(p, w, b, camera_actions, target_actions):
     w.delayed_target_team_episode_reward[b] += sparse
     w.target_reward[b] = sparse if p.sparse_reward else dense
     update_coverage(p, w, b)
+    w.coverage_rate_sum[b] += w.coverage_rate[b]
+    w.real_coverage_rate_sum[b] += w.real_coverage_rate[b]
     for t in range(p.num_targets):
         w.target_steps[b, t] += 1
         w.target_tracked_steps[b, t] += is_tracked(p, w, b, t)

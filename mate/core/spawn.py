@@ -172,6 +172,8 @@ def clear_bookkeeping(p, w, b):
     w.episode_step[b] = 0
     w.target_team_episode_reward[b] = 0.0
     w.delayed_target_team_episode_reward[b] = 0.0
+    w.coverage_rate_sum[b] = 0.0
+    w.real_coverage_rate_sum[b] = 0.0
     w.target_reward[b] = 0.0
     w.terminated[b] = False
     w.truncated[b] = False

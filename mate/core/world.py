@@ -55,6 +55,8 @@ class World(NamedTuple):
     delayed_target_team_episode_reward: np.ndarray  # (B,) sum of sparse target rewards
     coverage_rate: np.ndarray          # (B,) share of targets tracked by any camera
     real_coverage_rate: np.ndarray     # (B,) share of bounty-carrying targets that are tracked
+    coverage_rate_sum: np.ndarray      # (B,) coverage_rate summed over the episode's steps (the reset not counted)
+    real_coverage_rate_sum: np.ndarray  # (B,) real_coverage_rate summed likewise
     mean_transport_rate: np.ndarray    # (B,)
     target_reward: np.ndarray          # (B,) target team reward of the last step (dense or sparse)
     terminated: np.ndarray             # (B,) bool: every cargo unit delivered
@@ -82,7 +84,8 @@ def empty_world(params: Params, batch_size: int) -> World:
         'camera_camera_view_mask': ((B, nc, nc), z), 'target_camera_view_mask': ((B, nt, nc), z),
         'target_obstacle_view_mask': ((B, nt, no), z), 'target_target_view_mask': ((B, nt, nt), z),
         'target_team_episode_reward': ((B,), f), 'delayed_target_team_episode_reward': ((B,), f),
-        'coverage_rate': ((B,), f), 'real_coverage_rate': ((B,), f), 'mean_transport_rate': ((B,), f),
+        'coverage_rate': ((B,), f), 'real_coverage_rate': ((B,), f),
+        'coverage_rate_sum': ((B,), f), 'real_coverage_rate_sum': ((B,), f), 'mean_transport_rate': ((B,), f),
         'target_reward': ((B,), f), 'terminated': ((B,), z), 'truncated': ((B,), z),
     }
     assert tuple(shapes) == World._fields
@@ -90,6 +93,23 @@ def empty_world(params: Params, batch_size: int) -> World:
     world.target_goal[:] = -1
     world.target_capacity[:] = 1
     return world
+
+
+EPISODE_STATISTICS = ('episode_coverage_rate', 'episode_real_coverage_rate', 'episode_target_return')
+"""What `episode_statistics` gives of every row's episode so far."""
+
+
+def episode_statistics(params: Params, world: World) -> dict[str, np.ndarray]:
+    """Every row's episode so far, as the core counted it, (B,) float64 arrays: the coverage and real coverage rates
+    averaged over its steps (the reset not counted; 0 before the first step) and the target team's raw return
+    (dense or sparse, as the config pays; the cameras' is its negative). Every consumer (the envs' infos,
+    evaluation, training logs, RLlib) reads these: an episode metric is computed in one place."""
+    steps = np.maximum(world.episode_step, 1)
+    target_return = world.delayed_target_team_episode_reward if params.sparse_reward else \
+        world.target_team_episode_reward
+    return dict(episode_coverage_rate=world.coverage_rate_sum / steps,
+                episode_real_coverage_rate=world.real_coverage_rate_sum / steps,
+                episode_target_return=target_return.copy())
 
 
 def obstacle_states(world: World, b: int | slice = slice(None)) -> np.ndarray:

@@ -343,7 +343,6 @@ class MateMultiAgentEnv(MultiAgentEnv):
             coverage_sum += info['coverage_rate']
             rewards_sum[0] += info['coverage_rate'] if self.reward == 'coverage' else float(camera_reward)
             rewards_sum[1] += float(target_reward)
-            self._episode.add(info['coverage_rate'], float(target_reward))
             if terminated or truncated:
                 break
         learner = 1 if self.team == 'target' else 0
@@ -351,7 +350,7 @@ class MateMultiAgentEnv(MultiAgentEnv):
         shared = {key: info[key] for key in ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate',
                                              'num_delivered_cargoes')}
         shared['decision_coverage_rate'] = coverage_sum / steps
-        shared.update(self._episode.summary(self.env.max_target_team_episode_reward))
+        shared.update(self._episode.summary(info, int(self.env.episode_step), self.env.max_target_team_episode_reward))
         rewards = {agent: rewards_sum[0] for agent in self.possible_agents if agent.startswith('camera_')}
         rewards.update({agent: rewards_sum[1] for agent in self.possible_agents if agent.startswith('target_')})
         terminateds = dict.fromkeys(self.possible_agents, bool(terminated))
@@ -387,20 +386,16 @@ class MateMultiAgentEnv(MultiAgentEnv):
 
 
 class _EpisodeSums:
-    """What the env adds up over an episode for its infos."""
+    """The learner's return summed over an episode; the game's own statistics are the core's (the env's infos)."""
 
     def __init__(self) -> None:
-        self.coverage, self.length, self.target_return, self.learner_return = 0.0, 0, 0.0, 0.0
+        self.learner_return = 0.0
 
-    def add(self, coverage_rate: float, target_reward: float) -> None:
-        self.coverage += coverage_rate
-        self.length += 1
-        self.target_return += target_reward
-
-    def summary(self, max_target_reward: float) -> dict:
-        return dict(episode_coverage_rate=self.coverage / max(self.length, 1), episode_length=self.length,
+    def summary(self, info: dict, length: int, max_target_reward: float) -> dict:
+        """The episode so far: the core's statistics from the env's last `info` and its `length` in env steps."""
+        return dict(episode_coverage_rate=info['episode_coverage_rate'], episode_length=length,
                     episode_return=self.learner_return,
-                    episode_normalized_target_return=self.target_return / max_target_reward)
+                    episode_normalized_target_return=info['episode_target_return'] / max_target_reward)
 
 
 SPEC_SUPPORTED = "grid actions, an MLP network, no --memory, --velocity or --full-observability"

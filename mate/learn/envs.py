@@ -215,11 +215,8 @@ class TeamVecEnv:
         self._seed = seed
         self._sees = None          # difference credit: which camera tracks which target at the last env step
         self._raw = self._own_raw = self._before = None
-        self._return = np.zeros(self.num_envs)
-        self._raw_return = np.zeros(self.num_envs)
+        self._return = np.zeros(self.num_envs)   # the learner's reward summed (the game's statistics: the core's)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
-        self._coverage_sum = np.zeros(self.num_envs)
-        self._length = np.zeros(self.num_envs, dtype=np.int64)
 
     # ------------------------------------------------------------------ helpers
     def _own(self, observations):
@@ -311,9 +308,6 @@ class TeamVecEnv:
             self.memory.forget()
         self._remember(observations)
         self._return[:] = 0.0
-        self._raw_return[:] = 0.0
-        self._coverage_sum[:] = 0.0
-        self._length[:] = 0
         return self._features(self._raw), self._state()
 
     def _held(self, actions) -> np.ndarray:
@@ -357,9 +351,6 @@ class TeamVecEnv:
             coverage += np.where(live, infos['coverage_rate'], 0.0)
             counted += live
             self._return += np.where(live, r, 0.0)
-            self._raw_return += np.where(live, rewards[1], 0.0)    # target-team raw reward (zero-sum game)
-            self._coverage_sum += np.where(live, infos['coverage_rate'], 0.0)
-            self._length += live
             ended = live & (terminated | truncated_now)
             restarting = ended.copy()
             if ended.any():
@@ -368,14 +359,12 @@ class TeamVecEnv:
                 final_state[rows] = self._state()[rows]
                 truncated[rows] = truncated_now[rows] & ~terminated[rows]
                 done |= ended
+                game = infos.get('final_info', infos)     # the episode's statistics, as the core counted them
                 for i in rows:
-                    episodes.append(dict(coverage=self._coverage_sum[i] / max(self._length[i], 1),
-                                         length=int(self._length[i]), **{'return': float(self._return[i])},
-                                         raw_return=float(self._raw_return[i]) / self._max_reward))
+                    episodes.append(dict(coverage=float(game['episode_coverage_rate'][i]),
+                                         length=int(game['episode_step'][i]), **{'return': float(self._return[i])},
+                                         raw_return=float(game['episode_target_return'][i]) / self._max_reward))
                 self._return[rows] = 0.0
-                self._raw_return[rows] = 0.0
-                self._coverage_sum[rows] = 0.0
-                self._length[rows] = 0
             self._own_raw = self._own(observations)
         if restarting.any():   # ended at the last env step: restart now so the next decision is clean
             observations = self._step_vec(own_actions, restarting)[0]
@@ -393,8 +382,7 @@ class TeamVecEnv:
         games = self.envs.state_dict()
         return dict(vec=games['vec'], opponent=games['opponent'], pending=games['pending'], memory=memory,
                     before=None if self._before is None else self._before.copy(),
-                    sums=dict(returns=self._return.copy(), raw_returns=self._raw_return.copy(),
-                              coverage=self._coverage_sum.copy(), length=self._length.copy()))
+                    sums=dict(returns=self._return.copy()))
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
@@ -408,8 +396,9 @@ class TeamVecEnv:
         self._raw = self._own(observations).copy()
         self._before = None if state['before'] is None else np.array(state['before'])
         sums = state['sums']
-        self._return[...], self._raw_return[...] = sums['returns'], sums['raw_returns']
-        self._coverage_sum[...], self._length[...] = sums['coverage'], sums['length']
+        self._return[...] = sums['returns']
+        if 'coverage_rate_sum' not in state['vec']['world'] and 'coverage' in sums:   # an earlier version's state
+            self.vec.world.coverage_rate_sum[...] = sums['coverage']
 
     def observations(self):
         """(features (B, N, D), state (B, S)) of the current decision (as `reset` and `step` return them)."""

@@ -81,22 +81,22 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
             aside += time.perf_counter() - begin
 
     observe(0)
-    coverage, real_coverage, returns = np.zeros(episodes), np.zeros(episodes), np.zeros((2, episodes))
+    coverage, real_coverage, target_return = np.zeros(episodes), np.zeros(episodes), np.zeros(episodes)
     length = np.zeros(episodes, dtype=np.int64)
     transport, delivered = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
     while live.any():
         actions = (cameras.act(camera_obs), targets.act(target_obs))
         (camera_obs, target_obs), rewards, terminated, truncated, infos = vec.step(actions)
         see(camera_obs, target_obs, int(length.max()) + 1)
-        coverage += np.where(live, infos['coverage_rate'], 0.0)
-        real_coverage += np.where(live, infos['real_coverage_rate'], 0.0)
-        returns += np.where(live, np.stack(rewards), 0.0)
         if live[0]:
             observe(int(length[0]) + 1)
         length += live
         finished = terminated | truncated
         ended = live & finished
-        if ended.any():
+        if ended.any():                       # the episode's statistics, as the core counted them
+            coverage[ended] = infos['episode_coverage_rate'][ended]
+            real_coverage[ended] = infos['episode_real_coverage_rate'][ended]
+            target_return[ended] = infos['episode_target_return'][ended]
             transport[ended] = infos['mean_transport_rate'][ended]
             delivered[ended] = infos['num_delivered_cargoes'][ended]
             live &= ~ended
@@ -110,11 +110,10 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
                 idle(targets, ended)
     seconds = time.perf_counter() - start - aside
     normaliser = float(vec.params.max_target_team_episode_reward)
-    results = [BatchEpisode(seed=seeds[i], coverage_rate=float(coverage[i] / length[i]),
-                            real_coverage_rate=float(real_coverage[i] / length[i]),
-                            transport_rate=float(transport[i]), camera_return=float(returns[0, i]),
-                            target_return=float(returns[1, i]),
-                            normalized_target_return=float(returns[1, i] / normaliser),
+    results = [BatchEpisode(seed=seeds[i], coverage_rate=float(coverage[i]), real_coverage_rate=float(real_coverage[i]),
+                            transport_rate=float(transport[i]), camera_return=float(-target_return[i]),
+                            target_return=float(target_return[i]),
+                            normalized_target_return=float(target_return[i] / normaliser),
                             delivered_cargoes=int(delivered[i]), episode_length=int(length[i]))
                for i in range(episodes)]
     steps = int(length.sum())
