@@ -162,7 +162,36 @@ def marl_eval_json(records: Iterable[StepRecord | AbsoluteRecord]) -> dict:
         ValueError: a record is malformed or repeated, a run has no absolute metrics, or the results are
             not rectangular as marl-eval's loader needs (see the module's docstring).
     """
-    # environment -> task -> algorithm -> run -> (steps: index -> (step_count, metrics), absolute metrics)
+    tree = _tree(records)
+    document: dict = {}
+    _unique_by_case(tree, 'environments')
+    for environment, tasks in tree.items():
+        _unique_by_case(tasks, f'{environment}: tasks')
+        shape = None  # (algorithms, runs, step indices, metrics) of the environment's first run
+        document[environment] = {}
+        for task, algorithms in tasks.items():
+            _unique_by_case(algorithms, f'{environment}/{task}: algorithms')
+            document[environment][task] = {}
+            for algorithm, runs in algorithms.items():
+                _unique_by_case(runs, f'{environment}/{task}/{algorithm}: runs')
+                document[environment][task][algorithm] = {}
+                for run in sorted(runs, key=_run_order):
+                    where = f'{environment}/{task}/{algorithm}/{run}'
+                    here = _checked_run(runs[run], where, algorithms, runs)
+                    if shape is None:
+                        shape = here
+                    elif here != shape:
+                        parts = ['algorithms', 'runs', 'steps', 'metrics']
+                        which = next(p for p, a, b in zip(parts, here, shape) if a != b)
+                        raise ValueError(f'{where}: its {which} differ from those of the first run of '
+                                         f'{environment!r} (marl-eval needs the same in every run)')
+                    document[environment][task][algorithm][run] = _run_document(runs[run])
+    return document
+
+
+def _tree(records: Iterable[StepRecord | AbsoluteRecord]) -> dict:
+    """The records checked one by one and gathered as environment -> task -> algorithm -> run -> (steps: index ->
+    (step_count, metrics), absolute metrics); ValueError for a malformed or repeated record, or none."""
     tree: dict = {}
     for record in records:
         if not isinstance(record, (StepRecord, AbsoluteRecord)):
@@ -192,51 +221,37 @@ def marl_eval_json(records: Iterable[StepRecord | AbsoluteRecord]) -> dict:
         metrics[metric] = _values(record.values, f'{where}/step_{index}/{metric}')
     if not tree:
         raise ValueError('records: none')
+    return tree
 
-    document: dict = {}
-    _unique_by_case(tree, 'environments')
-    for environment, tasks in tree.items():
-        _unique_by_case(tasks, f'{environment}: tasks')
-        shape = None  # (algorithms, runs, step indices, metrics) of the environment's first run
-        document[environment] = {}
-        for task, algorithms in tasks.items():
-            _unique_by_case(algorithms, f'{environment}/{task}: algorithms')
-            document[environment][task] = {}
-            for algorithm, runs in algorithms.items():
-                _unique_by_case(runs, f'{environment}/{task}/{algorithm}: runs')
-                document[environment][task][algorithm] = {}
-                for run in sorted(runs, key=_run_order):
-                    steps, absolute = runs[run]
-                    where = f'{environment}/{task}/{algorithm}/{run}'
-                    if not steps:
-                        raise ValueError(f'{where}: no evaluation steps')
-                    if not absolute:
-                        raise ValueError(f'{where}: no absolute metrics (marl-eval needs them in every run)')
-                    indices = sorted(steps)
-                    counts = [steps[i][0] for i in indices]
-                    if any(b <= a for a, b in zip(counts, counts[1:])):
-                        raise ValueError(f'{where}: step_count must increase with the step index, got {counts}')
-                    metrics = set(absolute)
-                    for i in indices:
-                        if set(steps[i][1]) != metrics:
-                            raise ValueError(f'{where}/step_{i}: metrics {sorted(steps[i][1])}, but '
-                                             f'{ABSOLUTE} has {sorted(metrics)}')
-                    here = (sorted(algorithms), sorted(runs), indices, sorted(metrics))
-                    if shape is None:
-                        shape = here
-                    elif here != shape:
-                        parts = ['algorithms', 'runs', 'steps', 'metrics']
-                        which = next(p for p, a, b in zip(parts, here, shape) if a != b)
-                        raise ValueError(f'{where}: its {which} differ from those of the first run of '
-                                         f'{environment!r} (marl-eval needs the same in every run)')
-                    _unique_by_case(metrics, f'{where}: metrics')
-                    out = {}
-                    for i in indices:
-                        step_count, values = steps[i]
-                        out[f'step_{i}'] = {STEP_COUNT: step_count, **values}
-                    out[ABSOLUTE] = dict(absolute)
-                    document[environment][task][algorithm][run] = out
-    return document
+
+def _checked_run(run: tuple[dict, dict], where: str, algorithms: dict, runs: dict) -> tuple:
+    """Check one run of the tree (evaluation steps and absolute metrics present, step counts increasing, the same
+    metrics at every step as in the absolute metrics); returns its shape (algorithms, runs, step indices, metrics),
+    which marl-eval needs equal in every run of an environment."""
+    steps, absolute = run
+    if not steps:
+        raise ValueError(f'{where}: no evaluation steps')
+    if not absolute:
+        raise ValueError(f'{where}: no absolute metrics (marl-eval needs them in every run)')
+    indices = sorted(steps)
+    counts = [steps[i][0] for i in indices]
+    if any(b <= a for a, b in zip(counts, counts[1:])):
+        raise ValueError(f'{where}: step_count must increase with the step index, got {counts}')
+    metrics = set(absolute)
+    for i in indices:
+        if set(steps[i][1]) != metrics:
+            raise ValueError(f'{where}/step_{i}: metrics {sorted(steps[i][1])}, but {ABSOLUTE} has {sorted(metrics)}')
+    _unique_by_case(metrics, f'{where}: metrics')
+    return sorted(algorithms), sorted(runs), indices, sorted(metrics)
+
+
+def _run_document(run: tuple[dict, dict]) -> dict:
+    """One run in marl-eval's layout: 'step_<i>' by index, each with its step count and metrics, then
+    'absolute_metrics'."""
+    steps, absolute = run
+    out = {f'step_{i}': {STEP_COUNT: steps[i][0], **steps[i][1]} for i in sorted(steps)}
+    out[ABSOLUTE] = dict(absolute)
+    return out
 
 
 def write_marl_eval(path: str | Path, records: Iterable[StepRecord | AbsoluteRecord]) -> Path:
