@@ -190,7 +190,9 @@ def _arrival(turn, rotation, times):
 
 @njit(cache=True)
 def plan(cameras, targets, obstacles, rows, previous, has_previous, aim, has_aim, times, weights, action) -> None:
-    """One step of the upper-bound rule (module docstring) for every game b with `rows[b]`.
+    """One step of the upper-bound rule (module docstring) for every game b with `rows[b]`: predict where the
+    targets will be, list each camera's candidate aims, mark what each aim covers on the way there, choose the
+    cameras' aims jointly, and turn the chosen aims into actions.
 
     Args:
         cameras: (B, Nc, 8) float64 per camera: x, y, R_s cos phi, R_s sin phi, theta (degrees), max sight
@@ -218,100 +220,12 @@ def plan(cameras, targets, obstacles, rows, previous, has_previous, aim, has_aim
     for b in range(num_rows):
         if not rows[b]:
             continue
-        for t in range(num_targets):
-            x, y = targets[b, t, 0], targets[b, t, 1]
-            vx, vy = 0.0, 0.0
-            if has_previous[b]:
-                vx, vy = x - previous[b, t, 0], y - previous[b, t, 1]
-            for i in range(num_times):
-                px[i, t] = min(max(x + times[i] * vx, -TERRAIN_SIZE), TERRAIN_SIZE)
-                py[i, t] = min(max(y + times[i] * vy, -TERRAIN_SIZE), TERRAIN_SIZE)
-            previous[b, t, 0], previous[b, t, 1] = x, y
-        has_previous[b] = True
+        _predict(targets, previous, has_previous, b, times, px, py)
         for c in range(num_cameras):
-            cx, cy, theta = cameras[b, c, 0], cameras[b, c, 1], cameras[b, c, 4]
-            rc, rs = cameras[b, c, 2], cameras[b, c, 3]
-            max_range, rotation, zooming = cameras[b, c, 5], cameras[b, c, 6], cameras[b, c, 7]
-            phi = math.atan2(rs, rc) * _RAD2DEG
-            area = theta * (rc * rc + rs * rs)
-            theta_min = area / (max_range * max_range)
-            for t in range(num_targets):
-                for i in range(num_times):
-                    dx, dy = px[i, t] - cx, py[i, t] - cy
-                    dist[t, i] = math.sqrt(dx * dx + dy * dy)
-                    bearing[t, i] = math.atan2(dy, dx) * _RAD2DEG
-                    visible[t, i] = not _occluded(cx, cy, max_range, obstacles, b, px[i, t], py[i, t])
-            # candidate aims
-            n = 0
-            aims[c, n, 0], aims[c, n, 1] = phi, theta
-            n += 1
-            if has_aim[b]:
-                aims[c, n, 0], aims[c, n, 1] = aim[b, c, 0], aim[b, c, 1]
-                n += 1
-            for t in range(num_targets):
-                i = _arrival(abs(_wrap(bearing[t, 0] - phi)), rotation, times)
-                if dist[t, i] > max_range:
-                    continue
-                reach = dist[t, i] * RANGE_MARGIN
-                angle = area / (reach * reach) if reach > 0.0 else MAX_CAMERA_VIEWING_ANGLE
-                aims[c, n, 0] = bearing[t, i]
-                aims[c, n, 1] = min(max(angle, theta_min), MAX_CAMERA_VIEWING_ANGLE)
-                n += 1
-            for t in range(num_targets):
-                for u in range(t + 1, num_targets):
-                    middle = bearing[t, 0] + 0.5 * _wrap(bearing[u, 0] - bearing[t, 0])
-                    i = _arrival(abs(_wrap(middle - phi)), rotation, times)
-                    far = max(dist[t, i], dist[u, i])
-                    if far > max_range:
-                        continue
-                    gap = _wrap(bearing[u, i] - bearing[t, i])
-                    reach = far * RANGE_MARGIN
-                    angle = min(area / (reach * reach), MAX_CAMERA_VIEWING_ANGLE) if reach > 0.0 \
-                        else MAX_CAMERA_VIEWING_ANGLE
-                    if abs(gap) + 2.0 * ANGLE_MARGIN > angle:
-                        continue
-                    aims[c, n, 0] = _wrap(bearing[t, i] + 0.5 * gap)
-                    aims[c, n, 1] = max(angle, theta_min)
-                    n += 1
-            count[c] = n
-            # what each aim covers on the way
-            for k in range(n):
-                turn = _wrap(aims[c, k, 0] - phi)
-                widen = aims[c, k, 1] - theta
-                for i in range(num_times):
-                    limit = times[i] * rotation
-                    orientation = phi + min(max(turn, -limit), limit)
-                    limit = times[i] * zooming
-                    angle = min(max(theta + min(max(widen, -limit), limit), theta_min), MAX_CAMERA_VIEWING_ANGLE)
-                    sight = math.sqrt(area / angle)
-                    bits = 0
-                    for t in range(num_targets):
-                        if visible[t, i] and dist[t, i] <= sight and \
-                                2.0 * abs(_wrap(bearing[t, i] - orientation)) <= angle:
-                            bits |= 1 << t
-                    masks[c, k, i] = bits
-        # the joint choice: the last aims and a greedy pass from each camera in turn, each improved by coordinate
-        # ascent; the best kept (the first on ties)
-        for c in range(num_cameras):
-            choice[c] = 1 if has_aim[b] else 0
-        best_score = _ascend(masks, count, choice, weights, rest, MAX_PASSES)
-        for first in range(num_cameras):
-            for i in range(num_times):
-                rest[i] = 0
-            for j in range(num_cameras):
-                c = (first + j) % num_cameras
-                best, score = 0, -1.0
-                for k in range(count[c]):
-                    gain = _gain(masks, c, k, rest, weights)
-                    if gain > score:
-                        best, score = k, gain
-                trial[c] = best
-                for i in range(num_times):
-                    rest[i] |= masks[c, best, i]
-            score = _ascend(masks, count, trial, weights, rest, MAX_PASSES)
-            if score > best_score:
-                best_score = score
-                choice[:] = trial
+            _sight_lines(cameras, obstacles, b, c, px, py, dist, bearing, visible)
+            count[c] = _candidate_aims(cameras, b, c, aim, has_aim, times, dist, bearing, aims)
+            _coverage_masks(cameras, b, c, count[c], times, dist, bearing, visible, aims, masks)
+        _joint_choice(masks, count, has_aim[b], weights, rest, choice, trial)
         for c in range(num_cameras):
             k = choice[c]
             aim[b, c, 0], aim[b, c, 1] = aims[c, k, 0], aims[c, k, 1]
@@ -321,6 +235,133 @@ def plan(cameras, targets, obstacles, rows, previous, has_previous, aim, has_aim
             action[b, c, 0] = min(max(_wrap(aims[c, k, 0] - phi), -rotation), rotation)
             action[b, c, 1] = min(max(aims[c, k, 1] - theta, -zooming), zooming)
         has_aim[b] = True
+
+
+@njit(cache=True)
+def _predict(targets, previous, has_previous, b, times, px, py) -> None:
+    """Game b's targets at each look-ahead time, moving on at their last step's velocity (px, py (T, Nt), inside
+    the terrain); remembers their positions now for the next step."""
+    for t in range(targets.shape[1]):
+        x, y = targets[b, t, 0], targets[b, t, 1]
+        vx, vy = 0.0, 0.0
+        if has_previous[b]:
+            vx, vy = x - previous[b, t, 0], y - previous[b, t, 1]
+        for i in range(times.shape[0]):
+            px[i, t] = min(max(x + times[i] * vx, -TERRAIN_SIZE), TERRAIN_SIZE)
+            py[i, t] = min(max(y + times[i] * vy, -TERRAIN_SIZE), TERRAIN_SIZE)
+        previous[b, t, 0], previous[b, t, 1] = x, y
+    has_previous[b] = True
+
+
+@njit(cache=True)
+def _sight_lines(cameras, obstacles, b, c, px, py, dist, bearing, visible) -> None:
+    """From camera c of game b to every predicted target position: distance, bearing (degrees) and whether no
+    obstacle hides it, (Nt, T) each."""
+    cx, cy, max_range = cameras[b, c, 0], cameras[b, c, 1], cameras[b, c, 5]
+    for t in range(px.shape[1]):
+        for i in range(px.shape[0]):
+            dx, dy = px[i, t] - cx, py[i, t] - cy
+            dist[t, i] = math.sqrt(dx * dx + dy * dy)
+            bearing[t, i] = math.atan2(dy, dx) * _RAD2DEG
+            visible[t, i] = not _occluded(cx, cy, max_range, obstacles, b, px[i, t], py[i, t])
+
+
+@njit(cache=True)
+def _candidate_aims(cameras, b, c, aim, has_aim, times, dist, bearing, aims) -> int:
+    """Camera c's candidate aims (orientation, viewing angle) into aims[c]: where it looks now, its last aim,
+    each target in range when the camera can first face it, and each pair of targets that fits in one view;
+    returns how many."""
+    theta, rc, rs = cameras[b, c, 4], cameras[b, c, 2], cameras[b, c, 3]
+    max_range, rotation = cameras[b, c, 5], cameras[b, c, 6]
+    phi = math.atan2(rs, rc) * _RAD2DEG
+    area = theta * (rc * rc + rs * rs)
+    theta_min = area / (max_range * max_range)
+    num_targets = dist.shape[0]
+    n = 0
+    aims[c, n, 0], aims[c, n, 1] = phi, theta
+    n += 1
+    if has_aim[b]:
+        aims[c, n, 0], aims[c, n, 1] = aim[b, c, 0], aim[b, c, 1]
+        n += 1
+    for t in range(num_targets):
+        i = _arrival(abs(_wrap(bearing[t, 0] - phi)), rotation, times)
+        if dist[t, i] > max_range:
+            continue
+        reach = dist[t, i] * RANGE_MARGIN
+        angle = area / (reach * reach) if reach > 0.0 else MAX_CAMERA_VIEWING_ANGLE
+        aims[c, n, 0] = bearing[t, i]
+        aims[c, n, 1] = min(max(angle, theta_min), MAX_CAMERA_VIEWING_ANGLE)
+        n += 1
+    for t in range(num_targets):
+        for u in range(t + 1, num_targets):
+            middle = bearing[t, 0] + 0.5 * _wrap(bearing[u, 0] - bearing[t, 0])
+            i = _arrival(abs(_wrap(middle - phi)), rotation, times)
+            far = max(dist[t, i], dist[u, i])
+            if far > max_range:
+                continue
+            gap = _wrap(bearing[u, i] - bearing[t, i])
+            reach = far * RANGE_MARGIN
+            angle = min(area / (reach * reach), MAX_CAMERA_VIEWING_ANGLE) if reach > 0.0 \
+                else MAX_CAMERA_VIEWING_ANGLE
+            if abs(gap) + 2.0 * ANGLE_MARGIN > angle:
+                continue
+            aims[c, n, 0] = _wrap(bearing[t, i] + 0.5 * gap)
+            aims[c, n, 1] = max(angle, theta_min)
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _coverage_masks(cameras, b, c, n, times, dist, bearing, visible, aims, masks) -> None:
+    """What each of camera c's n aims covers on the way there: masks[c, k, i], the bits of the targets in view at
+    look-ahead time i while the camera turns and zooms towards aim k at its action box's pace."""
+    theta, rc, rs = cameras[b, c, 4], cameras[b, c, 2], cameras[b, c, 3]
+    max_range, rotation, zooming = cameras[b, c, 5], cameras[b, c, 6], cameras[b, c, 7]
+    phi = math.atan2(rs, rc) * _RAD2DEG
+    area = theta * (rc * rc + rs * rs)
+    theta_min = area / (max_range * max_range)
+    for k in range(n):
+        turn = _wrap(aims[c, k, 0] - phi)
+        widen = aims[c, k, 1] - theta
+        for i in range(times.shape[0]):
+            limit = times[i] * rotation
+            orientation = phi + min(max(turn, -limit), limit)
+            limit = times[i] * zooming
+            angle = min(max(theta + min(max(widen, -limit), limit), theta_min), MAX_CAMERA_VIEWING_ANGLE)
+            sight = math.sqrt(area / angle)
+            bits = 0
+            for t in range(dist.shape[0]):
+                if visible[t, i] and dist[t, i] <= sight and \
+                        2.0 * abs(_wrap(bearing[t, i] - orientation)) <= angle:
+                    bits |= 1 << t
+            masks[c, k, i] = bits
+
+
+@njit(cache=True)
+def _joint_choice(masks, count, had_aim, weights, rest, choice, trial) -> None:
+    """The cameras' aims chosen jointly into `choice`: the last aims and a greedy pass from each camera in turn,
+    each improved by coordinate ascent; the best kept (the first on ties)."""
+    num_cameras, num_times = count.shape[0], rest.shape[0]
+    for c in range(num_cameras):
+        choice[c] = 1 if had_aim else 0
+    best_score = _ascend(masks, count, choice, weights, rest, MAX_PASSES)
+    for first in range(num_cameras):
+        for i in range(num_times):
+            rest[i] = 0
+        for j in range(num_cameras):
+            c = (first + j) % num_cameras
+            best, score = 0, -1.0
+            for k in range(count[c]):
+                gain = _gain(masks, c, k, rest, weights)
+                if gain > score:
+                    best, score = k, gain
+            trial[c] = best
+            for i in range(num_times):
+                rest[i] |= masks[c, best, i]
+        score = _ascend(masks, count, trial, weights, rest, MAX_PASSES)
+        if score > best_score:
+            best_score = score
+            choice[:] = trial
 
 
 # ---------------------------------------------------------------------------- reading the observations
