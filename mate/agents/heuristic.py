@@ -167,30 +167,10 @@ def joint_assignment(cameras, targets, coord_grid, scores, state_mesh, permutati
     hits = np.zeros((n, num_poses, m), dtype=np.bool_)
     in_reach = np.zeros(n, dtype=np.bool_)
     orientation = np.empty(n)
-    for c in range(n):
-        x, y, max_range = cameras[c, 0], cameras[c, 1], cameras[c, 6]
-        orientation[c] = math.atan2(cameras[c, 4], cameras[c, 3]) * (180.0 / math.pi)
-        for t in range(m):
-            dx, dy = targets[t, 0] - x, targets[t, 1] - y
-            if math.sqrt(dx * dx + dy * dy) <= max_range:
-                in_reach[c] = True
-                g = _nearest_grid_point(coord_grid, dx, dy)
-                for p in range(num_poses):
-                    s = scores[g, p]
-                    summed[c, p] += s
-                    if s > 0.0:
-                        hits[c, p, t] = True
-
+    _pose_scores(cameras, targets, coord_grid, scores, summed, hits, in_reach, orientation)
     # the pose a camera picks depends only on which of its own in-reach targets are covered: memoise
-    in_reach_bits = np.zeros(n, dtype=np.int64)
     can_memoise = m <= 62
-    if can_memoise:
-        for c in range(n):
-            for t in range(m):
-                for p in range(num_poses):
-                    if hits[c, p, t]:
-                        in_reach_bits[c] |= np.int64(1) << t
-                        break
+    in_reach_bits = _in_reach_bits(hits) if can_memoise else np.zeros(n, dtype=np.int64)
     memo_key = np.full((n, 64), -1, dtype=np.int64)
     memo_pose = np.zeros((n, 64), dtype=np.int64)
     memo_size = np.zeros(n, dtype=np.int64)
@@ -202,59 +182,103 @@ def joint_assignment(cameras, targets, coord_grid, scores, state_mesh, permutati
     covered = np.zeros(m, dtype=np.bool_)
     for k in range(permutations.shape[0]):
         order = permutations[k]
-        covered[:] = False
-        covered_bits = np.int64(0)
-        total, cost = 0.0, 0.0
-        for j in range(n):
-            c = order[j]
-            pose = -1
-            if can_memoise:
-                key = covered_bits & in_reach_bits[c]
-                for e in range(memo_size[c]):
-                    if memo_key[c, e] == key:
-                        pose = memo_pose[c, e]
-                        break
-            if pose < 0:
-                pose = _best_pose(summed[c], hits[c], covered, m)
-                if can_memoise and memo_size[c] < 64:
-                    memo_key[c, memo_size[c]] = covered_bits & in_reach_bits[c]
-                    memo_pose[c, memo_size[c]] = pose
-                    memo_size[c] += 1
-            poses[j] = pose
-            cost += max(abs(state_mesh[pose, 0] - orientation[c]) / rotation_step,
-                        abs(state_mesh[pose, 1] - cameras[c, 5]) / zooming_step)
-            for t in range(m):
-                if hits[c, pose, t] and not covered[t]:
-                    covered[t] = True
-                    if can_memoise:
-                        covered_bits |= np.int64(1) << t
-            total += summed[c, pose]
-        num_covered = 0
-        for t in range(m):
-            if covered[t]:
-                num_covered += 1
-        total += num_covered
-        better = False
-        if total != best_total:
-            better = total > best_total
-        elif cost != best_cost:
-            better = cost < best_cost
-        else:
-            decided = False
-            for j in range(n):
-                if order[j] != best_order[j]:
-                    better, decided = order[j] > best_order[j], True
-                    break
-            if not decided:
-                for j in range(n):
-                    if poses[j] != best_poses[j]:
-                        better = poses[j] > best_poses[j]
-                        break
-        if better:
+        total, cost = _assign(order, cameras, summed, hits, state_mesh, orientation, rotation_step, zooming_step,
+                              can_memoise, in_reach_bits, memo_key, memo_pose, memo_size, poses, covered)
+        if _better(total, cost, order, poses, best_total, best_cost, best_order, best_poses):
             best_total, best_cost = total, cost
             for j in range(n):  # not a slice copy: that compiles numba's shape-mismatch error (40% of the compile)
                 best_order[j], best_poses[j] = order[j], poses[j]
     return best_order, best_poses, in_reach
+
+
+@njit(cache=True)
+def _pose_scores(cameras, targets, coord_grid, scores, summed, hits, in_reach, orientation) -> None:
+    """Per camera and pose: the summed scores of the camera's in-reach targets (summed (n, P)), which of them the
+    pose covers (hits (n, P, m)), whether any target is in reach (n,), and the camera's orientation (degrees)."""
+    for c in range(cameras.shape[0]):
+        x, y, max_range = cameras[c, 0], cameras[c, 1], cameras[c, 6]
+        orientation[c] = math.atan2(cameras[c, 4], cameras[c, 3]) * (180.0 / math.pi)
+        for t in range(targets.shape[0]):
+            dx, dy = targets[t, 0] - x, targets[t, 1] - y
+            if math.sqrt(dx * dx + dy * dy) <= max_range:
+                in_reach[c] = True
+                g = _nearest_grid_point(coord_grid, dx, dy)
+                for p in range(scores.shape[1]):
+                    s = scores[g, p]
+                    summed[c, p] += s
+                    if s > 0.0:
+                        hits[c, p, t] = True
+
+
+@njit(cache=True)
+def _in_reach_bits(hits):
+    """(n,) the bits of the targets some pose of each camera covers (m <= 62)."""
+    n, num_poses, m = hits.shape
+    bits = np.zeros(n, dtype=np.int64)
+    for c in range(n):
+        for t in range(m):
+            for p in range(num_poses):
+                if hits[c, p, t]:
+                    bits[c] |= np.int64(1) << t
+                    break
+    return bits
+
+
+@njit(cache=True)
+def _assign(order, cameras, summed, hits, state_mesh, orientation, rotation_step, zooming_step, can_memoise,
+            in_reach_bits, memo_key, memo_pose, memo_size, poses, covered):
+    """The cameras of `order` take their poses in turn (into `poses`, `covered` the targets covered); returns the
+    order's (total score + targets covered, total cost)."""
+    m = covered.shape[0]
+    covered[:] = False
+    covered_bits = np.int64(0)
+    total, cost = 0.0, 0.0
+    for j in range(order.shape[0]):
+        c = order[j]
+        pose = -1
+        if can_memoise:
+            key = covered_bits & in_reach_bits[c]
+            for e in range(memo_size[c]):
+                if memo_key[c, e] == key:
+                    pose = memo_pose[c, e]
+                    break
+        if pose < 0:
+            pose = _best_pose(summed[c], hits[c], covered, m)
+            if can_memoise and memo_size[c] < 64:
+                memo_key[c, memo_size[c]] = covered_bits & in_reach_bits[c]
+                memo_pose[c, memo_size[c]] = pose
+                memo_size[c] += 1
+        poses[j] = pose
+        cost += max(abs(state_mesh[pose, 0] - orientation[c]) / rotation_step,
+                    abs(state_mesh[pose, 1] - cameras[c, 5]) / zooming_step)
+        for t in range(m):
+            if hits[c, pose, t] and not covered[t]:
+                covered[t] = True
+                if can_memoise:
+                    covered_bits |= np.int64(1) << t
+        total += summed[c, pose]
+    num_covered = 0
+    for t in range(m):
+        if covered[t]:
+            num_covered += 1
+    return total + num_covered, cost
+
+
+@njit(cache=True)
+def _better(total, cost, order, poses, best_total, best_cost, best_order, best_poses) -> bool:
+    """Whether an order rated (total, cost, order, poses) beats the best so far, compared lexicographically (a
+    larger total, then a smaller cost, then the larger order, then the larger poses)."""
+    if total != best_total:
+        return total > best_total
+    if cost != best_cost:
+        return cost < best_cost
+    for j in range(order.shape[0]):
+        if order[j] != best_order[j]:
+            return order[j] > best_order[j]
+    for j in range(order.shape[0]):
+        if poses[j] != best_poses[j]:
+            return poses[j] > best_poses[j]
+    return False
 
 
 class HeuristicCameraAgent(CameraAgentBase):
