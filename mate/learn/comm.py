@@ -252,6 +252,13 @@ class I2CActor(nn.Module):
         x = torch.cat([obs.unsqueeze(-2).expand(*obs.shape[:-1], slots, obs.shape[-1]), one_hot], dim=-1)
         return self.prior(x.transpose(-2, -3), agents).squeeze(-1).transpose(-1, -2)
 
+    @torch.no_grad()
+    def requested(self, obs: torch.Tensor, agent: int) -> np.ndarray:
+        """(1, D) agent `agent`'s features -> the teammates (indices in the team) it asks at a decision: those of the
+        cyclic slots whose request logit is >= 0 (what a deployed agent sends its requests to)."""
+        logits = self.request_logits(obs, torch.tensor([agent], device=obs.device))[0]
+        return (agent + 1 + np.flatnonzero(logits.cpu().numpy() >= 0)) % self.num_agents
+
     def _per_slot(self, layer: AgentwiseMLP, x: torch.Tensor, agents) -> torch.Tensor:
         """An agentwise layer on (..., n, K, F): agent i's weights on each of its K slots."""
         return layer(x.transpose(-2, -3), agents).transpose(-2, -3)

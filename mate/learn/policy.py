@@ -146,13 +146,12 @@ class LoadedPolicy:
             outputs, memory = self.actor.step(obs, memory, **inputs)
         return outputs.cpu().numpy(), memory
 
-    @torch.no_grad()
     def requests(self, features: np.ndarray, agent: int) -> np.ndarray:
-        """I2C: the teammates (indices in the team) that agent `agent` asks, from its features (D,)."""
+        """The teammates (indices in the team) agent `agent` asks before acting, from its features (D,): the actor's
+        own `requested` (an actor whose agents ask their teammates: I2C's)."""
         with torch_threads(self.threads):
-            features = torch.as_tensor(features[None], dtype=torch.float32, device=self.device)
-            logits = self.actor.request_logits(features, torch.tensor([agent], device=self.device))[0]
-        return (agent + 1 + np.flatnonzero(logits.cpu().numpy() >= 0)) % self.actor.num_agents
+            return self.actor.requested(torch.as_tensor(features[None], dtype=torch.float32, device=self.device),
+                                        agent)
 
 
 def _actor_weights(data: dict) -> dict:
