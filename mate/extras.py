@@ -13,6 +13,7 @@ extras add the rest:
 | `wandb`      | wandb                                   | `mate train --wandb` (Weights & Biases logging)         |
 | `docs`       | mkdocs, mkdocs-material, mkdocstrings   | the documentation site                                  |
 | `gpu`        | numba-cuda (with NVVM)                  | the core on a CUDA device (`mate.core.device`)          |
+| `torchrl`    | torchrl, tensordict                     | `mate.integrations.torchrl`                             |
 | `all`        | render, pettingzoo, train               |                                                         |
 | `test`       | pytest, hypothesis and what the tests use |                                                       |
 
@@ -37,6 +38,7 @@ EXTRAS = {
     'wandb': ('wandb',),
     'docs': ('mkdocs',),
     'gpu': ('numba_cuda',),
+    'torchrl': ('torchrl',),
 }
 """extra -> the top-level modules it installs that the package imports (the table of the module docstring)."""
 

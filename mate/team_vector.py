@@ -25,7 +25,8 @@ Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
   next episode and returns reward 0, terminated = truncated = False), or `same_step` (`infos['final_obs']` holds
   the ended episodes' last observations); the opponent starts its episode where the game does.
 * **infos**: a dict of (B,) arrays (`coverage_rate`, `real_coverage_rate`, `mean_transport_rate`,
-  `num_delivered_cargoes`, `episode_step`); on a step where games end, `infos['episode']` holds each ended
+  `num_delivered_cargoes`, `episode_step`, and the episode so far as the core counts it: `episode_coverage_rate`,
+  `episode_real_coverage_rate`, `episode_target_return`); on a step where games end, `infos['episode']` holds each ended
   game's statistics with the mask `infos['_episode']` (Gymnasium's `RecordEpisodeStatistics` form): `r` the
   summed reward of the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps,
   `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end),

@@ -18,7 +18,7 @@ import pytest  # noqa: E402
 
 EXTRAS = {'ray': 'rllib', 'ray.rllib': 'rllib', 'torch': 'train', 'tensorboard': 'train', 'pettingzoo': 'pettingzoo',
           'pygame': 'render', 'matplotlib': 'train', 'scipy': 'train', 'mkdocs': 'docs', 'griffe': 'docs',
-          'numba_cuda': 'gpu'}
+          'numba_cuda': 'gpu', 'torchrl': 'torchrl', 'tensordict': 'torchrl'}
 """Optional modules and the extra of pyproject.toml that installs each."""
 
 

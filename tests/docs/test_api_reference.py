@@ -40,6 +40,7 @@ def public_names() -> dict[str, object]:
     modules = [mate.wrappers, mate.agents, mate.learn, mate.integrations.pettingzoo, mate.benchmark]
     if HAVE_RAY:
         modules.append(importlib.import_module(RLLIB))
+    modules.append(importlib.import_module('mate.integrations.torchrl'))   # the torchrl extra (in the test extra)
     names = {f'mate.{name}': getattr(mate, name) for name in dir(mate)
              if not name.startswith('_') and not isinstance(getattr(mate, name), types.ModuleType)}
     for module in modules:

@@ -1,0 +1,112 @@
+"""TorchRL: one team's batch of MATE games as a TorchRL `EnvBase` (the torchrl extra: `pip install -e '.[torchrl]'`).
+
+    from mate.integrations.torchrl import MateTorchRLEnv
+    from torchrl.envs.utils import check_env_specs
+
+    env = MateTorchRLEnv('MATE-4v8-9', team='camera', num_envs=64)   # the cameras vs the greedy targets
+    check_env_specs(env)
+    rollout = env.rollout(100)                    # random actions: a TensorDict of batch size (64, 100)
+    rollout['camera', 'observation'].shape        # (64, 100, 4, D)
+
+Over `mate.make_team_vec` (`SingleTeamVecEnv`: B games of the trained team, the other played inside by a batched
+team, the greedy rules by default), in TorchRL's multi-agent layout (as VMAS and PettingZoo's wrappers use it): the
+team is a group named after it, with `(team, 'observation')` (B, N, D), `(team, 'action')` (B, N, 2) bounded by
+the action box, `(team, 'reward')` (B, N, 1) (the team reward repeated to every agent, or each agent's own for the
+'own' and 'difference' rewards), and `done`, `terminated`, `truncated` (B, 1) at the root. A game that ends shows
+its last observation with done; TorchRL's partial reset (`_reset` mask) then hands out the next episode's first
+observation, which the batch had already started (same-step autoreset). `set_seed(s)` seeds game i with s + i at
+the next full reset, as `make_team_vec` does. Tensors live on `device` (the games on the CPU: the numba core).
+
+BenchMARL builds its tasks on TorchRL environments; its releases pin torchrl below 0.12, this adapter is tested
+with the torchrl that installs beside this package's torch (docs/ecosystem notes in docs/training.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from ..team_vector import make_team_vec
+
+__all__ = ['MateTorchRLEnv']
+
+
+class MateTorchRLEnv(EnvBase):
+    """B games of one team of MATE as a TorchRL environment (module docstring).
+
+    Args:
+        config: a preset name, a config file or dict (`mate.make_team_vec`).
+        team: 'camera' or 'target', the team the actions drive; also the group's key.
+        num_envs: B, the games stepped at once.
+        device: where the tensors are returned ('cpu', 'cuda', ...).
+        **kwargs: more `mate.make_team_vec` options: `reward`, `opponent`, `max_episode_steps`, ...
+    """
+
+    def __init__(self, config=None, team: str = 'camera', num_envs: int = 64, device='cpu', **kwargs):
+        if 'autoreset_mode' in kwargs:
+            raise ValueError('MateTorchRLEnv sets autoreset_mode itself (TorchRL resets finished games with _reset)')
+        self.envs = make_team_vec(config, team=team, num_envs=num_envs, observation_dtype=np.float32,
+                                  autoreset_mode='same_step', **kwargs)
+        super().__init__(batch_size=torch.Size([num_envs]), device=device)
+        self.group = team
+        B, (N, D) = num_envs, self.envs.single_observation_space.shape
+        box = self.envs.single_action_space
+        agents = torch.Size([B, N])
+        self.observation_spec = Composite(
+            {team: Composite(observation=Unbounded(shape=(B, N, D), dtype=torch.float32, device=self.device),
+                             shape=agents)}, shape=self.batch_size, device=self.device)
+        low = torch.as_tensor(np.broadcast_to(box.low, (B, N, 2)).copy(), dtype=torch.float32)
+        high = torch.as_tensor(np.broadcast_to(box.high, (B, N, 2)).copy(), dtype=torch.float32)
+        self.action_spec = Composite(
+            {team: Composite(action=Bounded(low=low, high=high, shape=(B, N, 2), dtype=torch.float32,
+                                            device=self.device), shape=agents)},
+            shape=self.batch_size, device=self.device)
+        self.reward_spec = Composite(
+            {team: Composite(reward=Unbounded(shape=(B, N, 1), dtype=torch.float32, device=self.device),
+                             shape=agents)}, shape=self.batch_size, device=self.device)
+        flag = Categorical(2, shape=(B, 1), dtype=torch.bool, device=self.device)
+        self.done_spec = Composite(done=flag, terminated=flag.clone(), truncated=flag.clone(), shape=self.batch_size,
+                                   device=self.device)
+        self._seed: int | None = None
+        self._current: np.ndarray | None = None     # (B, N, D) the games' observations now (new episodes included)
+
+    def _set_seed(self, seed: int | None) -> None:
+        self._seed = seed
+
+    def _tensor(self, array: np.ndarray, dtype=torch.float32) -> torch.Tensor:
+        return torch.as_tensor(np.ascontiguousarray(array), dtype=dtype, device=self.device)
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        partial = tensordict is not None and '_reset' in tensordict.keys() and self._current is not None
+        if not partial:
+            seed, self._seed = self._seed, None
+            self._current, _ = self.envs.reset(seed=seed)
+        flags = torch.zeros(self.batch_size + (1,), dtype=torch.bool, device=self.device)
+        return TensorDict({self.group: TensorDict({'observation': self._tensor(self._current)},
+                                                  batch_size=self.batch_size + self._current.shape[1:2]),
+                           'done': flags, 'terminated': flags.clone(), 'truncated': flags.clone()},
+                          batch_size=self.batch_size, device=self.device)
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        actions = tensordict.get((self.group, 'action')).detach().to('cpu', torch.float64).numpy()
+        observations, rewards, terminated, truncated, infos = self.envs.step(actions)
+        self._current = observations
+        shown = observations
+        ended = terminated | truncated
+        if ended.any():                               # the ended games show their last observation
+            shown = observations.copy()
+            for i in np.flatnonzero(ended):
+                shown[i] = infos['final_obs'][i]
+        N = observations.shape[1]
+        rewards = np.asarray(rewards, dtype=np.float32)
+        rewards = np.broadcast_to(rewards[:, None], (len(rewards), N)) if rewards.ndim == 1 else rewards
+        agents = self.batch_size + torch.Size([N])
+        return TensorDict({self.group: TensorDict({'observation': self._tensor(shown),
+                                                   'reward': self._tensor(rewards[..., None])}, batch_size=agents),
+                           'done': self._tensor(ended[:, None], torch.bool),
+                           'terminated': self._tensor(terminated[:, None], torch.bool),
+                           'truncated': self._tensor(truncated[:, None], torch.bool)},
+                          batch_size=self.batch_size, device=self.device)

@@ -1,0 +1,63 @@
+"""`mate.integrations.torchrl.MateTorchRLEnv`: TorchRL's own spec checks pass, and its games are those of
+`mate.make_team_vec` with the same seed and actions, episode ends and partial resets included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mate   # before torch: MATE_REPRODUCIBLE pins torch's kernels as torch loads
+from conftest import needs_extra
+
+torch = needs_extra('torch')
+needs_extra('torchrl')
+
+from torchrl.envs.utils import check_env_specs  # noqa: E402
+
+from mate.integrations.torchrl import MateTorchRLEnv  # noqa: E402
+
+
+@pytest.mark.parametrize('config, team, reward', [('MATE-4v8-9', 'camera', 'team'), ('MATE-2v4-0', 'target', 'own')])
+def test_torchrls_checks_pass(config, team, reward):
+    env = MateTorchRLEnv(config, team=team, num_envs=3, reward=reward, max_episode_steps=6)
+    check_env_specs(env)
+    n = env.envs.num_agents
+    assert env.full_observation_spec[team, 'observation'].shape[-2] == n
+    assert env.full_reward_spec[team, 'reward'].shape == (3, n, 1)
+
+
+def test_the_rollout_is_the_single_team_envs_games():
+    B, steps, horizon = 3, 20, 7
+    env = MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=horizon)
+    env.set_seed(11)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-20, 20, (steps, B, env.envs.num_agents, 2)).astype(np.float32)
+    td = env.reset()
+    reference = mate.make_team_vec('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=horizon,
+                                   autoreset_mode='same_step', observation_dtype=np.float32)
+    expected, _ = reference.reset(seed=11)
+    assert np.array_equal(td['target', 'observation'].numpy(), expected)
+    ended_any = False
+    for step in range(steps):
+        td.set(('target', 'action'), torch.from_numpy(actions[step]))
+        td = env.step(td)
+        observations, rewards, terminated, truncated, infos = reference.step(actions[step].astype(np.float64))
+        done = terminated | truncated
+        shown = observations.copy()
+        for i in np.flatnonzero(done):
+            shown[i] = infos['final_obs'][i]
+        assert np.array_equal(td['next', 'target', 'observation'].numpy(), shown)
+        assert np.array_equal(td['next', 'target', 'reward'].numpy()[..., 0], np.broadcast_to(
+            rewards[:, None], shown.shape[:2]).astype(np.float32))
+        assert np.array_equal(td['next', 'done'].numpy()[:, 0], done)
+        td = env.step_mdp(td)
+        if done.any():
+            ended_any = True
+            td = env.reset(td.set('_reset', torch.from_numpy(done[:, None])))
+            assert np.array_equal(td['target', 'observation'].numpy(), observations)   # the next episodes' first
+    assert ended_any
+
+
+def test_autoreset_is_the_adapters_own():
+    with pytest.raises(ValueError, match='autoreset_mode'):
+        MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=2, autoreset_mode='next_step')
