@@ -31,7 +31,7 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'make_vec', 'AutoresetMode']
 
-STEP_OUTPUTS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
+ADDED_FIELDS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
 """World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
 episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
 INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step',
@@ -356,10 +356,10 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def load_state_dict(self, state: dict) -> None:
         """Restore `state_dict()`'s output in place (ValueError if it was taken from another game or batch)."""
         world = state['world']
-        if set(world) | STEP_OUTPUTS != set(self._world._fields) | STEP_OUTPUTS:
+        if set(world) | ADDED_FIELDS != set(self._world._fields) | ADDED_FIELDS:
             raise ValueError('state_dict: the world fields differ from this env\'s (another version of mate?)')
         for name in self._world._fields:
-            if name not in world:          # a step's output, written anew by the next step (an older state)
+            if name not in world:          # a field an earlier version did not have (ADDED_FIELDS): zero
                 getattr(self._world, name).fill(0)
                 continue
             target, value = getattr(self._world, name), np.asarray(world[name])

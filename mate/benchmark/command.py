@@ -153,20 +153,14 @@ def _say(console):
 
 def _job(args: argparse.Namespace, say) -> int:
     from .directory import read_manifest
-    from .experiments import experiment_of
-    from .jobs import job_values
-    from .user import run_user_job
+    from .user import run_user_job, user_job
 
     try:
         manifest = read_manifest(args.dir)
-        experiment = experiment_of(manifest)
-        setting = next((s for s in experiment.settings if s.label == args.label), None)
-        if setting is None or setting.kind not in ('argv', 'call'):
-            raise ValueError(f'{args.label!r} is no command-line or function setting of {experiment.name}')
+        setting, values = user_job(manifest, args.dir, args.label, args.preset, args.seed, args.threads)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
-    values = job_values(experiment, args.preset, args.seed, manifest['steps'], args.dir, args.threads, setting)
-    return run_user_job(setting, values, experiment.eval_episodes, say=say)
+    return run_user_job(setting, values, values['eval_episodes'], say=say)
 
 
 def _experiment(name: str):

@@ -143,13 +143,10 @@ def _parser(words: tuple[str, ...]):
 def _user_setting(parsed) -> dict:
     """What a user's setting's job (`mate benchmark job DIR LABEL PRESET SEED`) computes beside its arguments: the
     setting's definition in the directory's manifest and the values the benchmark gives it (no run directory)."""
-    from .experiments import experiment_of
-    from .jobs import job_values
+    from .user import user_job
 
     manifest = json.loads((Path(parsed.dir) / 'benchmark.json').read_text())
-    experiment = experiment_of(manifest)
-    setting = next(s for s in experiment.settings if s.label == parsed.label)
-    values = job_values(experiment, parsed.preset, parsed.seed, manifest['steps'], parsed.dir, parsed.threads, setting)
+    setting, values = user_job(manifest, parsed.dir, parsed.label, parsed.preset, parsed.seed, parsed.threads)
     values.pop('run_dir')
     return dict(setting=setting.to_dict(), values=values)
 

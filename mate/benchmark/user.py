@@ -43,7 +43,7 @@ from pathlib import Path
 from .experiments import Experiment, Setting
 
 __all__ = ['ENVIRONMENT_PREFIX', 'EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'environment', 'is_experiment_file',
-           'load_experiment', 'run_user_job']
+           'load_experiment', 'run_user_job', 'user_job']
 
 EXPERIMENT_SUFFIXES = ('.py', '.yaml', '.yml', '.json')
 """The files `mate benchmark run FILE` reads as an experiment."""
@@ -124,6 +124,20 @@ def _function(reference: str):
     if not callable(function):
         raise ValueError(f'{reference}: {name!r} is not a function of {where}')
     return function
+
+
+def user_job(manifest: dict, folder, label: str, preset: str, seed: int, threads: int) -> tuple[Setting, dict]:
+    """(setting, values) of a user's setting's job (`mate benchmark job FOLDER LABEL PRESET SEED`) in the benchmark
+    directory `folder` of `manifest`: the command-line or function setting `label` of its experiment and what the
+    benchmark gives it (`jobs.job_values`); ValueError when `label` is no such setting."""
+    from .experiments import experiment_of
+    from .jobs import job_values
+
+    experiment = experiment_of(manifest)
+    setting = next((s for s in experiment.settings if s.label == label), None)
+    if setting is None or setting.kind not in ('argv', 'call'):
+        raise ValueError(f'{label!r} is no command-line or function setting of {experiment.name}')
+    return setting, job_values(experiment, preset, seed, manifest['steps'], folder, threads, setting)
 
 
 def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> int:

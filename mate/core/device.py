@@ -2,7 +2,7 @@
 
 The CPU core steps its B games in loops over rows (`engine._step_rows`): `advance_row` (cameras act, targets move,
 perception with occlusion, cargo, rewards, counters, episode end), then `joint_observation`; a reset runs
-`reset_row` (spawn, from each row's own random stream), `update_coverage` and `joint_observation`. Here each of those
+`start_row` (spawn from each row's own random stream, then its first observations). Here each of those
 loops is a CUDA kernel whose thread b runs the very same functions on row b: the rules of the game are written once,
 in `mate.core`, and numba-cuda compiles them as device functions (numba's CPU functions called from a CUDA kernel are
 compiled for the device). The world, the parameters and the observation buffers live on the device as named tuples
@@ -36,11 +36,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .engine import advance_row
-from .observe import joint_observation, update_coverage
+from .engine import advance_row, seed_streams, start_row
+from .observe import joint_observation
 from .params import Params
-from .rng import key_from_seed
-from .spawn import reset_row
 from .world import World, empty_world
 
 __all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Rows', 'compile_ptx', 'cuda_module', 'kernels']
@@ -87,9 +85,7 @@ def _step(p, w, rows):
 def _reset(p, w, rows):
     b = cuda.grid(1)
     if b < w.episode_step.shape[0] and rows.mask[b]:
-        reset_row(p, w, b)
-        update_coverage(p, w, b)
-        joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+        start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
 def _kernel_functions() -> dict:
@@ -168,7 +164,6 @@ class DeviceCore:
     def __init__(self, params: Params, batch_size: int, observation_dims: tuple[int, int], dtype=np.float64,
                  block: int = BLOCK):
         self.cuda = cuda_module()
-        self.params_host = params
         self.batch_size = int(batch_size)
         self.block = int(block)
         to_device = self.cuda.to_device
@@ -201,13 +196,11 @@ class DeviceCore:
         if mask.shape != (self.batch_size,):
             raise ValueError(f'reset mask: expected shape ({self.batch_size},), got {mask.shape}')
         if seeds is not None:
-            rng = self.world.rng.copy_to_host()
-            rows = np.flatnonzero(mask)
             seeds = list(seeds)
-            if len(seeds) != len(rows):
-                raise ValueError(f'reset: {len(rows)} games reset, {len(seeds)} seeds given')
-            for b, seed in zip(rows, seeds):
-                rng[b, 0], rng[b, 1] = key_from_seed(seed), 0
+            if len(seeds) != mask.sum():
+                raise ValueError(f'reset: {mask.sum()} games reset, {len(seeds)} seeds given')
+            rng = self.world.rng.copy_to_host()
+            seed_streams(rng, mask, seeds)
             self.world.rng.copy_to_device(rng)
         self.rows.mask.copy_to_device(mask)
         self._launch('reset')

@@ -78,12 +78,19 @@ def _step_rows(p, w, camera_actions, target_actions, camera_obs, target_obs):
             joint_observation(p, w, b, camera_obs[b], target_obs[b])
 
 
+@inline_kernel
+def start_row(p, w, b, camera_out, target_out):
+    """Start row b's episode (`reset_row`: spawn from its random stream) and write its first observations
+    camera_out (Nc, D_c), target_out (Nt, D_t): the reset of one game, on the CPU and on a device."""
+    reset_row(p, w, b)
+    update_coverage(p, w, b)
+    joint_observation(p, w, b, camera_out, target_out)
+
+
 def _reset_rows(p, w, mask, camera_obs, target_obs):
     for b in range(w.episode_step.shape[0]):
         if mask[b]:
-            reset_row(p, w, b)
-            update_coverage(p, w, b)
-            joint_observation(p, w, b, camera_obs[b], target_obs[b])
+            start_row(p, w, b, camera_obs[b], target_obs[b])
 
 
 def _observe_rows(p, w, camera_obs, target_obs):
@@ -141,10 +148,15 @@ def _run(kernel, params: Params, world: World, *row_arrays) -> None:
 def seed_rows(world: World, mask: np.ndarray, seeds) -> None:
     """Give the rows where mask (B,) is true fresh random streams derived from `seeds`
     (one int or None per selected row; None draws OS entropy)."""
+    seed_streams(world.rng, mask, seeds)
+
+
+def seed_streams(rng: np.ndarray, mask: np.ndarray, seeds) -> None:
+    """`seed_rows` on a world's stream array `rng` (B, 2) alone (a host copy of a device world's, say)."""
     rows = np.flatnonzero(mask)
     for b, seed in zip(rows, seeds, strict=True):
-        world.rng[b, 0] = key_from_seed(seed)
-        world.rng[b, 1] = 0
+        rng[b, 0] = key_from_seed(seed)
+        rng[b, 1] = 0
 
 
 def reset(params: Params, world: World, mask: np.ndarray, camera_obs: np.ndarray, target_obs: np.ndarray) -> None:
