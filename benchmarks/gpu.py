@@ -13,6 +13,13 @@ CPU core's.
    observations built every step, float64 and float32 observations) at each batch size, timed over `--seconds`
    after a warm-up, with the device synchronised.
 
+3. **The whole game.** env-steps/s of `make_vec(..., device='cuda')` with both teams greedy on the device
+   (`mate.teams.device`: observe, messages, act, the step, autoreset; nothing on the host) at each batch size, and
+   of greedy cameras against random targets.
+4. **Greedy vs greedy.** 300 games of MATE-4v8-9 (seeds 0-299), greedy teams on the device, each to the end of its
+   first episode: the mean episode coverage rate and its standard error, beside the CPU teams' on the same seeds
+   (`play_batch`); the issue's bar is a difference within 3 standard errors.
+
 Writes a JSON record (the device, the versions, every number) and prints one line per measurement; under 8 minutes
 on one H200 with the defaults. Needs a CUDA GPU and the gpu extra (`pip install -e '.[gpu]'`).
 """
@@ -96,6 +103,54 @@ def speed(preset: str, batch_size: int, seconds: float, dtype) -> dict:
                 env_steps_per_second=steps * batch_size / elapsed)
 
 
+def whole_game(preset: str, batch_size: int, seconds: float, target_agent: str = 'greedy') -> dict:
+    """env-steps/s of the device env with both teams played on the device (module docstring, 3)."""
+    import mate
+
+    cuda = cuda_module()
+    env = mate.make_vec('MultiAgentTracking-v0', batch_size, config=preset, device='cuda', camera_agent='greedy',
+                        target_agent=target_agent, observation_dtype=np.float32)
+    env.reset(seed=0)
+    for _ in range(8):
+        env.step()
+    cuda.synchronize()
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for _ in range(32):
+            env.step()
+        cuda.synchronize()
+        steps += 32
+    elapsed = time.perf_counter() - start
+    return dict(preset=preset, batch_size=batch_size, teams=f'greedy vs {target_agent}', steps=steps,
+                seconds=elapsed, env_steps_per_second=steps * batch_size / elapsed)
+
+
+def greedy_statistics(preset: str = 'MATE-4v8-9', seeds: int = 300) -> dict:
+    """Greedy vs greedy on the device and on the CPU, the same seeds (module docstring, 4)."""
+    import mate
+    from mate.teams import GreedyTeam, play_batch
+
+    env = mate.make_vec('MultiAgentTracking-v0', seeds, config=preset, device='cuda', camera_agent='greedy',
+                        target_agent='greedy')
+    env.reset(seed=0)
+    coverage = np.full(seeds, np.nan)
+    start = time.perf_counter()
+    while np.isnan(coverage).any():
+        _, _, terminated, truncated, info = env.step()
+        done = (terminated | truncated).cpu().numpy() & np.isnan(coverage)
+        if done.any():
+            coverage[done] = info['episode_coverage_rate'].cpu().numpy()[done]
+    device_seconds = time.perf_counter() - start
+    episodes, _ = play_batch(read_config(preset), lambda n, c: GreedyTeam('camera', n, c, seed=0),
+                             lambda n, c: GreedyTeam('target', n, c, seed=0), episodes=seeds, seed=0)
+    cpu = np.array([episode.coverage_rate for episode in episodes])
+    se = [float(x.std(ddof=1) / np.sqrt(seeds)) for x in (coverage, cpu)]
+    return dict(preset=preset, seeds=seeds, device_mean_coverage_rate=float(coverage.mean()),
+                device_standard_error=se[0], cpu_mean_coverage_rate=float(cpu.mean()), cpu_standard_error=se[1],
+                difference_in_standard_errors=float((coverage.mean() - cpu.mean()) / np.hypot(*se)),
+                device_seconds=device_seconds)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--batch-sizes', type=int, nargs='+', default=[4096, 16384, 65536])
@@ -122,6 +177,17 @@ def main() -> None:
                 record['speed'].append(found)
                 print(f"{preset} B={batch_size} {found['dtype']}: {found['env_steps_per_second']:,.0f} env-steps/s",
                       flush=True)
+    record['whole_game'] = []
+    for target_agent in ('greedy', 'random'):
+        for batch_size in args.batch_sizes:
+            found = whole_game('MATE-4v8-9', batch_size, args.seconds, target_agent)
+            record['whole_game'].append(found)
+            print(f"MATE-4v8-9 greedy vs {target_agent} on the device, B={batch_size}: "
+                  f"{found['env_steps_per_second']:,.0f} env-steps/s", flush=True)
+    found = record['greedy_statistics'] = greedy_statistics()
+    print(f"greedy vs greedy, {found['seeds']} seeds: device {found['device_mean_coverage_rate']:.4f} "
+          f"+- {found['device_standard_error']:.4f}, CPU {found['cpu_mean_coverage_rate']:.4f} "
+          f"+- {found['cpu_standard_error']:.4f} ({found['difference_in_standard_errors']:+.2f} SE)", flush=True)
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
     Path(args.json).write_text(json.dumps(record, indent=1) + '\n')
     print(f'written to {args.json}')

@@ -430,13 +430,29 @@ def _listing(indices: np.ndarray, limit: int = 10) -> str:
 
 
 def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None, *,
-             observation_dtype=np.float64, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-             copy: bool = False, **overrides: Any) -> MultiAgentTrackingVectorEnv:
+             observation_dtype=np.float64, autoreset_mode: AutoresetMode | str | None = None,
+             copy: bool = False, device: str | None = None, **overrides: Any):
     """A vector env of `num_envs` games for an ID of `mate.make`; `config=` replaces the ID's
-    preset and keyword overrides are deep-merged, exactly as in `mate.make`."""
+    preset and keyword overrides are deep-merged, exactly as in `mate.make`.
+
+    `device='cuda'` (or 'cuda:N' where numba-cuda sees it as the current device) gives the games on the GPU:
+    `mate.device_vector.DeviceVecEnv` (the gpu extra), whose autoreset is SAME_STEP and whose outputs are torch
+    tensors on the device; it takes `camera_agent=` / `target_agent=` ('greedy', 'random') to play a team there.
+    None or 'cpu': this module's env (autoreset NEXT_STEP unless `autoreset_mode` says otherwise)."""
+    if device is not None and str(device) != 'cpu':
+        if not str(device).startswith('cuda'):
+            raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
+        if autoreset_mode is not None and _autoreset_mode(autoreset_mode) is not AutoresetMode.SAME_STEP:
+            raise ValueError("on a device the games autoreset in the same step: autoreset_mode='same-step' or none")
+        if copy:
+            raise ValueError('copy=True is not available on a device: clone the tensors you keep')
+        from .device_vector import make_device_vec
+
+        return make_device_vec(env_id, num_envs, config, observation_dtype=observation_dtype, **overrides)
     return MultiAgentTrackingVectorEnv(registration.resolve_config(env_id, config), num_envs,
-                                       observation_dtype=observation_dtype, autoreset_mode=autoreset_mode,
-                                       copy=copy, **overrides)
+                                       observation_dtype=observation_dtype,
+                                       autoreset_mode=AutoresetMode.NEXT_STEP if autoreset_mode is None
+                                       else autoreset_mode, copy=copy, **overrides)
 
 
 def make_vector_from_gymnasium(num_envs: int = 1, config: Any = None, **kwargs: Any) -> MultiAgentTrackingVectorEnv:

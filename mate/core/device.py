@@ -41,7 +41,8 @@ from .observe import joint_observation
 from .params import Params
 from .world import World, empty_world
 
-__all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Rows', 'compile_ptx', 'cuda_module', 'kernels']
+__all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Outputs', 'Rows', 'compile_ptx', 'cuda_module', 'kernels',
+           'to_torch']
 
 BLOCK = 128
 """Threads (games) per CUDA block."""
@@ -57,6 +58,20 @@ class Rows(NamedTuple):
     camera_obs: object
     target_obs: object
     mask: object
+
+
+class Outputs(NamedTuple):
+    """What a step hands back (B,) each, written by the `finish` kernel before it restarts the games that ended:
+    the step's rewards, end flags and coverage rate, and for the games that ended, their episode's length and
+    mean coverage rate (undefined elsewhere)."""
+
+    camera_reward: object
+    target_reward: object
+    terminated: object
+    truncated: object
+    coverage_rate: object
+    episode_length: object
+    episode_coverage_rate: object
 
 
 def cuda_module():
@@ -88,14 +103,33 @@ def _reset(p, w, rows):
         start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
+def _finish(p, w, rows, out):
+    b = cuda.grid(1)
+    if b < w.episode_step.shape[0]:
+        reward = w.target_reward[b]
+        out.target_reward[b] = reward
+        out.camera_reward[b] = -reward
+        out.terminated[b] = w.terminated[b]
+        out.truncated[b] = w.truncated[b]
+        out.coverage_rate[b] = w.coverage_rate[b]
+        done = w.terminated[b] or w.truncated[b]
+        rows.mask[b] = done
+        if done:
+            steps = w.episode_step[b]
+            out.episode_length[b] = steps
+            out.episode_coverage_rate[b] = w.coverage_rate_sum[b] / steps
+            start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+
+
 def _kernel_functions() -> dict:
     """The kernels' Python functions (thread b: row b), by name."""
     cuda_module()
-    return {'step': _step, 'reset': _reset}
+    return {'step': _step, 'reset': _reset, 'finish': _finish}
 
 
-KERNEL_NAMES = ('step', 'reset')
-"""The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games."""
+KERNEL_NAMES = ('step', 'reset', 'finish')
+"""The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games,
+`finish` copies a step's rewards and flags into `Outputs` and restarts the games that ended (their mask set)."""
 
 
 @functools.cache
@@ -113,7 +147,8 @@ def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64
     functions = _kernel_functions()
     world = empty_world(params, batch_size)
     rows = _host_rows(params, batch_size, (1, 1), dtype)     # (the observations' lengths do not change the code)
-    signature = tuple(typeof(argument) for argument in (params, world, rows))
+    arguments = (params, world, rows) + ((_host_outputs(batch_size),) if name == 'finish' else ())
+    signature = tuple(typeof(argument) for argument in arguments)
     with _compute_capability(cc):
         ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
     return ptx
@@ -148,6 +183,33 @@ def _host_rows(params: Params, batch_size: int, observation_dims: tuple[int, int
                 np.zeros((B, nt, observation_dims[1]), dtype), np.zeros(B, bool))
 
 
+def _host_outputs(batch_size: int) -> Outputs:
+    """Zeroed host arrays of `Outputs` for B games."""
+    B = batch_size
+    return Outputs(np.zeros(B), np.zeros(B), np.zeros(B, bool), np.zeros(B, bool), np.zeros(B),
+                   np.zeros(B, np.int64), np.zeros(B))
+
+
+def to_torch(array):
+    """A torch tensor viewing the device array `array` without a copy (`__cuda_array_interface__`); under numba's
+    CUDA simulator, a CPU tensor viewing its host array."""
+    import torch
+
+    if _simulated():
+        return torch.from_numpy(array._ary)
+    return torch.as_tensor(array, device='cuda')
+
+
+def from_torch(tensor):
+    """A numba device array viewing a CUDA torch tensor without a copy (a CPU tensor under the simulator, and a
+    numpy array or anything array-like: returned as numpy)."""
+    if getattr(getattr(tensor, 'device', None), 'type', None) == 'cuda':
+        return cuda_module().as_cuda_array(tensor.detach())
+    if hasattr(tensor, 'detach'):
+        return tensor.detach().numpy()
+    return tensor
+
+
 class DeviceCore:
     """B games of one configuration on a CUDA device: the world, the parameters and the observation buffers as
     device arrays; `reset` and `step` launch one thread per game.
@@ -171,6 +233,7 @@ class DeviceCore:
         self.world = World(*(to_device(field) for field in empty_world(params, self.batch_size)))
         host = _host_rows(params, self.batch_size, tuple(observation_dims), dtype)
         self.rows = Rows(*(to_device(array) for array in host))
+        self.out = Outputs(*(to_device(array) for array in _host_outputs(self.batch_size)))
 
     @property
     def camera_obs(self):
@@ -184,7 +247,7 @@ class DeviceCore:
 
     def _launch(self, name: str) -> None:
         grid = (self.batch_size + self.block - 1) // self.block
-        arguments = (self.params, self.world, self.rows)
+        arguments = (self.params, self.world, self.rows) + ((self.out,) if name == 'finish' else ())
         if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
             arguments = tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in arguments)
         kernels()[name][grid, self.block](*arguments)
@@ -205,15 +268,23 @@ class DeviceCore:
         self.rows.mask.copy_to_device(mask)
         self._launch('reset')
 
-    def step(self, camera_actions, target_actions) -> None:
+    def step(self, camera_actions=None, target_actions=None) -> None:
         """Advance every game one step with the actions (B, Nc, 2) in degrees (rotation, zoom) and (B, Nt, 2)
-        displacements, float64, on the device or the host (copied in)."""
+        displacements, float64, on the device or the host (copied in); None: the team's actions are in
+        `self.rows` already (a device team wrote them there)."""
         for name, actions, buffer in (('camera_actions', camera_actions, self.rows.camera_actions),
                                       ('target_actions', target_actions, self.rows.target_actions)):
+            if actions is None:
+                continue
             if getattr(actions, 'shape', None) != buffer.shape:
                 raise ValueError(f'{name}: expected shape {buffer.shape}, got {getattr(actions, "shape", None)}')
             buffer.copy_to_device(actions)
         self._launch('step')
+
+    def finish(self) -> None:
+        """After a step: copy its rewards, flags and coverage into `self.out` and restart the games that ended
+        (their random streams go on, as the CPU vector env's autoreset does); `self.rows.mask` then holds them."""
+        self._launch('finish')
 
     def world_to_host(self) -> World:
         """A host copy of the world (numpy arrays), for checks and snapshots."""

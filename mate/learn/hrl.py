@@ -17,7 +17,6 @@ that keep only visible targets.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit
@@ -25,7 +24,7 @@ from numba import njit
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of
-from ..teams.rules import desired_viewing_angle
+from ..teams.rules import centroid_aim_row
 
 __all__ = ['executor_actions', 'joint_allowed', 'selection_bits', 'target_records']
 
@@ -42,8 +41,8 @@ def target_records(observation: np.ndarray, num_cameras: int, num_targets: int, 
 def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras: int, num_targets: int,
                      num_obstacles: int) -> np.ndarray:
     """Continuous camera actions (..., 2) float64, in degrees, from raw observations (..., D) and selection bits
-    (..., Nt) (1 keeps the slot's target): the module docstring's rule, one compiled loop over the cameras (its
-    zoom is the greedy camera's `mate.teams.rules.desired_viewing_angle`)."""
+    (..., Nt) (1 keeps the slot's target): the module docstring's rule, one compiled loop over the cameras
+    calling `mate.teams.rules.centroid_aim_row` (which the device teams run on a GPU)."""
     observation = np.asarray(observation)
     lead = observation.shape[:-1]
     begin = int(observation_indices_of(Team.CAMERA, num_cameras, num_targets, num_obstacles)[2])
@@ -58,28 +57,7 @@ def executor_actions(observation: np.ndarray, selection: np.ndarray, num_cameras
 def _aim(observation, keep, begin, num_targets, out):
     """`executor_actions` on (R, D) observations and (R, Nt) bool selections into `out` (R, 2)."""
     for r in range(observation.shape[0]):
-        row = observation[r]
-        x, y = float(row[_OWN]), float(row[_OWN + 1])
-        rx, ry = float(row[_OWN + 3]), float(row[_OWN + 4])
-        theta, max_range = float(row[_OWN + 5]), float(row[_OWN + 6])
-        high_rotation, high_zoom = float(row[_OWN + 7]), float(row[_OWN + 8])
-        count, cx, cy = 0, 0.0, 0.0
-        for t in range(num_targets):
-            slot = begin + 5 * t
-            if keep[r, t] and row[slot + 4] > 0.5:
-                count += 1
-                cx += float(row[slot])
-                cy += float(row[slot + 1])
-        if count == 0:                        # nothing to aim at: a clockwise sweep that narrows the view
-            out[r, 0], out[r, 1] = -high_rotation, -high_zoom
-            continue
-        cx, cy = cx / count, cy / count
-        orientation = math.degrees(math.atan2(ry, rx))
-        bearing = math.degrees(math.atan2(cy - y, cx - x))
-        rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
-        zoom = desired_viewing_angle(math.hypot(cx - x, cy - y), theta, math.hypot(rx, ry), max_range) - theta
-        out[r, 0] = min(max(rotation, -high_rotation), high_rotation)
-        out[r, 1] = min(max(zoom, -high_zoom), high_zoom)
+        centroid_aim_row(r, observation, keep, begin, num_targets, out)
 
 
 def selection_bits(num_targets: int) -> np.ndarray:

@@ -35,7 +35,9 @@ __all__ = [
     'RANDOM_ACTION_PROBABILITY', 'RANGE_FACTOR', 'ZOOM_ITERATIONS', 'desired_viewing_angle', 'communication_delay',
     'remember', 'camera_reset', 'camera_observe', 'camera_outbox',
     'camera_inbox', 'camera_act', 'target_reset', 'target_observe', 'target_share', 'target_act', 'walk_start',
-    'walk_towards', 'random_act',
+    'walk_towards', 'random_act', 'camera_reset_row', 'camera_observe_row', 'camera_outbox_row', 'camera_inbox_row',
+    'camera_act_row', 'walk_start_row', 'target_reset_row', 'target_observe_row', 'target_share_row', 'target_act_row',
+    'random_act_row', 'centroid_aim_row',
 ]
 
 RANGE_FACTOR = 1.1
@@ -127,6 +129,34 @@ def remember(memory, time2forget, never_loaded, b, i, t, x, y, sight_range, load
 
 
 # ---------------------------------------------------------------------------- greedy cameras
+#
+# Each rule is a row function (`*_row(b, ...)`: the agents of game b) and a loop over the games calling it. The
+# CPU teams and agents call the loops; the device teams (`mate.teams.device`) call the row functions, one GPU
+# thread per game: the same compiled rules on both targets.
+
+@njit(cache=True)
+def camera_reset_row(b, observation, begin, period, memory, time2forget, never_loaded, pending, pending_state,
+                     own_state, prev_action, delay, known) -> None:
+    """`camera_reset` for game b."""
+    num_cameras, num_targets = pending.shape[1], pending.shape[2]
+    for i in range(num_cameras):
+        for t in range(num_targets):
+            k = begin + RECORD * t
+            for f in range(4):
+                memory[b, i, t, f] = observation[b, i, k + f]
+            time2forget[b, i, t] = period if observation[b, i, k + 4] != 0.0 else 0
+            never_loaded[b, i, t] = True
+            pending[b, i, t] = False
+        pending_state[b, i] = True
+        own_state[b, i, 0] = observation[b, i, OWN]
+        own_state[b, i, 1] = observation[b, i, OWN + 1]
+        own_state[b, i, 2] = observation[b, i, OWN + 6]
+        prev_action[b, i, 0] = 0.0
+        prev_action[b, i, 1] = 0.0
+        for c in range(delay.shape[2]):
+            delay[b, i, c] = 0
+            known[b, i, c] = False
+
 
 @njit(cache=True)
 def camera_reset(observation, begin, rows, period, memory, time2forget, never_loaded, pending, pending_state,
@@ -139,27 +169,29 @@ def camera_reset(observation, begin, rows, period, memory, time2forget, never_lo
     (`pending_state`), no sightings are pending, no delays run, no teammate is known.
     `begin`: where the target records start in the observation.
     """
-    num_rows, num_cameras, num_targets = pending.shape
-    for b in range(num_rows):
-        if not rows[b]:
-            continue
-        for i in range(num_cameras):
-            for t in range(num_targets):
-                k = begin + RECORD * t
-                for f in range(4):
-                    memory[b, i, t, f] = observation[b, i, k + f]
-                time2forget[b, i, t] = period if observation[b, i, k + 4] != 0.0 else 0
-                never_loaded[b, i, t] = True
-                pending[b, i, t] = False
-            pending_state[b, i] = True
-            own_state[b, i, 0] = observation[b, i, OWN]
-            own_state[b, i, 1] = observation[b, i, OWN + 1]
-            own_state[b, i, 2] = observation[b, i, OWN + 6]
-            prev_action[b, i, 0] = 0.0
-            prev_action[b, i, 1] = 0.0
-            for c in range(delay.shape[2]):
-                delay[b, i, c] = 0
-                known[b, i, c] = False
+    for b in range(pending.shape[0]):
+        if rows[b]:
+            camera_reset_row(b, observation, begin, period, memory, time2forget, never_loaded, pending,
+                             pending_state, own_state, prev_action, delay, known)
+
+
+@njit(cache=True)
+def camera_observe_row(b, observation, begin, period, memory, time2forget, never_loaded, pending) -> int:
+    """`camera_observe` for game b."""
+    num_cameras, num_targets = pending.shape[1], pending.shape[2]
+    seen = 0
+    for i in range(num_cameras):
+        for t in range(num_targets):
+            if time2forget[b, i, t] > 0:
+                time2forget[b, i, t] -= 1
+        for t in range(num_targets):
+            k = begin + RECORD * t
+            if observation[b, i, k + 4] != 0.0:
+                remember(memory, time2forget, never_loaded, b, i, t, observation[b, i, k],
+                         observation[b, i, k + 1], observation[b, i, k + 2], observation[b, i, k + 3], period)
+                pending[b, i, t] = True
+                seen += 1
+    return seen
 
 
 @njit(cache=True)
@@ -167,23 +199,61 @@ def camera_observe(observation, begin, rows, period, memory, time2forget, never_
     """A step's observation for every camera of the rows `rows`: every candidate ages one step, then
     each target the camera sees enters its memory (for `period` steps) and its pending sightings
     (`pending` (B, N, Nt) bool, sent in the responses round). Returns the number of sightings."""
-    num_rows, num_cameras, num_targets = pending.shape
     seen = 0
-    for b in range(num_rows):
-        if not rows[b]:
-            continue
-        for i in range(num_cameras):
-            for t in range(num_targets):
-                if time2forget[b, i, t] > 0:
-                    time2forget[b, i, t] -= 1
-            for t in range(num_targets):
-                k = begin + RECORD * t
-                if observation[b, i, k + 4] != 0.0:
-                    remember(memory, time2forget, never_loaded, b, i, t, observation[b, i, k],
-                             observation[b, i, k + 1], observation[b, i, k + 2], observation[b, i, k + 3], period)
-                    pending[b, i, t] = True
-                    seen += 1
+    for b in range(pending.shape[0]):
+        if rows[b]:
+            seen += camera_observe_row(b, observation, begin, period, memory, time2forget, never_loaded, pending)
     return seen
+
+
+@njit(cache=True)
+def camera_outbox_row(b, todo, index, period, filterout_beyond_range, memory, pending, pending_state, delay, known,
+                      neighbour, draws, left, sent, sent_state, sight, short) -> None:
+    """`camera_outbox` for the senders of game b."""
+    num_senders, num_targets = pending.shape[1], pending.shape[2]
+    num_cameras = delay.shape[2]
+    random_delays = 2 * period > period // 4
+    for s in range(num_senders):
+        if not todo[b, s]:
+            continue
+        short[b, s] = False
+        has_sightings = False
+        for t in range(num_targets):
+            has_sightings = has_sightings or pending[b, s, t]
+        count = 0
+        for c in range(num_cameras):
+            sent[b, s, c] = False
+            ready = c != index[b, s] and delay[b, s, c] <= 1          # zero after this step's countdown
+            if not ready or not (pending_state[b, s] or has_sightings):
+                continue
+            kept = False
+            if has_sightings and known[b, s, c] and filterout_beyond_range:
+                nx, ny = neighbour[b, s, c, 0], neighbour[b, s, c, 1]
+                reach = RANGE_FACTOR * neighbour[b, s, c, 2]
+                for t in range(num_targets):
+                    keep = pending[b, s, t] and math.hypot(memory[b, s, t, 0] - nx, memory[b, s, t, 1] - ny) < reach
+                    sight[b, s, c, t] = keep
+                    kept = kept or keep
+            else:
+                for t in range(num_targets):
+                    sight[b, s, c, t] = False
+            if pending_state[b, s] or kept:
+                sent[b, s, c] = True
+                count += 1
+        if random_delays and left[b, s] < count:
+            short[b, s] = True
+            continue
+        for c in range(num_cameras):
+            if delay[b, s, c] > 0:
+                delay[b, s, c] -= 1
+            if sent[b, s, c]:
+                delay[b, s, c] = communication_delay(_pop(draws, left, b, s), period) if random_delays \
+                    else period // 4
+        sent_state[b, s] = pending_state[b, s]
+        if pending_state[b, s] or has_sightings:
+            pending_state[b, s] = False
+            for t in range(num_targets):
+                pending[b, s, t] = False
 
 
 @njit(cache=True)
@@ -206,51 +276,29 @@ def camera_outbox(todo, index, period, filterout_beyond_range, memory, pending, 
     own state), `sight` (B, N, N, Nt) bool [sender, recipient, target]. A camera whose stack holds
     fewer numbers than it has messages to send is left untouched with `short[b, s]` set.
     """
-    num_rows, num_senders, num_targets = pending.shape
-    num_cameras = delay.shape[2]
-    random_delays = 2 * period > period // 4
-    for b in range(num_rows):
-        for s in range(num_senders):
-            if not todo[b, s]:
+    for b in range(pending.shape[0]):
+        camera_outbox_row(b, todo, index, period, filterout_beyond_range, memory, pending, pending_state, delay,
+                          known, neighbour, draws, left, sent, sent_state, sight, short)
+
+
+@njit(cache=True)
+def camera_inbox_row(b, observation, begin, period, sent, sent_state, sight, own_state, memory, time2forget,
+                     never_loaded, known, neighbour) -> None:
+    """`camera_inbox` for game b."""
+    num_cameras, num_targets = time2forget.shape[1], time2forget.shape[2]
+    for r in range(num_cameras):
+        for s in range(num_cameras):
+            if s == r or not sent[b, s, r]:
                 continue
-            short[b, s] = False
-            has_sightings = False
+            if sent_state[b, s]:
+                known[b, r, s] = True
+                for f in range(3):
+                    neighbour[b, r, s, f] = own_state[b, s, f]
             for t in range(num_targets):
-                has_sightings = has_sightings or pending[b, s, t]
-            count = 0
-            for c in range(num_cameras):
-                sent[b, s, c] = False
-                ready = c != index[b, s] and delay[b, s, c] <= 1          # zero after this step's countdown
-                if not ready or not (pending_state[b, s] or has_sightings):
-                    continue
-                kept = False
-                if has_sightings and known[b, s, c] and filterout_beyond_range:
-                    nx, ny = neighbour[b, s, c, 0], neighbour[b, s, c, 1]
-                    reach = RANGE_FACTOR * neighbour[b, s, c, 2]
-                    for t in range(num_targets):
-                        keep = pending[b, s, t] and math.hypot(memory[b, s, t, 0] - nx, memory[b, s, t, 1] - ny) < reach
-                        sight[b, s, c, t] = keep
-                        kept = kept or keep
-                else:
-                    for t in range(num_targets):
-                        sight[b, s, c, t] = False
-                if pending_state[b, s] or kept:
-                    sent[b, s, c] = True
-                    count += 1
-            if random_delays and left[b, s] < count:
-                short[b, s] = True
-                continue
-            for c in range(num_cameras):
-                if delay[b, s, c] > 0:
-                    delay[b, s, c] -= 1
-                if sent[b, s, c]:
-                    delay[b, s, c] = communication_delay(_pop(draws, left, b, s), period) if random_delays \
-                        else period // 4
-            sent_state[b, s] = pending_state[b, s]
-            if pending_state[b, s] or has_sightings:
-                pending_state[b, s] = False
-                for t in range(num_targets):
-                    pending[b, s, t] = False
+                if sight[b, s, r, t]:
+                    k = begin + RECORD * t
+                    remember(memory, time2forget, never_loaded, b, r, t, observation[b, s, k],
+                             observation[b, s, k + 1], observation[b, s, k + 2], observation[b, s, k + 3], period)
 
 
 @njit(cache=True)
@@ -260,23 +308,55 @@ def camera_inbox(observation, begin, rows, period, sent, sent_state, sight, own_
     addressed to it in sender order. A message with the sender's state makes the sender a known teammate
     (kept quirk: however far away); its sightings (the values the sender observed this step) enter the
     memory as the camera's own do."""
-    num_rows, num_cameras, num_targets = time2forget.shape
-    for b in range(num_rows):
-        if not rows[b]:
+    for b in range(time2forget.shape[0]):
+        if rows[b]:
+            camera_inbox_row(b, observation, begin, period, sent, sent_state, sight, own_state, memory, time2forget,
+                             never_loaded, known, neighbour)
+
+
+@njit(cache=True)
+def camera_act_row(b, observation, todo, filterout_unloaded, filterout_beyond_range, memory, time2forget,
+                   never_loaded, high, prev_action, draws, left, space, space_left, action, short) -> None:
+    """`camera_act` for the cameras of game b."""
+    num_cameras, num_targets = time2forget.shape[1], time2forget.shape[2]
+    for i in range(num_cameras):
+        if not todo[b, i]:
             continue
-        for r in range(num_cameras):
-            for s in range(num_cameras):
-                if s == r or not sent[b, s, r]:
-                    continue
-                if sent_state[b, s]:
-                    known[b, r, s] = True
-                    for f in range(3):
-                        neighbour[b, r, s, f] = own_state[b, s, f]
-                for t in range(num_targets):
-                    if sight[b, s, r, t]:
-                        k = begin + RECORD * t
-                        remember(memory, time2forget, never_loaded, b, r, t, observation[b, s, k],
-                                 observation[b, s, k + 1], observation[b, s, k + 2], observation[b, s, k + 3], period)
+        short[b, i] = False
+        x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
+        rx, ry = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
+        theta, max_range = observation[b, i, OWN + 5], observation[b, i, OWN + 6]
+        reach = RANGE_FACTOR * max_range
+        best, best_distance = -1, math.inf
+        for t in range(num_targets):
+            if time2forget[b, i, t] <= 0:
+                continue
+            distance = math.hypot(memory[b, i, t, 0] - x, memory[b, i, t, 1] - y)
+            if filterout_beyond_range and not distance < reach:
+                continue
+            if filterout_unloaded and not (memory[b, i, t, 3] != 0.0 or never_loaded[b, i, t]):
+                continue
+            if distance < best_distance:
+                best, best_distance = t, distance
+        if best < 0:
+            if left[b, i] < 1:
+                short[b, i] = True
+                continue
+            if _pop(draws, left, b, i) < RANDOM_ACTION_PROBABILITY:
+                prev_action[b, i, 0] = _in_box(high[b, i, 0], _pop(space, space_left, b, i))
+                prev_action[b, i, 1] = _in_box(high[b, i, 1], _pop(space, space_left, b, i))
+            action[b, i, 0] = prev_action[b, i, 0]
+            action[b, i, 1] = prev_action[b, i, 1]
+            continue
+        orientation = math.atan2(ry, rx) * RAD2DEG
+        bearing = math.atan2(memory[b, i, best, 1] - y, memory[b, i, best, 0] - x) * RAD2DEG
+        rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
+        zoom = desired_viewing_angle(best_distance, theta, math.hypot(rx, ry), max_range) - theta
+        h0, h1 = high[b, i, 0], high[b, i, 1]
+        prev_action[b, i, 0] = min(max(rotation, -h0), h0)
+        prev_action[b, i, 1] = min(max(zoom, -h1), h1)
+        action[b, i, 0] = prev_action[b, i, 0]
+        action[b, i, 1] = prev_action[b, i, 1]
 
 
 @njit(cache=True)
@@ -292,65 +372,31 @@ def camera_act(observation, todo, filterout_unloaded, filterout_beyond_range, me
     stream is below 0.1, draws a uniform one from its action-space stack. A camera whose stream is
     empty when it needs a number is left untouched with `short[b, i]` set.
     """
-    num_rows, num_cameras, num_targets = time2forget.shape
-    for b in range(num_rows):
-        for i in range(num_cameras):
-            if not todo[b, i]:
-                continue
-            short[b, i] = False
-            x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
-            rx, ry = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
-            theta, max_range = observation[b, i, OWN + 5], observation[b, i, OWN + 6]
-            reach = RANGE_FACTOR * max_range
-            best, best_distance = -1, math.inf
-            for t in range(num_targets):
-                if time2forget[b, i, t] <= 0:
-                    continue
-                distance = math.hypot(memory[b, i, t, 0] - x, memory[b, i, t, 1] - y)
-                if filterout_beyond_range and not distance < reach:
-                    continue
-                if filterout_unloaded and not (memory[b, i, t, 3] != 0.0 or never_loaded[b, i, t]):
-                    continue
-                if distance < best_distance:
-                    best, best_distance = t, distance
-            if best < 0:
-                if left[b, i] < 1:
-                    short[b, i] = True
-                    continue
-                if _pop(draws, left, b, i) < RANDOM_ACTION_PROBABILITY:
-                    prev_action[b, i, 0] = _in_box(high[b, i, 0], _pop(space, space_left, b, i))
-                    prev_action[b, i, 1] = _in_box(high[b, i, 1], _pop(space, space_left, b, i))
-                action[b, i, 0] = prev_action[b, i, 0]
-                action[b, i, 1] = prev_action[b, i, 1]
-                continue
-            orientation = math.atan2(ry, rx) * RAD2DEG
-            bearing = math.atan2(memory[b, i, best, 1] - y, memory[b, i, best, 0] - x) * RAD2DEG
-            rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
-            zoom = desired_viewing_angle(best_distance, theta, math.hypot(rx, ry), max_range) - theta
-            h0, h1 = high[b, i, 0], high[b, i, 1]
-            prev_action[b, i, 0] = min(max(rotation, -h0), h0)
-            prev_action[b, i, 1] = min(max(zoom, -h1), h1)
-            action[b, i, 0] = prev_action[b, i, 0]
-            action[b, i, 1] = prev_action[b, i, 1]
+    for b in range(time2forget.shape[0]):
+        camera_act_row(b, observation, todo, filterout_unloaded, filterout_beyond_range, memory, time2forget,
+                       never_loaded, high, prev_action, draws, left, space, space_left, action, short)
 
 
 # ---------------------------------------------------------------------------- noisy walk (greedy and naive targets)
+
+@njit(cache=True)
+def walk_start_row(b, observation, high, prev_location, noise, space, space_left) -> None:
+    """`walk_start` for the targets of game b."""
+    for i in range(space_left.shape[1]):
+        prev_location[b, i, 0] = observation[b, i, OWN]
+        prev_location[b, i, 1] = observation[b, i, OWN + 1]
+        noise[b, i, 0] = INITIAL_NOISE_SCALE * _in_box(high[b, i, 0], _pop(space, space_left, b, i))
+        noise[b, i, 1] = INITIAL_NOISE_SCALE * _in_box(high[b, i, 1], _pop(space, space_left, b, i))
+
 
 @njit(cache=True)
 def walk_start(observation, rows, high, prev_location, noise, space, space_left) -> None:
     """Start the walk of every target of the rows `rows`: remember the location and draw the first noise,
     `INITIAL_NOISE_SCALE` x a uniform sample of the action box (+-`high` (B, N, 2)), from the
     action-space stacks (kept quirk: the agent's noise scale is not used here)."""
-    num_rows, num_targets = space_left.shape
-    for b in range(num_rows):
-        if not rows[b]:
-            continue
-        for i in range(num_targets):
-            prev_location[b, i, 0] = observation[b, i, OWN]
-            prev_location[b, i, 1] = observation[b, i, OWN + 1]
-            noise[b, i, 0] = INITIAL_NOISE_SCALE * _in_box(high[b, i, 0], _pop(space, space_left, b, i))
-            noise[b, i, 1] = INITIAL_NOISE_SCALE * _in_box(high[b, i, 1], _pop(space, space_left, b, i))
-
+    for b in range(space_left.shape[0]):
+        if rows[b]:
+            walk_start_row(b, observation, high, prev_location, noise, space, space_left)
 
 @njit(cache=True)
 def _walk(b, i, x, y, step, gx, gy, u, noise_scale, high, prev_location, noise, space, space_left):
@@ -390,33 +436,60 @@ def walk_towards(b, i, x, y, step, gx, gy, noise_scale, high, prev_location, noi
 # ---------------------------------------------------------------------------- greedy targets
 
 @njit(cache=True)
+def target_reset_row(b, observation, goal_bits, non_empty, need_communication) -> None:
+    """`target_reset` for the targets of game b."""
+    for i in range(need_communication.shape[1]):
+        for w in range(NUM_WAREHOUSES):
+            goal_bits[b, i, w] = observation[b, i, OWN + 6 + w]
+            non_empty[b, i, w] = True
+        need_communication[b, i] = False
+
+
+@njit(cache=True)
 def target_reset(observation, rows, goal_bits, non_empty, need_communication) -> None:
     """Start an episode for every target of the rows `rows`: the goal bits as observed, every warehouse
     believed to have cargo, nothing to tell (the walk starts with `walk_start`)."""
-    num_rows, num_targets = need_communication.shape
-    for b in range(num_rows):
-        if not rows[b]:
-            continue
-        for i in range(num_targets):
-            for w in range(NUM_WAREHOUSES):
-                goal_bits[b, i, w] = observation[b, i, OWN + 6 + w]
-                non_empty[b, i, w] = True
-            need_communication[b, i] = False
+    for b in range(need_communication.shape[0]):
+        if rows[b]:
+            target_reset_row(b, observation, goal_bits, non_empty, need_communication)
+
+
+@njit(cache=True)
+def target_observe_row(b, observation, non_empty, need_communication) -> None:
+    """`target_observe` for the targets of game b."""
+    for i in range(need_communication.shape[1]):
+        for w in range(NUM_WAREHOUSES):
+            if observation[b, i, OWN + 6 + NUM_WAREHOUSES + w] != 0.0 and non_empty[b, i, w]:
+                non_empty[b, i, w] = False
+                need_communication[b, i] = True
 
 
 @njit(cache=True)
 def target_observe(observation, rows, non_empty, need_communication) -> None:
     """Every target of the rows `rows` forgets the warehouses it sees empty (its empty bits); if that
     changed what it believed, it will tell the team (`need_communication`)."""
-    num_rows, num_targets = need_communication.shape
-    for b in range(num_rows):
-        if not rows[b]:
-            continue
-        for i in range(num_targets):
+    for b in range(need_communication.shape[0]):
+        if rows[b]:
+            target_observe_row(b, observation, non_empty, need_communication)
+
+
+@njit(cache=True)
+def target_share_row(b, non_empty, need_communication) -> None:
+    """`target_share` for the targets of game b (what the broadcasts name: bit w of `shared`)."""
+    num_targets = need_communication.shape[1]
+    shared = (1 << NUM_WAREHOUSES) - 1
+    news = False
+    for s in range(num_targets):
+        if need_communication[b, s]:
+            news = True
+            need_communication[b, s] = False
             for w in range(NUM_WAREHOUSES):
-                if observation[b, i, OWN + 6 + NUM_WAREHOUSES + w] != 0.0 and non_empty[b, i, w]:
-                    non_empty[b, i, w] = False
-                    need_communication[b, i] = True
+                if not non_empty[b, s, w]:
+                    shared &= ~(1 << w)
+    if news:
+        for r in range(num_targets):
+            for w in range(NUM_WAREHOUSES):
+                non_empty[b, r, w] = non_empty[b, r, w] and (shared >> w) & 1 == 1
 
 
 @njit(cache=True)
@@ -424,23 +497,59 @@ def target_share(rows, non_empty, need_communication) -> None:
     """The targets' responses round within each row of `rows`: every target with news broadcasts the
     warehouses it believes non-empty (and has no news any more); every target of the row, the senders
     included, keeps only the warehouses all the broadcasts it receives name."""
-    num_rows, num_targets = need_communication.shape
-    shared = np.empty(NUM_WAREHOUSES, dtype=np.bool_)
-    for b in range(num_rows):
-        if not rows[b]:
+    for b in range(need_communication.shape[0]):
+        if rows[b]:
+            target_share_row(b, non_empty, need_communication)
+
+
+@njit(cache=True)
+def target_act_row(b, observation, todo, noise_scale, goal_bits, non_empty, high, prev_location, noise, draws, left,
+                   space, space_left, action, short) -> None:
+    """`target_act` for the targets of game b."""
+    for i in range(left.shape[1]):
+        if not todo[b, i]:
             continue
-        shared[:] = True
-        news = False
-        for s in range(num_targets):
-            if need_communication[b, s]:
-                news = True
-                need_communication[b, s] = False
+        short[b, i] = False
+        x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
+        loaded, step = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
+        observed = False
+        for w in range(NUM_WAREHOUSES):
+            observed = observed or observation[b, i, OWN + 6 + w] != 0.0
+        goal = -1
+        for w in range(NUM_WAREHOUSES):
+            bit = observation[b, i, OWN + 6 + w] if observed else goal_bits[b, i, w]
+            if bit != 0.0:
+                goal = w
+                break
+        renew = goal < 0 or (loaded == 0.0 and not non_empty[b, i, goal])
+        count = 0
+        if renew:
+            for w in range(NUM_WAREHOUSES):
+                count += non_empty[b, i, w]
+        if left[b, i] < (2 if count > 0 else 1):
+            short[b, i] = True
+            continue
+        if observed:
+            for w in range(NUM_WAREHOUSES):
+                goal_bits[b, i, w] = observation[b, i, OWN + 6 + w]
+        if renew:
+            for w in range(NUM_WAREHOUSES):
+                goal_bits[b, i, w] = 0.0
+            goal = -1
+            if count > 0:
+                k = min(int(_pop(draws, left, b, i) * count), count - 1)
                 for w in range(NUM_WAREHOUSES):
-                    shared[w] = shared[w] and non_empty[b, s, w]
-        if news:
-            for r in range(num_targets):
-                for w in range(NUM_WAREHOUSES):
-                    non_empty[b, r, w] = non_empty[b, r, w] and shared[w]
+                    if non_empty[b, i, w]:
+                        if k == 0:
+                            goal = w
+                            break
+                        k -= 1
+                goal_bits[b, i, goal] = 1.0
+        gx, gy = (x, y) if goal < 0 else (_WAREHOUSES[goal, 0], _WAREHOUSES[goal, 1])
+        ax, ay = _walk(b, i, x, y, step, gx, gy, _pop(draws, left, b, i), noise_scale, high, prev_location,
+                       noise, space, space_left)
+        action[b, i, 0] = ax
+        action[b, i, 1] = ay
 
 
 @njit(cache=True)
@@ -455,63 +564,57 @@ def target_act(observation, todo, noise_scale, goal_bits, non_empty, high, prev_
     the noisy walk (`_walk`: one more number) towards the goal. A target whose stream holds fewer numbers
     than it needs is left untouched with `short[b, i]` set.
     """
-    num_rows, num_targets = left.shape
-    for b in range(num_rows):
-        for i in range(num_targets):
-            if not todo[b, i]:
-                continue
-            short[b, i] = False
-            x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
-            loaded, step = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
-            observed = False
-            for w in range(NUM_WAREHOUSES):
-                observed = observed or observation[b, i, OWN + 6 + w] != 0.0
-            goal = -1
-            for w in range(NUM_WAREHOUSES):
-                bit = observation[b, i, OWN + 6 + w] if observed else goal_bits[b, i, w]
-                if bit != 0.0:
-                    goal = w
-                    break
-            renew = goal < 0 or (loaded == 0.0 and not non_empty[b, i, goal])
-            count = 0
-            if renew:
-                for w in range(NUM_WAREHOUSES):
-                    count += non_empty[b, i, w]
-            if left[b, i] < (2 if count > 0 else 1):
-                short[b, i] = True
-                continue
-            if observed:
-                for w in range(NUM_WAREHOUSES):
-                    goal_bits[b, i, w] = observation[b, i, OWN + 6 + w]
-            if renew:
-                for w in range(NUM_WAREHOUSES):
-                    goal_bits[b, i, w] = 0.0
-                goal = -1
-                if count > 0:
-                    k = min(int(_pop(draws, left, b, i) * count), count - 1)
-                    for w in range(NUM_WAREHOUSES):
-                        if non_empty[b, i, w]:
-                            if k == 0:
-                                goal = w
-                                break
-                            k -= 1
-                    goal_bits[b, i, goal] = 1.0
-            gx, gy = (x, y) if goal < 0 else (_WAREHOUSES[goal, 0], _WAREHOUSES[goal, 1])
-            ax, ay = _walk(b, i, x, y, step, gx, gy, _pop(draws, left, b, i), noise_scale, high, prev_location,
-                           noise, space, space_left)
-            action[b, i, 0] = ax
-            action[b, i, 1] = ay
+    for b in range(left.shape[0]):
+        target_act_row(b, observation, todo, noise_scale, goal_bits, non_empty, high, prev_location, noise, draws,
+                       left, space, space_left, action, short)
 
 
 # ---------------------------------------------------------------------------- random agents
 
 @njit(cache=True)
+def random_act_row(b, todo, high, space, space_left, action) -> None:
+    """`random_act` for the agents of game b."""
+    for i in range(space_left.shape[1]):
+        if todo[b, i]:
+            action[b, i, 0] = _in_box(high[b, i, 0], _pop(space, space_left, b, i))
+            action[b, i, 1] = _in_box(high[b, i, 1], _pop(space, space_left, b, i))
+
+
+@njit(cache=True)
 def random_act(todo, high, space, space_left, action) -> None:
     """A fresh uniform action in the box +-`high` (B, N, 2) for every agent (b, i) with `todo[b, i]`: two
     numbers of its action-space stack, as `AgentBase._sample_action` draws them."""
-    num_rows, num_agents = space_left.shape
-    for b in range(num_rows):
-        for i in range(num_agents):
-            if todo[b, i]:
-                action[b, i, 0] = _in_box(high[b, i, 0], _pop(space, space_left, b, i))
-                action[b, i, 1] = _in_box(high[b, i, 1], _pop(space, space_left, b, i))
+    for b in range(space_left.shape[0]):
+        random_act_row(b, todo, high, space, space_left, action)
+
+
+# ---------------------------------------------------------------------------- the HRL executor
+
+@njit(cache=True)
+def centroid_aim_row(r, observation, keep, begin, num_targets, out) -> None:
+    """The HRL cameras' executor for camera row r of (R, D) raw observations and (R, Nt) bool keep bits, into
+    `out[r]` (rotation, zoom) in degrees: aim at the centroid of the kept targets the camera sees (rotation
+    towards it, zoom to `desired_viewing_angle` of its distance), both clipped to the camera's per-step limits;
+    with none, the lower bounds (-rotation step, -zooming step): a clockwise sweep that narrows the view."""
+    x, y = float(observation[r, OWN]), float(observation[r, OWN + 1])
+    rx, ry = float(observation[r, OWN + 3]), float(observation[r, OWN + 4])
+    theta, max_range = float(observation[r, OWN + 5]), float(observation[r, OWN + 6])
+    high_rotation, high_zoom = float(observation[r, OWN + 7]), float(observation[r, OWN + 8])
+    count, cx, cy = 0, 0.0, 0.0
+    for t in range(num_targets):
+        slot = begin + RECORD * t
+        if keep[r, t] and observation[r, slot + 4] > 0.5:
+            count += 1
+            cx += float(observation[r, slot])
+            cy += float(observation[r, slot + 1])
+    if count == 0:
+        out[r, 0] = -high_rotation
+        out[r, 1] = -high_zoom
+        return
+    cx, cy = cx / count, cy / count
+    orientation = math.degrees(math.atan2(ry, rx))
+    bearing = math.degrees(math.atan2(cy - y, cx - x))
+    rotation = (bearing - orientation + 180.0) % 360.0 - 180.0
+    zoom = desired_viewing_angle(math.hypot(cx - x, cy - y), theta, math.hypot(rx, ry), max_range) - theta
+    out[r, 0] = min(max(rotation, -high_rotation), high_rotation)
+    out[r, 1] = min(max(zoom, -high_zoom), high_zoom)

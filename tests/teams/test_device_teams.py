@@ -1,0 +1,182 @@
+"""The rule teams and the HRL executor on a CUDA device (`mate.teams.device`), and the device vector env.
+
+Without a GPU: every team kernel compiles to PTX; under numba's CUDA simulator the device env (`make_vec(...,
+device='cuda')`) plays the CPU vector env's games (SAME_STEP autoreset) exactly, with the caller's actions or with
+device teams against their host twins (the same row functions in a compiled loop), and the HRL kernel gives
+`executor_actions`. On the host: the counter streams and the stacks they fill. How the device teams' play compares
+with the CPU teams' over 300 seeds is measured by benchmarks/device_teams.py."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import needs_extra
+from mate.teams import device
+from mate.teams.streams import AGENT_BLOCK
+
+KINDS = ['greedy-camera', 'greedy-target', 'random-camera']
+
+
+@pytest.mark.parametrize('which', ['reset', 'act'])
+@pytest.mark.parametrize('kind', KINDS)
+def test_every_team_kernel_compiles_for_a_gpu(kind, which):
+    needs_extra('numba_cuda')
+    ptx = device.compile_ptx(kind, which, cc=(8, 0))
+    assert '.target sm_80' in ptx and '.entry' in ptx
+
+
+def test_the_hrl_executor_compiles_for_a_gpu():
+    needs_extra('numba_cuda')
+    ptx = device.compile_hrl_ptx(observation_dtype=np.float32, cc=(8, 0))
+    assert '.target sm_80' in ptx and '.entry' in ptx
+
+
+SIMULATED = """
+import json, sys
+import numpy as np
+import mate
+from mate.learn.hrl import executor_actions
+from mate.spaces import observation_indices_of
+from mate.messages import Team
+from mate.teams.device import device_team, host_act, host_reset, hrl_actions
+from numba import cuda
+
+report = {}
+B, T = 5, 30
+for preset in sys.argv[1:]:
+    for agents in ((None, None), ('greedy', 'greedy'), ('random', 'greedy'), ('greedy', 'random')):
+        dev = mate.make_vec('MultiAgentTracking-v0', B, config=preset, device='cuda', camera_agent=agents[0],
+                            target_agent=agents[1], seed=3, max_episode_steps=12, block=4)
+        cpu = mate.make_vec('MultiAgentTracking-v0', B, config=preset, autoreset_mode='same-step',
+                            max_episode_steps=12)
+        counts = (cpu.num_cameras, cpu.num_targets, cpu.num_obstacles)
+        (dc, dt), _ = dev.reset(seed=7)
+        (cc, ct), _ = cpu.reset(seed=7)
+        teams = [None if a is None else device_team(a, side, B, counts, seed=3)
+                 for a, side in zip(agents, ('camera', 'target'))]
+        for team, obs in zip(teams, (cc, ct)):
+            if team is not None:
+                host_reset(team, obs, np.ones(B, bool))
+        rng = np.random.default_rng(0)
+        differing, ends = [], 0
+        for step in range(T):
+            ca, ta = rng.uniform(-30, 30, (B, counts[0], 2)), rng.uniform(-3, 3, (B, counts[1], 2))
+            ca = ca if teams[0] is None else host_act(teams[0], cc).copy()
+            ta = ta if teams[1] is None else host_act(teams[1], ct).copy()
+            (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step(None if agents[0] else ca, None if agents[1] else ta)
+            (cc, ct), (ccr, ctr), cterm, ctrunc, cinfo = cpu.step((ca, ta))
+            done = cterm | ctrunc
+            ends += int(done.sum())
+            for team, obs in zip(teams, (cc, ct)):
+                if team is not None:
+                    host_reset(team, obs, done)
+            step_info = cinfo['final_info'] if done.any() else cinfo
+            pairs = dict(camera_obs=(dc, cc), target_obs=(dt, ct), camera_reward=(dcr, ccr),
+                         target_reward=(dtr, ctr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
+                         coverage_rate=(dinfo['coverage_rate'], step_info['coverage_rate']))
+            for name, (a, b) in pairs.items():
+                if not np.array_equal(np.asarray(a), b):
+                    differing.append(f'{step}: {name}')
+            if done.any() and not np.array_equal(np.asarray(dinfo['episode_coverage_rate'])[done],
+                                                 step_info['episode_coverage_rate'][done]):
+                differing.append(f'{step}: episode_coverage_rate')
+        report[f'{preset} {agents}'] = dict(differing=differing[:5], ends=ends)
+
+nc, nt, no = 4, 8, 9
+vec = mate.make_vec('MultiAgentTracking-v0', 6, config='MATE-4v8-9')
+(camera_obs, _), _ = vec.reset(seed=0)
+for _ in range(5):
+    (camera_obs, _), *_ = vec.step(vec.action_space.sample())
+observation = camera_obs.reshape(-1, camera_obs.shape[-1])
+keep = np.random.default_rng(1).random((observation.shape[0], nt)) < 0.7
+begin = int(observation_indices_of(Team.CAMERA, nc, nt, no)[2])
+out = cuda.to_device(np.zeros((observation.shape[0], 2)))
+hrl_actions(cuda.to_device(observation), cuda.to_device(keep), begin, out, block=8)
+report['hrl'] = dict(equal=bool(np.array_equal(out.copy_to_host(), executor_actions(observation, keep, nc, nt, no))),
+                     aimed=int((keep & (observation[:, begin + 4:begin + 5 * nt:5] > 0.5)).any(1).sum()))
+print(json.dumps(report))
+"""
+
+
+def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
+    """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads)."""
+    needs_extra('numba_cuda')
+    needs_extra('torch')
+    presets = ['MATE-2v4-0', 'MATE-4v8-9']
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
+    done = subprocess.run([sys.executable, '-c', SIMULATED, *presets], env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    hrl = report.pop('hrl')
+    assert hrl['equal'] and hrl['aimed'] > 0, hrl
+    assert len(report) == 2 * 4
+    for pairing, found in report.items():
+        assert found['differing'] == [], (pairing, found['differing'])
+        assert found['ends'] >= 5, pairing          # every game restarted at least once (12-step episodes)
+
+
+def test_top_up_puts_a_block_under_the_numbers_held():
+    B, N, block = 2, 3, 4
+    rng = device.stream_keys([5, 6], N, 0)
+    stack, left = np.zeros((B, N, 2 * block)), np.zeros((B, N), np.int64)
+    stack[0, 1, :2] = [0.25, 0.75]
+    left[0, 1] = 2
+    left[0, 2] = 3
+    device.top_up_row(0, rng, stack, left, block, 3)
+    assert left.tolist() == [[4, 6, 3], [0, 0, 0]]            # (0, 2) held enough; row 1 untouched
+    assert stack[0, 1, block:block + 2].tolist() == [0.25, 0.75]   # the numbers held stay on top
+    assert ((stack[0, :2, :block] >= 0) & (stack[0, :2, :block] < 1)).all()
+    assert len(set(stack[0, :2, :block].ravel().tolist())) == 2 * block
+    assert rng[:, 1].tolist() == [block, block, 0, 0, 0, 0]  # counters: one per number drawn
+
+
+def test_stream_keys_differ_by_row_agent_and_stream():
+    keys = np.concatenate([device.stream_keys(range(50), 8, stream)[:, 0] for stream in (0, 1)])
+    assert len(set(keys.tolist())) == keys.size
+    assert np.array_equal(device.stream_keys([3], 8, 0), device.stream_keys([3], 8, 0))
+
+
+def _play(seed: int, steps: int = 60):
+    import mate
+
+    vec = mate.make_vec('MultiAgentTracking-v0', 3, config='MATE-4v8-9', autoreset_mode='same-step')
+    counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)
+    cameras = device.HostTeam('greedy', 'camera', 3, counts, seed=seed)
+    targets = device.HostTeam('greedy', 'target', 3, counts, seed=seed)
+    (co, to), _ = vec.reset(seed=0)
+    cameras.reset(co, np.ones(3, bool))
+    targets.reset(to, np.ones(3, bool))
+    actions = []
+    for _ in range(steps):
+        a = (cameras.act(co), targets.act(to))
+        actions.append(a)
+        (co, to), *_ = vec.step(a)
+    return np.array([np.concatenate([c.ravel(), t.ravel()]) for c, t in actions]), cameras, targets
+
+
+def test_host_twins_are_deterministic_and_never_short():
+    first, cameras, targets = _play(1)
+    again, _, _ = _play(1)
+    other, _, _ = _play(2)
+    assert np.array_equal(first, again)
+    assert not np.array_equal(first, other)
+    for team in (cameras, targets):
+        state = team.device_team.state
+        assert not state.short.any()
+        assert (state.left >= 1).all() and (state.left <= 2 * AGENT_BLOCK).all()
+
+
+def test_bad_options_are_refused():
+    with pytest.raises(ValueError, match='unknown option'):
+        device.device_team('random', 'camera', 2, (4, 8, 9), speed=1)
+    with pytest.raises(ValueError, match='no device team'):
+        device.device_team('heuristic', 'camera', 2, (4, 8, 9))
+    with pytest.raises(ValueError, match='memory_period'):
+        device.device_team('greedy', 'camera', 2, (4, 8, 9), memory_period=0)
