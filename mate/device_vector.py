@@ -11,11 +11,13 @@ drives one team and the rules the other without the CPU in the loop.
     (camera_obs, target_obs), info = env.reset(seed=0)           # (B, Nc, D_c) torch tensors on the GPU
     (camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, info = env.step(camera_actions)
 
-Autoreset: a game that ends in a step starts its next episode in the same step (gymnasium's SAME_STEP without the
-final observation): the step returns that step's rewards and end flags, the new episode's first observations, and
-in `info` the ended episodes' length and mean coverage rate (where `terminated | truncated`). A game's random
-stream goes on into its next episode, as in the CPU vector env's autoreset, so with no device team the games are
-the CPU env's (`autoreset_mode='same-step'`) game for game (to the rounding of the device's math library).
+Autoreset, as the CPU vector env's (`autoreset_mode`): 'next_step' (the default) -- the step after a game ended
+ignores its actions, starts its next episode and returns its first observations with reward 0 and no end flags --
+or 'same_step' -- a game that ends starts its next episode in the same step (without the final observation): the
+step returns that step's rewards and end flags and the new episode's first observations. Either way `info` holds
+the step's coverage rate and, where `terminated | truncated`, the ended episodes' length and mean coverage rate. A
+game's random stream goes on into its next episode, as on the CPU, so with the caller's actions the games are the
+CPU env's with the same autoreset mode, game for game (to the rounding of the device's math library).
 
 The returned tensors are the env's buffers: the next call overwrites them (clone what you keep), as the CPU vector
 env's buffers are. Actions are (B, Nc, 2) / (B, Nt, 2) tensors or arrays (float64 on the device; others are
@@ -34,7 +36,12 @@ from .core.device import DeviceCore, from_torch, to_torch
 from .env import MultiAgentTracking
 from .messages import Team
 
-__all__ = ['DeviceVecEnv']
+__all__ = ['DeviceVecEnv', 'INFO_KEYS']
+
+INFO_KEYS = ('coverage_rate', 'episode_length', 'episode_coverage_rate', 'episode_real_coverage_rate',
+             'episode_target_return', 'transport_rate', 'delivered_cargoes')
+"""The (B,) tensors of a step's `info`: the step's coverage rate, and where `terminated | truncated` the ended
+episodes' statistics (`mate.core.device.Outputs`)."""
 
 
 class DeviceVecEnv:
@@ -47,45 +54,60 @@ class DeviceVecEnv:
         camera_agent, target_agent: None (the caller acts for that team) or a built-in agent played on the device,
             'greedy' or 'random'; `camera_options` / `target_options` are its options.
         seed: the teams' seeds (row b: seed + b; their random streams, not the games').
+        autoreset_mode: 'next_step' (default) or 'same_step' (module docstring).
         block: threads per CUDA block.
     """
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
                  camera_agent: str | None = None, target_agent: str | None = None,
                  camera_options: dict | None = None, target_options: dict | None = None, seed: int = 0,
-                 block: int = 128, **overrides: Any) -> None:
+                 autoreset_mode: str = 'next_step', block: int = 128, **overrides: Any) -> None:
         from .core.device import BLOCK
-        from .teams.device import device_team
 
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
         dtype = np.dtype(observation_dtype)
         if dtype not in (np.float64, np.float32):
             raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
+        mode = str(getattr(autoreset_mode, 'value', autoreset_mode)).replace('-', '').replace('_', '').lower()
+        if mode not in ('nextstep', 'samestep'):
+            raise ValueError(f"on a device autoreset_mode is 'next_step' or 'same_step', got {autoreset_mode!r}")
+        self.autoreset_mode = 'next_step' if mode == 'nextstep' else 'same_step'
+        self.next_step = mode == 'nextstep'
         template = MultiAgentTracking(config, **overrides)
         self.config, self.params = template.config, template.params
         self.num_envs = B = int(num_envs)
         p = self.params
         self.counts = (p.num_cameras, p.num_targets, p.num_obstacles)
         dims = (template.camera_observation_space.shape[0], template.target_observation_space.shape[0])
+        self.camera_observation_space, self.target_observation_space = (template.camera_observation_space,
+                                                                        template.target_observation_space)
+        self.camera_action_space, self.target_action_space = (template.camera_action_space,
+                                                              template.target_action_space)
         self.core = DeviceCore(p, B, dims, dtype, block=block or BLOCK)
         self.every = self.core.cuda.to_device(np.ones(B, bool))
         rows = self.core.rows
-        self.teams = {}
-        for team, agent, options, buffer in ((Team.CAMERA, camera_agent, camera_options, rows.camera_actions),
-                                             (Team.TARGET, target_agent, target_options, rows.target_actions)):
-            if agent is None:
-                continue
-            host = device_team(agent, team, B, self.counts, seed=seed, **(options or {}))
-            device = host.to_device()                     # the team writes its actions into the core's buffer
-            self.teams[team] = device._replace(state=device.state._replace(action=buffer))
+        self._agents = {team: (agent, dict(options or {})) for team, agent, options in (
+            (Team.CAMERA, camera_agent, camera_options), (Team.TARGET, target_agent, target_options))
+            if agent is not None}
+        self.teams = self._make_teams(seed)
         self._observations = (to_torch(rows.camera_obs), to_torch(rows.target_obs))
         out = self.core.out
         self._rewards = (to_torch(out.camera_reward), to_torch(out.target_reward))
         self._flags = (to_torch(out.terminated), to_torch(out.truncated))
-        self._info = dict(coverage_rate=to_torch(out.coverage_rate), episode_length=to_torch(out.episode_length),
-                          episode_coverage_rate=to_torch(out.episode_coverage_rate))
+        self._info = {name: to_torch(getattr(out, name)) for name in INFO_KEYS}
         self._started = False
+
+    def _make_teams(self, seed: int) -> dict:
+        """The device teams, row b seeded with seed + b, writing their actions into the core's action buffers."""
+        from .teams.device import device_team
+
+        buffers = {Team.CAMERA: self.core.rows.camera_actions, Team.TARGET: self.core.rows.target_actions}
+        teams = {}
+        for team, (agent, options) in self._agents.items():
+            device = device_team(agent, team, self.num_envs, self.counts, seed=seed, **options).to_device()
+            teams[team] = device._replace(state=device.state._replace(action=buffers[team]))
+        return teams
 
     def _observe_teams(self, mask) -> None:
         for team, observation in ((Team.CAMERA, self.core.rows.camera_obs), (Team.TARGET, self.core.rows.target_obs)):
@@ -93,12 +115,18 @@ class DeviceVecEnv:
                 self.teams[team].reset(observation, mask, self.core.block)
 
     def reset(self, seed: int | None = None, options: dict | None = None):
-        """Start every game (game b with seed + b; None: fresh entropy); returns ((camera_obs, target_obs), {})."""
+        """Start every game; returns ((camera_obs, target_obs), {}). `seed` s: game b and the device teams' row b
+        are seeded with s + b (the teams made anew); None: the games draw fresh entropy, the teams go on."""
         if options:
             raise ValueError(f'DeviceVecEnv.reset takes no options, got {sorted(options)}')
+        if seed is not None:
+            if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+                raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
+            self.teams = self._make_teams(int(seed))
         seeds = [None] * self.num_envs if seed is None else [int(seed) + b for b in range(self.num_envs)]
         self.core.reset(seeds=seeds)
         self._observe_teams(self.every)
+        self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))       # no game waits for a restart
         self._started = True
         return self._observations, {}
 
@@ -117,9 +145,11 @@ class DeviceVecEnv:
             array = np.ascontiguousarray(array, dtype=np.float64)
         return array
 
-    def step(self, camera_actions=None, target_actions=None):
+    def step(self, camera_actions=None, target_actions=None, restart_ended: bool = True):
         """One step of every game: the device teams act, the world advances, the games that ended restart.
-        Returns ((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, info)."""
+        Returns ((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, info).
+        `restart_ended=False` (same_step): the ended games restart only at `restart_ended()`, so that the world
+        arrays of their ended step can be read first (`world_tensor`)."""
         if not self._started:
             raise RuntimeError('DeviceVecEnv: call reset() before step()')
         camera_actions = self._actions(camera_actions, Team.CAMERA)
@@ -128,10 +158,34 @@ class DeviceVecEnv:
         for team, observation in ((Team.CAMERA, rows.camera_obs), (Team.TARGET, rows.target_obs)):
             if team in self.teams:
                 self.teams[team].act(observation, self.every, self.core.block)
-        self.core.step(camera_actions, target_actions)
-        self.core.finish()
-        self._observe_teams(rows.mask)
+        self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
+        if self.next_step:               # the games that ended last step restarted instead of stepping
+            self._observe_teams(rows.mask)
+            self.core.finish(restart=False)
+        elif restart_ended:
+            self.core.finish(restart=True)
+            self._observe_teams(rows.mask)
+        else:
+            self.core.finish(restart=False)
         return self._observations, self._rewards, self._flags[0], self._flags[1], self._info
+
+    def restart_ended(self) -> None:
+        """After `step(..., restart_ended=False)`: the games that ended in it start their next episode."""
+        self.core.reset_masked()
+        self._observe_teams(self.core.rows.mask)
+
+    def restart(self, mask) -> None:
+        """The games of `mask` (B,) bool (host) start their next episode now, their streams going on (what a
+        partial reset of TorchRL asks for); no game waits for a restart after it."""
+        mask = np.asarray(mask, bool)
+        self.core.reset(mask)
+        self._observe_teams(self.core.rows.mask)
+        self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))
+
+    def world_tensor(self, name: str):
+        """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
+        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt))."""
+        return to_torch(getattr(self.core.world, name))
 
     def close(self) -> None:
         """Nothing to release (the device arrays go with the object)."""

@@ -200,6 +200,8 @@ class SingleTeamVecEnv(VectorEnv):
         live = ~restarting
         if self.reward_kind in ('own', 'difference'):
             rewards = np.where(live[:, None], rewards, 0.0)
+        if 'final_info' in infos:          # same_step: the ended games were reset; their step is in final_info
+            rewards = self._final_rewards(rewards, infos['final_info'], infos['_final_info'])
         ended = live & (terminations | truncations)
         self._sums['r'] += np.where(live, rewards if rewards.ndim == 1 else rewards.sum(axis=1), 0.0)
         if ended.any():
@@ -214,6 +216,17 @@ class SingleTeamVecEnv(VectorEnv):
             infos['final_obs'] = np.array([None if pair is None else pair[self._own] for pair in infos['final_obs']],
                                           dtype=object)
         return observations[self._own], rewards, terminations, truncations, infos
+
+    def _final_rewards(self, rewards: np.ndarray, final: dict, done: np.ndarray) -> np.ndarray:
+        """`rewards` with those of the games that ended in a same_step autoreset taken from their ended step (the
+        world and the infos show their next episode already)."""
+        if self.reward_kind == 'coverage':
+            return np.where(done, final['coverage_rate'], rewards)
+        if self.reward_kind == 'own':
+            rewards[done] = final['target_reward_parts'][done]
+        elif self.reward_kind == 'difference':
+            rewards[done] = difference_rewards(final['camera_target_view_mask'][done])
+        return rewards
 
     def _episode_statistics(self, ended, infos) -> dict:
         """`infos['episode']` of the games that ended at this step (zeros elsewhere): the learner's summed reward, and
@@ -276,6 +289,19 @@ class SingleTeamVecEnv(VectorEnv):
                 f'num_envs={self.num_envs}, reward={self.reward_kind!r})')
 
 
-def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, **kwargs) -> SingleTeamVecEnv:
-    """`SingleTeamVecEnv(config, team, num_envs, **kwargs)`: B games of `team` against a batched opponent."""
-    return SingleTeamVecEnv(config, team, num_envs, **kwargs)
+def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, *, device: str | None = None, **kwargs):
+    """`SingleTeamVecEnv(config, team, num_envs, **kwargs)`: B games of `team` against a batched opponent.
+
+    `device='cuda'` (the gpu extra): the games and the opponent on a CUDA device, torch tensors in and out
+    (`mate.device_team_vector.DeviceTeamVecEnv`; opponents 'greedy' or 'random')."""
+    if device is None or str(device) == 'cpu':
+        return SingleTeamVecEnv(config, team, num_envs, **kwargs)
+    if not str(device).startswith('cuda'):
+        raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
+    name = as_team(team).name.lower()
+    reward = kwargs.get('reward', 'team')
+    if reward not in REWARDS[name]:
+        raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+    from .device_team_vector import DeviceTeamVecEnv
+
+    return DeviceTeamVecEnv(config, team, num_envs, **kwargs)

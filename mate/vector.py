@@ -38,6 +38,9 @@ INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_
              *EPISODE_STATISTICS)
 """The (B,) arrays of a vector step's infos: World fields of the same names, and the episode so far
 (`mate.core.world.episode_statistics`: its mean coverage rates and the target team's raw return)."""
+FINAL_WORLD_KEYS = ('target_reward_parts', 'camera_target_view_mask')
+"""World arrays of the ended step that `same_step` autoreset keeps in `final_info` (each target's part of the team
+reward (B, Nt), which camera tracks which target (B, Nc, Nt)): the reset overwrites them."""
 
 
 def _autoreset_mode(mode) -> AutoresetMode:
@@ -267,6 +270,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
             final_info = dict(infos)
             for key in INFO_KEYS:
                 final_info[f'_{key}'] = done
+            for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the reset
+                final_info[key] = getattr(world, key).copy()
             engine.reset(p, world, done, self._camera_obs, self._target_obs)
             self._autoreset[:] = False
             infos = self._infos()
@@ -436,19 +441,19 @@ def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: A
     preset and keyword overrides are deep-merged, exactly as in `mate.make`.
 
     `device='cuda'` (or 'cuda:N' where numba-cuda sees it as the current device) gives the games on the GPU:
-    `mate.device_vector.DeviceVecEnv` (the gpu extra), whose autoreset is SAME_STEP and whose outputs are torch
+    `mate.device_vector.DeviceVecEnv` (the gpu extra; autoreset NEXT_STEP or SAME_STEP), whose outputs are torch
     tensors on the device; it takes `camera_agent=` / `target_agent=` ('greedy', 'random') to play a team there.
     None or 'cpu': this module's env (autoreset NEXT_STEP unless `autoreset_mode` says otherwise)."""
     if device is not None and str(device) != 'cpu':
         if not str(device).startswith('cuda'):
             raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
-        if autoreset_mode is not None and _autoreset_mode(autoreset_mode) is not AutoresetMode.SAME_STEP:
-            raise ValueError("on a device the games autoreset in the same step: autoreset_mode='same-step' or none")
         if copy:
             raise ValueError('copy=True is not available on a device: clone the tensors you keep')
         from .device_vector import make_device_vec
 
-        return make_device_vec(env_id, num_envs, config, observation_dtype=observation_dtype, **overrides)
+        return make_device_vec(env_id, num_envs, config, observation_dtype=observation_dtype,
+                               autoreset_mode=AutoresetMode.NEXT_STEP if autoreset_mode is None else autoreset_mode,
+                               **overrides)
     return MultiAgentTrackingVectorEnv(registration.resolve_config(env_id, config), num_envs,
                                        observation_dtype=observation_dtype,
                                        autoreset_mode=AutoresetMode.NEXT_STEP if autoreset_mode is None

@@ -165,3 +165,21 @@ def test_state_dict_continues_exactly():
         assert ('_episode' in replay[4]) == ('_episode' in infos)
         if '_episode' in infos:
             np.testing.assert_array_equal(replay[4]['episode']['r'], infos['episode']['r'])
+
+
+@pytest.mark.parametrize('config, team, reward', [('MATE-2v4-0', 'target', 'own'),
+                                                  ('MATE-4v8-9', 'camera', 'difference'),
+                                                  ('MATE-4v8-9', 'camera', 'coverage')])
+def test_an_ending_steps_rewards_are_its_own_in_either_autoreset_mode(config, team, reward):
+    """With same_step the ended games are reset inside the step; their rewards still come from the step they ended
+    in (the next_step env's, whose games are the same until then), not from their next episode's start."""
+    rewards = {}
+    for mode in ('next_step', 'same_step'):
+        envs = mate.make_team_vec(config, team, 3, reward=reward, autoreset_mode=mode, max_episode_steps=5)
+        envs.reset(seed=4)
+        actions = np.random.default_rng(0).uniform(-5, 5, (5, 3, envs.num_agents, 2))
+        for step in range(5):
+            _, rewards[mode], terminated, truncated, infos = envs.step(actions[step])
+        assert (terminated | truncated).all()
+    assert np.array_equal(rewards['same_step'], rewards['next_step'])
+    assert np.abs(rewards['next_step']).sum() > 0

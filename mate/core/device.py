@@ -62,8 +62,8 @@ class Rows(NamedTuple):
 
 class Outputs(NamedTuple):
     """What a step hands back (B,) each, written by the `finish` kernel before it restarts the games that ended:
-    the step's rewards, end flags and coverage rate, and for the games that ended, their episode's length and
-    mean coverage rate (undefined elsewhere)."""
+    the step's rewards, end flags and coverage rate, and for the games that ended their episode's statistics, as
+    `mate.core.world.episode_statistics` gives them (undefined elsewhere)."""
 
     camera_reward: object
     target_reward: object
@@ -72,6 +72,10 @@ class Outputs(NamedTuple):
     coverage_rate: object
     episode_length: object
     episode_coverage_rate: object
+    episode_real_coverage_rate: object
+    episode_target_return: object       # the target team's return of the config's reward (dense or sparse)
+    transport_rate: object              # at the episode's end
+    delivered_cargoes: object
 
 
 def cuda_module():
@@ -103,7 +107,17 @@ def _reset(p, w, rows):
         start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
-def _finish(p, w, rows, out):
+def _advance(p, w, rows):
+    b = cuda.grid(1)
+    if b < w.episode_step.shape[0]:
+        if rows.mask[b]:
+            start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+        else:
+            advance_row(p, w, b, rows.camera_actions[b], rows.target_actions[b])
+            joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+
+
+def _finish(p, w, rows, out, restart):
     b = cuda.grid(1)
     if b < w.episode_step.shape[0]:
         reward = w.target_reward[b]
@@ -118,18 +132,26 @@ def _finish(p, w, rows, out):
             steps = w.episode_step[b]
             out.episode_length[b] = steps
             out.episode_coverage_rate[b] = w.coverage_rate_sum[b] / steps
-            start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+            out.episode_real_coverage_rate[b] = w.real_coverage_rate_sum[b] / steps
+            out.episode_target_return[b] = w.delayed_target_team_episode_reward[b] if p.sparse_reward \
+                else w.target_team_episode_reward[b]
+            out.transport_rate[b] = w.mean_transport_rate[b]
+            out.delivered_cargoes[b] = w.num_delivered_cargoes[b]
+            if restart:
+                start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
 def _kernel_functions() -> dict:
     """The kernels' Python functions (thread b: row b), by name."""
     cuda_module()
-    return {'step': _step, 'reset': _reset, 'finish': _finish}
+    return {'step': _step, 'reset': _reset, 'advance': _advance, 'finish': _finish}
 
 
-KERNEL_NAMES = ('step', 'reset', 'finish')
+KERNEL_NAMES = ('step', 'reset', 'advance', 'finish')
 """The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games,
-`finish` copies a step's rewards and flags into `Outputs` and restarts the games that ended (their mask set)."""
+`advance` is `step` but for the masked games, which start their next episode instead (next-step autoreset),
+`finish` copies a step's rewards and flags into `Outputs` and sets the mask to the games that ended (restarting
+them at once if told: same-step autoreset)."""
 
 
 @functools.cache
@@ -147,7 +169,7 @@ def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64
     functions = _kernel_functions()
     world = empty_world(params, batch_size)
     rows = _host_rows(params, batch_size, (1, 1), dtype)     # (the observations' lengths do not change the code)
-    arguments = (params, world, rows) + ((_host_outputs(batch_size),) if name == 'finish' else ())
+    arguments = (params, world, rows) + ((_host_outputs(batch_size), True) if name == 'finish' else ())
     signature = tuple(typeof(argument) for argument in arguments)
     with _compute_capability(cc):
         ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
@@ -187,7 +209,7 @@ def _host_outputs(batch_size: int) -> Outputs:
     """Zeroed host arrays of `Outputs` for B games."""
     B = batch_size
     return Outputs(np.zeros(B), np.zeros(B), np.zeros(B, bool), np.zeros(B, bool), np.zeros(B),
-                   np.zeros(B, np.int64), np.zeros(B))
+                   np.zeros(B, np.int64), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B, np.int64))
 
 
 def to_torch(array):
@@ -245,12 +267,12 @@ class DeviceCore:
         """(B, Nt, D_t) device array: every target's observation after the last reset or step."""
         return self.rows.target_obs
 
-    def _launch(self, name: str) -> None:
+    def _launch(self, name: str, *flags: bool) -> None:
         grid = (self.batch_size + self.block - 1) // self.block
         arguments = (self.params, self.world, self.rows) + ((self.out,) if name == 'finish' else ())
         if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
             arguments = tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in arguments)
-        kernels()[name][grid, self.block](*arguments)
+        kernels()[name][grid, self.block](*arguments, *flags)
 
     def reset(self, mask=None, seeds: Iterable[int | None] | None = None) -> None:
         """Start new episodes in the games where `mask` (B,) is true (None: all); with `seeds` (one int or None per
@@ -268,10 +290,11 @@ class DeviceCore:
         self.rows.mask.copy_to_device(mask)
         self._launch('reset')
 
-    def step(self, camera_actions=None, target_actions=None) -> None:
+    def step(self, camera_actions=None, target_actions=None, restart_masked: bool = False) -> None:
         """Advance every game one step with the actions (B, Nc, 2) in degrees (rotation, zoom) and (B, Nt, 2)
         displacements, float64, on the device or the host (copied in); None: the team's actions are in
-        `self.rows` already (a device team wrote them there)."""
+        `self.rows` already (a device team wrote them there). `restart_masked`: the games of `self.rows.mask` (set
+        by `finish`) start their next episode instead, their actions ignored (next-step autoreset)."""
         for name, actions, buffer in (('camera_actions', camera_actions, self.rows.camera_actions),
                                       ('target_actions', target_actions, self.rows.target_actions)):
             if actions is None:
@@ -279,12 +302,18 @@ class DeviceCore:
             if getattr(actions, 'shape', None) != buffer.shape:
                 raise ValueError(f'{name}: expected shape {buffer.shape}, got {getattr(actions, "shape", None)}')
             buffer.copy_to_device(actions)
-        self._launch('step')
+        self._launch('advance' if restart_masked else 'step')
 
-    def finish(self) -> None:
-        """After a step: copy its rewards, flags and coverage into `self.out` and restart the games that ended
-        (their random streams go on, as the CPU vector env's autoreset does); `self.rows.mask` then holds them."""
-        self._launch('finish')
+    def finish(self, restart: bool = True) -> None:
+        """After a step: copy its rewards, flags and coverage into `self.out`, set `self.rows.mask` to the games
+        that ended and, with `restart`, start their next episodes now (their random streams go on, as the CPU
+        vector env's autoreset does)."""
+        self._launch('finish', bool(restart))
+
+    def reset_masked(self) -> None:
+        """Start new episodes in the games `self.rows.mask` holds (set by `finish`), their streams going on, without
+        a host copy of the mask."""
+        self._launch('reset')
 
     def world_to_host(self) -> World:
         """A host copy of the world (numpy arrays), for checks and snapshots."""

@@ -15,7 +15,9 @@ the action box, `(team, 'reward')` (B, N, 1) (the team reward repeated to every 
 'own' and 'difference' rewards), and `done`, `terminated`, `truncated` (B, 1) at the root. A game that ends shows
 its last observation with done; TorchRL's partial reset (`_reset` mask) then hands out the next episode's first
 observation, which the batch had already started (same-step autoreset). `set_seed(s)` seeds game i with s + i at
-the next full reset, as `make_team_vec` does. Tensors live on `device` (the games on the CPU: the numba core).
+the next full reset, as `make_team_vec` does. Tensors live on `device`; the games run on the CPU (the numba core)
+or, with `game_device='cuda'`, on the GPU (`mate.make_team_vec(..., device='cuda')`): there the ended games wait
+(next_step autoreset) until the partial reset restarts them, which plays the same games without a host round trip.
 
 BenchMARL builds its tasks on TorchRL environments; its releases pin torchrl below 0.12, this adapter is tested
 with the torchrl that installs beside this package's torch (docs/ecosystem notes in docs/training.md).
@@ -42,14 +44,20 @@ class MateTorchRLEnv(EnvBase):
         team: 'camera' or 'target', the team the actions drive; also the group's key.
         num_envs: B, the games stepped at once.
         device: where the tensors are returned ('cpu', 'cuda', ...).
+        game_device: None or 'cpu' (the games on the CPU, the numba core), or 'cuda': the games and the opponent on
+            the GPU (`mate.make_team_vec(..., device='cuda')`, the gpu extra; opponents 'greedy' or 'random').
         **kwargs: more `mate.make_team_vec` options: `reward`, `opponent`, `max_episode_steps`, ...
     """
 
-    def __init__(self, config=None, team: str = 'camera', num_envs: int = 64, device='cpu', **kwargs):
+    def __init__(self, config=None, team: str = 'camera', num_envs: int = 64, device='cpu', game_device=None,
+                 **kwargs):
         if 'autoreset_mode' in kwargs:
             raise ValueError('MateTorchRLEnv sets autoreset_mode itself (TorchRL resets finished games with _reset)')
+        self.on_device = game_device is not None and str(game_device) != 'cpu'
+        # on a device the ended games wait (next_step) until TorchRL's partial reset restarts them
         self.envs = make_team_vec(config, team=team, num_envs=num_envs, observation_dtype=np.float32,
-                                  autoreset_mode='same_step', **kwargs)
+                                  autoreset_mode='next_step' if self.on_device else 'same_step', device=game_device,
+                                  **kwargs)
         super().__init__(batch_size=torch.Size([num_envs]), device=device)
         self.group = team
         B, (N, D) = num_envs, self.envs.single_observation_space.shape
@@ -81,6 +89,8 @@ class MateTorchRLEnv(EnvBase):
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         partial = tensordict is not None and '_reset' in tensordict.keys() and self._current is not None
+        if self.on_device:
+            return self._device_reset(tensordict if partial else None)
         if not partial:
             seed, self._seed = self._seed, None
             self._current, _ = self.envs.reset(seed=seed)
@@ -90,7 +100,39 @@ class MateTorchRLEnv(EnvBase):
                            'done': flags, 'terminated': flags.clone(), 'truncated': flags.clone()},
                           batch_size=self.batch_size, device=self.device)
 
+    def _device_reset(self, tensordict: TensorDictBase | None) -> TensorDictBase:
+        """`_reset` over the device env: a partial reset restarts the masked games now (their streams going on)."""
+        if tensordict is None:
+            seed, self._seed = self._seed, None
+            self._current, _ = self.envs.reset(seed=seed)
+        else:
+            self.envs.restart(tensordict.get('_reset').reshape(-1).cpu().numpy())
+        flags = torch.zeros(self.batch_size + (1,), dtype=torch.bool, device=self.device)
+        observation = self._current.to(self.device, torch.float32, copy=True)
+        return TensorDict({self.group: TensorDict({'observation': observation},
+                                                  batch_size=self.batch_size + observation.shape[1:2]),
+                           'done': flags, 'terminated': flags.clone(), 'truncated': flags.clone()},
+                          batch_size=self.batch_size, device=self.device)
+
+    def _device_step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """`_step` over the device env (next_step autoreset: an ended game shows its last observation as is)."""
+        observations, rewards, terminated, truncated, _ = self.envs.step(
+            tensordict.get((self.group, 'action')).detach().to(torch.float64))
+        N = observations.shape[1]
+        rewards = rewards.to(self.device, torch.float32)
+        rewards = rewards[:, None].expand(-1, N) if rewards.dim() == 1 else rewards
+        agents = self.batch_size + torch.Size([N])
+        return TensorDict({self.group: TensorDict({'observation': observations.to(self.device, torch.float32,
+                                                                                  copy=True),
+                                                   'reward': rewards[..., None].clone()}, batch_size=agents),
+                           'done': (terminated | truncated)[:, None].to(self.device, copy=True),
+                           'terminated': terminated[:, None].to(self.device, copy=True),
+                           'truncated': truncated[:, None].to(self.device, copy=True)},
+                          batch_size=self.batch_size, device=self.device)
+
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        if self.on_device:
+            return self._device_step(tensordict)
         actions = tensordict.get((self.group, 'action')).detach().to('cpu', torch.float64).numpy()
         observations, rewards, terminated, truncated, infos = self.envs.step(actions)
         self._current = observations

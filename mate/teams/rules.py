@@ -323,9 +323,10 @@ def camera_act_row(b, observation, todo, filterout_unloaded, filterout_beyond_ra
         if not todo[b, i]:
             continue
         short[b, i] = False
-        x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
-        rx, ry = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
-        theta, max_range = observation[b, i, OWN + 5], observation[b, i, OWN + 6]
+        # float64 whatever the observations' dtype (numba's float() of a float32 stays float32)
+        x, y = np.float64(observation[b, i, OWN]), np.float64(observation[b, i, OWN + 1])
+        rx, ry = np.float64(observation[b, i, OWN + 3]), np.float64(observation[b, i, OWN + 4])
+        theta, max_range = np.float64(observation[b, i, OWN + 5]), np.float64(observation[b, i, OWN + 6])
         reach = RANGE_FACTOR * max_range
         best, best_distance = -1, math.inf
         for t in range(num_targets):
@@ -510,8 +511,9 @@ def target_act_row(b, observation, todo, noise_scale, goal_bits, non_empty, high
         if not todo[b, i]:
             continue
         short[b, i] = False
-        x, y = observation[b, i, OWN], observation[b, i, OWN + 1]
-        loaded, step = observation[b, i, OWN + 3], observation[b, i, OWN + 4]
+        # float64 whatever the observations' dtype (numba's float() of a float32 stays float32)
+        x, y = np.float64(observation[b, i, OWN]), np.float64(observation[b, i, OWN + 1])
+        loaded, step = np.float64(observation[b, i, OWN + 3]), np.float64(observation[b, i, OWN + 4])
         observed = False
         for w in range(NUM_WAREHOUSES):
             observed = observed or observation[b, i, OWN + 6 + w] != 0.0

@@ -61,3 +61,58 @@ def test_the_rollout_is_the_single_team_envs_games():
 def test_autoreset_is_the_adapters_own():
     with pytest.raises(ValueError, match='autoreset_mode'):
         MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=2, autoreset_mode='next_step')
+
+
+ON_DEVICE = """
+import json
+import numpy as np
+import torch
+from mate.integrations.torchrl import MateTorchRLEnv
+from mate.teams.device import HostTeam
+
+B, steps, horizon = 3, 20, 7
+host_greedy = lambda n, c, seed: HostTeam('greedy', 'camera', n, c, seed=seed)
+envs = [MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=horizon, reward='own',
+                       game_device='cuda', block=2),
+        MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=horizon, reward='own',
+                       opponent=host_greedy)]
+for env in envs:
+    env.set_seed(11)
+tds = [env.reset() for env in envs]
+actions = np.random.default_rng(0).uniform(-20, 20, (steps, B, 4, 2)).astype(np.float32)
+differing, ends = [], 0
+if not torch.equal(tds[0]['target', 'observation'], tds[1]['target', 'observation']):
+    differing.append('reset')
+for step in range(steps):
+    for i, env in enumerate(envs):
+        tds[i].set(('target', 'action'), torch.from_numpy(actions[step]))
+        tds[i] = env.step(tds[i])
+    for key in (('next', 'target', 'observation'), ('next', 'target', 'reward'), ('next', 'done'),
+                ('next', 'terminated'), ('next', 'truncated')):
+        if not torch.equal(tds[0][key], tds[1][key]):
+            differing.append(f'{step}: {key}')
+    done = tds[1]['next', 'done']
+    tds = [env.step_mdp(td) for env, td in zip(envs, tds)]
+    if done.any():
+        ends += int(done.sum())
+        tds = [env.reset(td.set('_reset', done.clone())) for env, td in zip(envs, tds)]
+        if not torch.equal(tds[0]['target', 'observation'][done[:, 0]], tds[1]['target', 'observation'][done[:, 0]]):
+            differing.append(f'{step}: partial reset')
+print(json.dumps(dict(differing=differing[:5], ends=ends)))
+"""
+
+
+def test_the_games_on_a_simulated_device_are_the_cpu_adapters():
+    """`game_device='cuda'` under numba's CUDA simulator against the CPU adapter whose opponent is the device
+    team's host twin: the same rollout, partial resets included."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    needs_extra('numba_cuda')
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
+    done = subprocess.run([sys.executable, '-c', ON_DEVICE], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    found = json.loads(done.stdout.strip().splitlines()[-1])
+    assert found['differing'] == [] and found['ends'] >= 3, found

@@ -1,10 +1,10 @@
 """The rule teams and the HRL executor on a CUDA device (`mate.teams.device`), and the device vector env.
 
 Without a GPU: every team kernel compiles to PTX; under numba's CUDA simulator the device env (`make_vec(...,
-device='cuda')`) plays the CPU vector env's games (SAME_STEP autoreset) exactly, with the caller's actions or with
-device teams against their host twins (the same row functions in a compiled loop), and the HRL kernel gives
-`executor_actions`. On the host: the counter streams and the stacks they fill. How the device teams' play compares
-with the CPU teams' over 300 seeds is measured by benchmarks/device_teams.py."""
+device='cuda')`) plays the CPU vector env's games (NEXT_STEP and SAME_STEP autoreset) exactly, with the caller's
+actions or with device teams against their host twins (the same row functions in a compiled loop), and the HRL
+kernel gives `executor_actions`. On the host: the counter streams and the stacks they fill. How the device teams'
+play compares with the CPU teams' over 300 seeds is measured by benchmarks/device_teams.py."""
 
 from __future__ import annotations
 
@@ -46,25 +46,27 @@ from mate.spaces import observation_indices_of
 from mate.messages import Team
 from mate.teams.device import device_team, host_act, host_reset, hrl_actions
 from numba import cuda
+import torch
 
 report = {}
 B, T = 5, 30
 for preset in sys.argv[1:]:
-    for agents in ((None, None), ('greedy', 'greedy'), ('random', 'greedy'), ('greedy', 'random')):
+    for mode, agents in (('same_step', (None, None)), ('same_step', ('greedy', 'greedy')),
+                         ('next_step', (None, None)), ('next_step', ('greedy', 'greedy')),
+                         ('next_step', ('random', 'greedy')), ('next_step', ('greedy', 'random'))):
         dev = mate.make_vec('MultiAgentTracking-v0', B, config=preset, device='cuda', camera_agent=agents[0],
-                            target_agent=agents[1], seed=3, max_episode_steps=12, block=4)
-        cpu = mate.make_vec('MultiAgentTracking-v0', B, config=preset, autoreset_mode='same-step',
-                            max_episode_steps=12)
+                            target_agent=agents[1], seed=3, max_episode_steps=12, block=4, autoreset_mode=mode)
+        cpu = mate.make_vec('MultiAgentTracking-v0', B, config=preset, autoreset_mode=mode, max_episode_steps=12)
         counts = (cpu.num_cameras, cpu.num_targets, cpu.num_obstacles)
         (dc, dt), _ = dev.reset(seed=7)
         (cc, ct), _ = cpu.reset(seed=7)
-        teams = [None if a is None else device_team(a, side, B, counts, seed=3)
+        teams = [None if a is None else device_team(a, side, B, counts, seed=7)
                  for a, side in zip(agents, ('camera', 'target'))]
         for team, obs in zip(teams, (cc, ct)):
             if team is not None:
                 host_reset(team, obs, np.ones(B, bool))
         rng = np.random.default_rng(0)
-        differing, ends = [], 0
+        differing, ends, pending = [], 0, np.zeros(B, bool)
         for step in range(T):
             ca, ta = rng.uniform(-30, 30, (B, counts[0], 2)), rng.uniform(-3, 3, (B, counts[1], 2))
             ca = ca if teams[0] is None else host_act(teams[0], cc).copy()
@@ -73,10 +75,12 @@ for preset in sys.argv[1:]:
             (cc, ct), (ccr, ctr), cterm, ctrunc, cinfo = cpu.step((ca, ta))
             done = cterm | ctrunc
             ends += int(done.sum())
+            restarted = pending if mode == 'next_step' else done
             for team, obs in zip(teams, (cc, ct)):
                 if team is not None:
-                    host_reset(team, obs, done)
-            step_info = cinfo['final_info'] if done.any() else cinfo
+                    host_reset(team, obs, restarted)
+            pending = done
+            step_info = cinfo['final_info'] if 'final_info' in cinfo else cinfo
             pairs = dict(camera_obs=(dc, cc), target_obs=(dt, ct), camera_reward=(dcr, ccr),
                          target_reward=(dtr, ctr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
                          coverage_rate=(dinfo['coverage_rate'], step_info['coverage_rate']))
@@ -86,7 +90,36 @@ for preset in sys.argv[1:]:
             if done.any() and not np.array_equal(np.asarray(dinfo['episode_coverage_rate'])[done],
                                                  step_info['episode_coverage_rate'][done]):
                 differing.append(f'{step}: episode_coverage_rate')
-        report[f'{preset} {agents}'] = dict(differing=differing[:5], ends=ends)
+        report[f'{preset} {mode} {agents}'] = dict(differing=differing[:5], ends=ends)
+
+from mate.teams.device import HostTeam
+for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_step'),
+                                   ('MATE-4v8-9', 'camera', 'difference', 'same_step'),
+                                   ('MATE-2v4-0', 'target', 'own', 'next_step'),
+                                   ('MATE-2v4-0', 'target', 'team', 'same_step')):
+    other = 'target' if team == 'camera' else 'camera'
+    dev = mate.make_team_vec(preset, team, 4, device='cuda', reward=reward, autoreset_mode=mode, max_episode_steps=10,
+                             block=2)
+    cpu = mate.make_team_vec(preset, team, 4, reward=reward, autoreset_mode=mode, max_episode_steps=10,
+                             opponent=lambda n, c, seed: HostTeam('greedy', other, n, c, seed=seed))
+    do, _ = dev.reset(seed=5)
+    co, _ = cpu.reset(seed=5)
+    rng = np.random.default_rng(2)
+    differing, ends = [], 0
+    for step in range(25):
+        actions = rng.uniform(-5, 5, (4, cpu.num_agents, 2))
+        do, dr, dterm, dtrunc, dinfo = dev.step(torch.from_numpy(actions))
+        co, cr, cterm, ctrunc, cinfo = cpu.step(actions)
+        for name, (a, b) in dict(obs=(do, co), reward=(dr, cr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
+                                 ended=(dinfo['_episode'], cinfo.get('_episode', np.zeros(4, bool)))).items():
+            if not np.array_equal(np.asarray(a), b):
+                differing.append(f'{step}: {name}')
+        if '_episode' in cinfo:
+            ends += int(cinfo['_episode'].sum())
+            for key, value in cinfo['episode'].items():
+                if not np.allclose(np.asarray(dinfo['episode'][key]), value, rtol=0, atol=1e-12):
+                    differing.append(f'{step}: episode {key}')
+    report[f'single {team} {reward} {mode}'] = dict(differing=differing[:5], ends=ends)
 
 nc, nt, no = 4, 8, 9
 vec = mate.make_vec('MultiAgentTracking-v0', 6, config='MATE-4v8-9')
@@ -116,7 +149,7 @@ def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     report = json.loads(done.stdout.strip().splitlines()[-1])
     hrl = report.pop('hrl')
     assert hrl['equal'] and hrl['aimed'] > 0, hrl
-    assert len(report) == 2 * 4
+    assert len(report) == 2 * 6 + 4
     for pairing, found in report.items():
         assert found['differing'] == [], (pairing, found['differing'])
         assert found['ends'] >= 5, pairing          # every game restarted at least once (12-step episodes)
