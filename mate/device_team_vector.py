@@ -9,7 +9,7 @@ env's in distribution; with a `HostTeam` opponent on the CPU env they agree game
 
 Differences from the CPU env, for speed on a GPU (no host round trip per step): `infos` always holds `episode` and
 its mask `_episode` (all false on a step where no game ended) beside `coverage_rate`; no `final_obs` (same_step);
-the returned tensors are the env's buffers, overwritten by the next step. No `state_dict` yet.
+the returned tensors are the env's buffers, overwritten by the next step. `state_dict()` holds host arrays.
 """
 
 from __future__ import annotations
@@ -152,6 +152,25 @@ class DeviceTeamVecEnv:
             self.vec.restart_ended()
         infos = {'coverage_rate': info['coverage_rate'], 'episode': episode, '_episode': ended}
         return observations[self._own], rewards, terminated, truncated, infos
+
+    def state_dict(self) -> dict:
+        """The device env's state (`DeviceVecEnv.state_dict`) and the episodes' running sums and pending
+        restarts, as host arrays: `load_state_dict` on an env made alike continues exactly."""
+        return dict(vec=self.vec.state_dict(), sums=self._sum.cpu().numpy().copy(),
+                    pending=self._pending.cpu().numpy().copy(), started=self._started)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output."""
+        import torch
+
+        self.vec.load_state_dict(state['vec'])
+        self._sum.copy_(torch.as_tensor(state['sums']))
+        self._pending.copy_(torch.as_tensor(state['pending']))
+        self._started = bool(state['started'])
+
+    def state(self):
+        """(B, S) tensor: every game's global state (`DeviceVecEnv.state`)."""
+        return self.vec.state()
 
     def close(self) -> None:
         self.vec.close()

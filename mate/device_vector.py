@@ -182,6 +182,37 @@ class DeviceVecEnv:
         self._observe_teams(self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))
 
+    def state(self):
+        """(B, S) tensor: every game's global state (`mate.make_vec(...).state()`'s values, in the observations'
+        dtype), e.g. for a centralised critic; one buffer on the device, overwritten by the next call."""
+        return to_torch(self.core.state())
+
+    def state_dict(self) -> dict:
+        """Everything the games' future depends on, as host numpy arrays: the world, the observations, the actions
+        held, the games waiting for a next_step restart and the device teams' states (their random streams
+        included). `load_state_dict` on an env made alike continues exactly."""
+        core = self.core
+        host = lambda group: {name: array.copy_to_host() for name, array in zip(group._fields, group)}  # noqa: E731
+        return dict(world=host(core.world), rows=host(core.rows),
+                    teams={team.name.lower(): host(device.state) for team, device in self.teams.items()},
+                    started=self._started)
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (taken from an env of the same game, size and device teams)."""
+        core = self.core
+        for group, arrays in ((core.world, state['world']), (core.rows, state['rows'])):
+            for name, array in zip(group._fields, group):
+                array.copy_to_device(np.ascontiguousarray(arrays[name]))
+        if sorted(state['teams']) != sorted(team.name.lower() for team in self.teams):
+            raise ValueError(f"the state's device teams ({', '.join(sorted(state['teams'])) or 'none'}) are not this "
+                             f"env's ({', '.join(sorted(team.name.lower() for team in self.teams)) or 'none'})")
+        for team, device in self.teams.items():
+            arrays = state['teams'][team.name.lower()]
+            for name, array in zip(device.state._fields, device.state):
+                if name != 'action':          # the core's action buffer, loaded with the rows
+                    array.copy_to_device(np.ascontiguousarray(arrays[name]))
+        self._started = bool(state['started'])
+
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
         'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt))."""

@@ -36,8 +36,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..constants import state_dim
 from .engine import advance_row, seed_streams, start_row
-from .observe import joint_observation
+from .observe import global_state, joint_observation
 from .params import Params
 from .world import World, empty_world
 
@@ -141,17 +142,29 @@ def _finish(p, w, rows, out, restart):
                 start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
+def _state(p, w, rows, states):
+    b = cuda.grid(1)
+    if b < w.episode_step.shape[0]:
+        global_state(p, w, b, states.out[b])
+
+
+class States(NamedTuple):
+    """The `state` kernel's output: every game's global state (B, S) (a named tuple, as `Rows`)."""
+
+    out: object
+
+
 def _kernel_functions() -> dict:
     """The kernels' Python functions (thread b: row b), by name."""
     cuda_module()
-    return {'step': _step, 'reset': _reset, 'advance': _advance, 'finish': _finish}
+    return {'step': _step, 'reset': _reset, 'advance': _advance, 'finish': _finish, 'state': _state}
 
 
-KERNEL_NAMES = ('step', 'reset', 'advance', 'finish')
+KERNEL_NAMES = ('step', 'reset', 'advance', 'finish', 'state')
 """The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games,
 `advance` is `step` but for the masked games, which start their next episode instead (next-step autoreset),
 `finish` copies a step's rewards and flags into `Outputs` and sets the mask to the games that ended (restarting
-them at once if told: same-step autoreset)."""
+them at once if told: same-step autoreset), `state` writes every game's global state into `States`."""
 
 
 @functools.cache
@@ -169,7 +182,8 @@ def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64
     functions = _kernel_functions()
     world = empty_world(params, batch_size)
     rows = _host_rows(params, batch_size, (1, 1), dtype)     # (the observations' lengths do not change the code)
-    arguments = (params, world, rows) + ((_host_outputs(batch_size), True) if name == 'finish' else ())
+    extra = {'finish': (_host_outputs(batch_size), True), 'state': (States(np.zeros((batch_size, 1), dtype)),)}
+    arguments = (params, world, rows) + extra.get(name, ())
     signature = tuple(typeof(argument) for argument in arguments)
     with _compute_capability(cc):
         ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
@@ -256,6 +270,7 @@ class DeviceCore:
         host = _host_rows(params, self.batch_size, tuple(observation_dims), dtype)
         self.rows = Rows(*(to_device(array) for array in host))
         self.out = Outputs(*(to_device(array) for array in _host_outputs(self.batch_size)))
+        self.host_params, self.dtype, self._states = params, np.dtype(dtype), None
 
     @property
     def camera_obs(self):
@@ -269,7 +284,8 @@ class DeviceCore:
 
     def _launch(self, name: str, *flags: bool) -> None:
         grid = (self.batch_size + self.block - 1) // self.block
-        arguments = (self.params, self.world, self.rows) + ((self.out,) if name == 'finish' else ())
+        groups = {'finish': (self.out,), 'state': (self._states,)}.get(name, ())
+        arguments = (self.params, self.world, self.rows) + groups
         if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
             arguments = tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in arguments)
         kernels()[name][grid, self.block](*arguments, *flags)
@@ -309,6 +325,16 @@ class DeviceCore:
         that ended and, with `restart`, start their next episodes now (their random streams go on, as the CPU
         vector env's autoreset does)."""
         self._launch('finish', bool(restart))
+
+    def state(self):
+        """(B, S) device array: every game's global state now (`mate.make_vec(...).state()`'s values, in the
+        observations' dtype); one buffer, overwritten by the next call."""
+        if self._states is None:
+            p = self.host_params
+            size = state_dim(p.num_cameras, p.num_targets, p.num_obstacles)
+            self._states = States(self.cuda.to_device(np.zeros((self.batch_size, size), self.dtype)))
+        self._launch('state')
+        return self._states.out
 
     def reset_masked(self) -> None:
         """Start new episodes in the games `self.rows.mask` holds (set by `finish`), their streams going on, without

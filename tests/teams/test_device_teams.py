@@ -83,7 +83,8 @@ for preset in sys.argv[1:]:
             step_info = cinfo['final_info'] if 'final_info' in cinfo else cinfo
             pairs = dict(camera_obs=(dc, cc), target_obs=(dt, ct), camera_reward=(dcr, ccr),
                          target_reward=(dtr, ctr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
-                         coverage_rate=(dinfo['coverage_rate'], step_info['coverage_rate']))
+                         coverage_rate=(dinfo['coverage_rate'], step_info['coverage_rate']),
+                         state=(dev.state(), cpu.state()))
             for name, (a, b) in pairs.items():
                 if not np.array_equal(np.asarray(a), b):
                     differing.append(f'{step}: {name}')
@@ -121,6 +122,32 @@ for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_st
                     differing.append(f'{step}: episode {key}')
     report[f'single {team} {reward} {mode}'] = dict(differing=differing[:5], ends=ends)
 
+for mode, opponent, options in (('next_step', 'random', {'frame_skip': 4}), ('same_step', 'greedy', {})):
+    make = lambda: mate.make_team_vec('MATE-4v8-9', 'camera', 3, device='cuda', reward='difference', block=2,
+                                      autoreset_mode=mode, max_episode_steps=6, opponent=opponent,
+                                      opponent_options=options)
+    first = make()
+    first.reset(seed=9)
+    actions = torch.from_numpy(np.random.default_rng(3).uniform(-5, 5, (20, 3, 4, 2)))
+    for step in range(9):
+        first.step(actions[step])
+    saved = first.state_dict()
+    expected, ends = [], 0
+    for step in range(9, 20):
+        o, r, te, tr, info = first.step(actions[step])
+        expected.append([x.clone() for x in (o, r, te, tr, info['episode']['r'], first.state())])
+        ends += int((te | tr).sum())
+    resumed = make()
+    resumed.reset(seed=1)
+    resumed.load_state_dict(saved)
+    differing = []
+    for step in range(9, 20):
+        o, r, te, tr, info = resumed.step(actions[step])
+        if not all(torch.equal(x, y) for x, y in zip(expected[step - 9], (o, r, te, tr, info['episode']['r'],
+                                                                           resumed.state()))):
+            differing.append(f'{step}: resumed')
+    report[f'resume {mode} {opponent}'] = dict(differing=differing[:5], ends=ends)
+
 nc, nt, no = 4, 8, 9
 vec = mate.make_vec('MultiAgentTracking-v0', 6, config='MATE-4v8-9')
 (camera_obs, _), _ = vec.reset(seed=0)
@@ -149,7 +176,7 @@ def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     report = json.loads(done.stdout.strip().splitlines()[-1])
     hrl = report.pop('hrl')
     assert hrl['equal'] and hrl['aimed'] > 0, hrl
-    assert len(report) == 2 * 6 + 4
+    assert len(report) == 2 * 6 + 4 + 2
     for pairing, found in report.items():
         assert found['differing'] == [], (pairing, found['differing'])
         assert found['ends'] >= 5, pairing          # every game restarted at least once (12-step episodes)
