@@ -1,7 +1,7 @@
 """The core on a CUDA device (`mate.core.device`), measured on a GPU: speed, and how its transitions differ from the
 CPU core's.
 
-    python benchmarks/gpu.py [--batch-sizes 4096 16384 65536] [--seconds 10] [--json benchmarks/results/gpu.json]
+    python benchmarks/gpu.py [--batch-sizes 4096 16384 65536] [--seconds 5] [--json benchmarks/results/gpu.json]
 
 1. **Same game.** B = 256 games of MATE-4v8-9 and of MATE-8v8-9 reset from the same seeds and stepped 300 times with
    the same random actions on the device and on the CPU core: per step, the largest absolute difference of the
@@ -12,16 +12,20 @@ CPU core's.
 2. **Speed.** env-steps/s of the device core (random actions from a bank of 64 pre-drawn steps on the device,
    observations built every step, float64 and float32 observations) at each batch size, timed over `--seconds`
    after a warm-up, with the device synchronised.
-
 3. **The whole game.** env-steps/s of `make_vec(..., device='cuda')` with both teams greedy on the device
    (`mate.teams.device`: observe, messages, act, the step, autoreset; nothing on the host) at each batch size, and
    of greedy cameras against random targets.
 4. **Greedy vs greedy.** 300 games of MATE-4v8-9 (seeds 0-299), greedy teams on the device, each to the end of its
    first episode: the mean episode coverage rate and its standard error, beside the CPU teams' on the same seeds
    (`play_batch`); the issue's bar is a difference within 3 standard errors.
+5. **Rollouts.** Decisions/s of one team's rollout on the device (`rollout`: HRL cameras with the executor kernel,
+   or targets, against the greedy device team, a 256-256 MLP deciding every 5 env steps on the GPU): the trainers'
+   collection without their learning step, an upper bound of what `mate train` could reach once it uses the device
+   env (it does not yet).
 
 Writes a JSON record (the device, the versions, every number) and prints one line per measurement; under 8 minutes
-on one H200 with the defaults. Needs a CUDA GPU and the gpu extra (`pip install -e '.[gpu]'`).
+on one H200 with the defaults (not yet timed there: `--seconds 3` or fewer batch sizes if time is short). Needs a
+CUDA GPU and the gpu extra (`pip install -e '.[gpu]'`).
 """
 
 from __future__ import annotations
@@ -151,10 +155,67 @@ def greedy_statistics(preset: str = 'MATE-4v8-9', seeds: int = 300) -> dict:
                 device_seconds=device_seconds)
 
 
+def rollout(team: str, batch_size: int, seconds: float, frame_skip: int = 5, hidden: int = 256) -> dict:
+    """Decisions/s of a rollout on the device, the trainers' shape without their learning step (module docstring,
+    5): one team's games against the greedy device team, a two-layer MLP (random weights) deciding on the GPU every
+    `frame_skip` env steps; HRL cameras (keep bits per target, the executor kernel re-aiming at every env step) or
+    targets (continuous moves held for the decision)."""
+    import torch
+
+    import mate
+    from mate.core.device import from_torch
+    from mate.teams.device import hrl_actions
+
+    env = mate.make_team_vec(None, team, batch_size, device='cuda', observation_dtype=np.float32)
+    observations, _ = env.reset(seed=0)
+    B, N, D = observations.shape
+    nt = env.counts[1]
+    device = observations.device
+    outputs = nt if team == 'camera' else 2
+    policy = torch.nn.Sequential(torch.nn.Linear(D, hidden), torch.nn.Tanh(), torch.nn.Linear(hidden, hidden),
+                                 torch.nn.Tanh(), torch.nn.Linear(hidden, outputs)).to(device)
+    high = torch.as_tensor(env.single_action_space.high, device=device)
+    actions = torch.zeros((B, N, 2), dtype=torch.float64, device=device)
+    begin = int(mate.spaces.observation_indices_of(mate.Team.CAMERA, *env.counts)[2]) if team == 'camera' else 0
+
+    def decide(observations):
+        with torch.no_grad():
+            logits = policy(observations)
+        if team == 'camera':
+            return torch.bernoulli(torch.sigmoid(logits)).bool()
+        return torch.tanh(logits).to(torch.float64) * high
+
+    def one_decision(observations):
+        decision = decide(observations)
+        for _ in range(frame_skip):
+            if team == 'camera':
+                hrl_actions(from_torch(observations.reshape(B * N, D)), from_torch(decision.reshape(B * N, nt)),
+                            begin, from_torch(actions.view(B * N, 2)))
+                observations, *_ = env.step(actions)
+            else:
+                observations, *_ = env.step(decision)
+        return observations
+
+    for _ in range(3):
+        observations = one_decision(observations)
+    torch.cuda.synchronize() if device.type == 'cuda' else None
+    decisions, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        observations = one_decision(observations)
+        decisions += 1
+        if device.type == 'cuda' and decisions % 8 == 0:
+            torch.cuda.synchronize()
+    torch.cuda.synchronize() if device.type == 'cuda' else None
+    elapsed = time.perf_counter() - start
+    return dict(team=team, batch_size=batch_size, frame_skip=frame_skip, decisions=decisions * B, seconds=elapsed,
+                decisions_per_second=decisions * B / elapsed,
+                env_steps_per_second=decisions * B * frame_skip / elapsed)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--batch-sizes', type=int, nargs='+', default=[4096, 16384, 65536])
-    parser.add_argument('--seconds', type=float, default=10.0)
+    parser.add_argument('--seconds', type=float, default=5.0)
     parser.add_argument('--presets', nargs='+', default=['MATE-4v8-9', 'MATE-8v8-9'])
     parser.add_argument('--json', default='benchmarks/results/gpu.json')
     args = parser.parse_args()
@@ -184,6 +245,13 @@ def main() -> None:
             record['whole_game'].append(found)
             print(f"MATE-4v8-9 greedy vs {target_agent} on the device, B={batch_size}: "
                   f"{found['env_steps_per_second']:,.0f} env-steps/s", flush=True)
+    record['rollout'] = []
+    for team in ('camera', 'target'):
+        for batch_size in args.batch_sizes:
+            found = rollout(team, batch_size, args.seconds)
+            record['rollout'].append(found)
+            print(f"rollout of {'HRL cameras' if team == 'camera' else 'targets'} vs greedy on the device, "
+                  f"B={batch_size}: {found['decisions_per_second']:,.0f} decisions/s", flush=True)
     found = record['greedy_statistics'] = greedy_statistics()
     print(f"greedy vs greedy, {found['seeds']} seeds: device {found['device_mean_coverage_rate']:.4f} "
           f"+- {found['device_standard_error']:.4f}, CPU {found['cpu_mean_coverage_rate']:.4f} "
