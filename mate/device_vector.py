@@ -96,7 +96,7 @@ class DeviceVecEnv:
         self._rewards = (to_torch(out.camera_reward), to_torch(out.target_reward))
         self._flags = (to_torch(out.terminated), to_torch(out.truncated))
         self._info = {name: to_torch(getattr(out, name)) for name in INFO_KEYS}
-        self._started = False
+        self._started = self._seeded = False
 
     def _make_teams(self, seed: int) -> dict:
         """The device teams, row b seeded with seed + b, writing their actions into the core's action buffers."""
@@ -116,15 +116,20 @@ class DeviceVecEnv:
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start every game; returns ((camera_obs, target_obs), {}). `seed` s: game b and the device teams' row b
-        are seeded with s + b (the teams made anew); None: the games draw fresh entropy, the teams go on."""
+        are seeded with s + b (the teams made anew); None: every stream goes on (the first reset draws fresh
+        entropy), as the CPU vector env's."""
         if options:
             raise ValueError(f'DeviceVecEnv.reset takes no options, got {sorted(options)}')
         if seed is not None:
             if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
                 raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
             self.teams = self._make_teams(int(seed))
-        seeds = [None] * self.num_envs if seed is None else [int(seed) + b for b in range(self.num_envs)]
+        if seed is not None:
+            seeds = [int(seed) + b for b in range(self.num_envs)]
+        else:                                     # streams go on; never-seeded games draw fresh entropy
+            seeds = None if self._seeded else [None] * self.num_envs
         self.core.reset(seeds=seeds)
+        self._seeded = True
         self._observe_teams(self.every)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))       # no game waits for a restart
         self._started = True
@@ -195,7 +200,7 @@ class DeviceVecEnv:
         host = lambda group: {name: array.copy_to_host() for name, array in zip(group._fields, group)}  # noqa: E731
         return dict(world=host(core.world), rows=host(core.rows),
                     teams={team.name.lower(): host(device.state) for team, device in self.teams.items()},
-                    started=self._started)
+                    started=self._started, seeded=self._seeded)
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from an env of the same game, size and device teams)."""
@@ -211,7 +216,7 @@ class DeviceVecEnv:
             for name, array in zip(device.state._fields, device.state):
                 if name != 'action':          # the core's action buffer, loaded with the rows
                     array.copy_to_device(np.ascontiguousarray(arrays[name]))
-        self._started = bool(state['started'])
+        self._started, self._seeded = bool(state['started']), bool(state.get('seeded', True))
 
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
