@@ -363,7 +363,7 @@ def device_team(name: str, team, num_envs: int, counts, seed: int | Sequence[int
         return DeviceTeam('greedy-target', TargetSettings(checked.noise_scale), TargetState(
             **common, short=own['short'], goal_bits=np.zeros((B, n, 4)), non_empty=np.ones((B, n, 4), bool),
             need_communication=np.zeros((B, n), bool), prev_location=np.zeros((B, n, 2)), noise=np.zeros((B, n, 2)),
-            draws=own['draws'], left=own['left'], **{k: v for k, v in space.items() if k != 'space_rng'},
+            draws=own['draws'], left=own['left'], space=space['space'], space_left=space['space_left'],
             own_rng=own['own_rng'], space_rng=space['space_rng']))
     assert isinstance(checked, GreedyCameraTeam)
     if nc - 1 > AGENT_BLOCK:
@@ -401,6 +401,16 @@ class HostTeam:
 
     def idle(self, rows) -> None:
         self.device_team.state.active[np.asarray(rows, bool)] = False
+
+    def state_dict(self) -> dict:
+        """The team's arrays, its random streams included (plain data: exact resumes)."""
+        state = self.device_team.state
+        return {name: array.copy() for name, array in zip(state._fields, state)}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (a team of the same kind and sizes)."""
+        for name, array in zip(self.device_team.state._fields, self.device_team.state):
+            array[...] = state[name]
 
 
 @functools.cache

@@ -247,6 +247,26 @@ def test_host_twins_are_deterministic_and_never_short():
         assert (state.left >= 1).all() and (state.left <= 2 * AGENT_BLOCK).all()
 
 
+def test_a_host_twin_resumes_exactly():
+    import mate
+
+    envs = mate.make_team_vec('MATE-2v4-0', 'target', 3, max_episode_steps=8,
+                              opponent=lambda n, c, seed: device.HostTeam('greedy', 'camera', n, c, seed=seed))
+    envs.reset(seed=2)
+    actions = np.random.default_rng(0).uniform(-5, 5, (20, 3, 4, 2))
+    for step in range(10):
+        envs.step(actions[step])
+    saved = envs.state_dict()
+    expected = [[np.copy(x) for x in envs.step(actions[step])[:2]] for step in range(10, 20)]
+    resumed = mate.make_team_vec('MATE-2v4-0', 'target', 3, max_episode_steps=8,
+                                 opponent=lambda n, c, seed: device.HostTeam('greedy', 'camera', n, c, seed=seed))
+    resumed.reset(seed=5)
+    resumed.load_state_dict(saved)
+    for step in range(10, 20):
+        observations, rewards = resumed.step(actions[step])[:2]
+        assert np.array_equal(observations, expected[step - 10][0]) and np.array_equal(rewards, expected[step - 10][1])
+
+
 def test_bad_options_are_refused():
     with pytest.raises(ValueError, match='unknown option'):
         device.device_team('random', 'camera', 2, (4, 8, 9), speed=1)
