@@ -18,9 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from .core.device import BLOCK
 from .device_vector import DeviceVecEnv
 from .messages import Team
-from .protocol import paper_config
+from .protocol import checked_reward, paper_config
 from .teams.protocol import as_team
 
 __all__ = ['DEVICE_OPPONENTS', 'DeviceTeamVecEnv']
@@ -47,7 +48,7 @@ class DeviceTeamVecEnv:
 
     def __init__(self, config: Any = None, team='camera', num_envs: int = 1, *, opponent: str = 'greedy',
                  opponent_options: dict | None = None, reward: str = 'team', max_episode_steps: int | None = None,
-                 observation_dtype=np.float64, autoreset_mode: str = 'next_step', block: int = 128,
+                 observation_dtype=np.float64, autoreset_mode: str = 'next_step', block: int = BLOCK,
                  **overrides) -> None:
         import torch
         from gymnasium import spaces
@@ -58,7 +59,7 @@ class DeviceTeamVecEnv:
         if max_episode_steps is not None:        # (checked with the config: ConfigError unless an integer > 0)
             overrides['max_episode_steps'] = max_episode_steps
         self.config = paper_config(self.team) if config is None else config
-        self.reward_kind = reward
+        self.reward_kind = checked_reward(self.team, reward)
         side = 'target_agent' if self.team is Team.CAMERA else 'camera_agent'
         options = 'target_options' if self.team is Team.CAMERA else 'camera_options'
         self.vec = DeviceVecEnv(self.config, num_envs, observation_dtype=observation_dtype,

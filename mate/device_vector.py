@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from . import registration
-from .core.device import DeviceCore, from_torch, to_torch
+from .core.device import BLOCK, DeviceCore, from_torch, to_torch
 from .env import MultiAgentTracking
 from .messages import Team
 
@@ -61,9 +61,7 @@ class DeviceVecEnv:
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
                  camera_agent: str | None = None, target_agent: str | None = None,
                  camera_options: dict | None = None, target_options: dict | None = None, seed: int = 0,
-                 autoreset_mode: str = 'next_step', block: int = 128, **overrides: Any) -> None:
-        from .core.device import BLOCK
-
+                 autoreset_mode: str = 'next_step', block: int = BLOCK, **overrides: Any) -> None:
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
         dtype = np.dtype(observation_dtype)
@@ -84,7 +82,7 @@ class DeviceVecEnv:
                                                                         template.target_observation_space)
         self.camera_action_space, self.target_action_space = (template.camera_action_space,
                                                               template.target_action_space)
-        self.core = DeviceCore(p, B, dims, dtype, block=block or BLOCK)
+        self.core = DeviceCore(p, B, dims, dtype, block=block)
         self.every = self.core.cuda.to_device(np.ones(B, bool))
         rows = self.core.rows
         self._agents = {team: (agent, dict(options or {})) for team, agent, options in (
@@ -109,7 +107,9 @@ class DeviceVecEnv:
             teams[team] = device._replace(state=device.state._replace(action=buffers[team]))
         return teams
 
-    def _observe_teams(self, mask) -> None:
+    def _reset_teams(self, mask) -> None:
+        """The device teams start an episode in the games of `mask` (B,) bool (device array), from their first
+        observations."""
         for team, observation in ((Team.CAMERA, self.core.rows.camera_obs), (Team.TARGET, self.core.rows.target_obs)):
             if team in self.teams:
                 self.teams[team].reset(observation, mask, self.core.block)
@@ -130,7 +130,7 @@ class DeviceVecEnv:
             seeds = None if self._seeded else [None] * self.num_envs
         self.core.reset(seeds=seeds)
         self._seeded = True
-        self._observe_teams(self.every)
+        self._reset_teams(self.every)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))       # no game waits for a restart
         self._started = True
         return self._observations, {}
@@ -143,8 +143,10 @@ class DeviceVecEnv:
         if actions is None:
             raise ValueError(f'{team.name.lower()} actions are missing (no device team plays the '
                              f'{team.name.lower()}s)')
-        if hasattr(actions, 'dtype') and hasattr(actions, 'to') and str(actions.dtype) != 'torch.float64':
-            actions = actions.to(dtype=__import__('torch').float64)
+        if hasattr(actions, 'to') and hasattr(actions, 'detach'):        # a torch tensor, float64 on its device
+            import torch
+
+            actions = actions.to(dtype=torch.float64)
         array = from_torch(actions)
         if not hasattr(array, 'copy_to_host'):
             array = np.ascontiguousarray(array, dtype=np.float64)
@@ -165,11 +167,11 @@ class DeviceVecEnv:
                 self.teams[team].act(observation, self.every, self.core.block)
         self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
         if self.next_step:               # the games that ended last step restarted instead of stepping
-            self._observe_teams(rows.mask)
+            self._reset_teams(rows.mask)
             self.core.finish(restart=False)
         elif restart_ended:
             self.core.finish(restart=True)
-            self._observe_teams(rows.mask)
+            self._reset_teams(rows.mask)
         else:
             self.core.finish(restart=False)
         return self._observations, self._rewards, self._flags[0], self._flags[1], self._info
@@ -177,14 +179,14 @@ class DeviceVecEnv:
     def restart_ended(self) -> None:
         """After `step(..., restart_ended=False)`: the games that ended in it start their next episode."""
         self.core.reset_masked()
-        self._observe_teams(self.core.rows.mask)
+        self._reset_teams(self.core.rows.mask)
 
     def restart(self, mask) -> None:
         """The games of `mask` (B,) bool (host) start their next episode now, their streams going on (what a
         partial reset of TorchRL asks for); no game waits for a restart after it."""
         mask = np.asarray(mask, bool)
         self.core.reset(mask)
-        self._observe_teams(self.core.rows.mask)
+        self._reset_teams(self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))
 
     def state(self):

@@ -53,7 +53,8 @@ from .teams.protocol import as_team
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'FRESH_SEEDS', 'PAPER_SETTINGS',
            'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES', 'TEAM_METRIC',
-           'agent_team_factory', 'evaluate', 'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
+           'REWARDS', 'agent_team_factory', 'checked_reward', 'evaluate', 'horizon', 'paper_config', 'score_policy',
+           'training_reset_seed']
 
 EVALUATION_SEEDS = 1_000_000
 """First env seed of the periodic evaluation episodes (and the end of the training seeds)."""
@@ -102,6 +103,19 @@ def horizon(team) -> int:
     """Env steps per episode of the protocol for `team` ('camera' or 'target'): 500 decisions at the paper's frame
     skip (2,500 for cameras, 5,000 for targets)."""
     return 500 * PAPER_SETTINGS[as_team(team).name.lower()]['frame_skip']
+
+
+REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
+"""The reward kinds one team can be played for (`mate.SingleTeamVecEnv`'s docstring): the team's reward, the coverage
+rate (cameras), each camera's marginal share of it ('difference'), each target's own part of the team reward."""
+
+
+def checked_reward(team, reward: str) -> str:
+    """`reward` if it is one of `team`'s kinds (`REWARDS`); ValueError (one line) naming them otherwise."""
+    name = as_team(team).name.lower()
+    if reward not in REWARDS[name]:
+        raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+    return reward
 
 
 def paper_config(team) -> str:

@@ -55,14 +55,12 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv
 
 from .messages import Team
-from .protocol import agent_team_factory, paper_config
+from .protocol import REWARDS, agent_team_factory, checked_reward, paper_config
 from .teams.protocol import as_team
 from .vector import AutoresetMode, make_vec
 
 __all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'opponent_factory', 'step_rewards']
 
-REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
-"""The reward kinds of each team (module docstring)."""
 EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                 'normalized_target_return', 'delivered_cargoes')
 """The statistics of `infos['episode']`."""
@@ -127,8 +125,7 @@ class SingleTeamVecEnv(VectorEnv):
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **overrides) -> None:
         self.team = as_team(team)
         name = self.team.name.lower()
-        if reward not in REWARDS[name]:
-            raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+        checked_reward(self.team, reward)
         if max_episode_steps is not None:
             if not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
                 raise ValueError(f'max_episode_steps must be a positive integer or None, got {max_episode_steps!r}')
@@ -298,10 +295,6 @@ def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, *, devic
         return SingleTeamVecEnv(config, team, num_envs, **kwargs)
     if not str(device).startswith('cuda'):
         raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
-    name = as_team(team).name.lower()
-    reward = kwargs.get('reward', 'team')
-    if reward not in REWARDS[name]:
-        raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
     from .device_team_vector import DeviceTeamVecEnv
 
     return DeviceTeamVecEnv(config, team, num_envs, **kwargs)

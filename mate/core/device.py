@@ -42,8 +42,8 @@ from .observe import global_state, joint_observation
 from .params import Params
 from .world import World, empty_world
 
-__all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Outputs', 'Rows', 'compile_ptx', 'cuda_module', 'kernels',
-           'to_torch']
+__all__ = ['BLOCK', 'KERNEL_NAMES', 'DeviceCore', 'Outputs', 'Rows', 'States', 'compile_ptx', 'cuda_module',
+           'from_torch', 'kernels', 'launch_arguments', 'to_torch']
 
 BLOCK = 128
 """Threads (games) per CUDA block."""
@@ -95,27 +95,20 @@ cuda = None
 numba's CUDA simulator finds it too."""
 
 
-def _step(p, w, rows):
+def _step(p, w, rows, restart_masked):
     b = cuda.grid(1)
     if b < w.episode_step.shape[0]:
-        advance_row(p, w, b, rows.camera_actions[b], rows.target_actions[b])
-        joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+        if restart_masked and rows.mask[b]:
+            start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
+        else:
+            advance_row(p, w, b, rows.camera_actions[b], rows.target_actions[b])
+            joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
 def _reset(p, w, rows):
     b = cuda.grid(1)
     if b < w.episode_step.shape[0] and rows.mask[b]:
         start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
-
-
-def _advance(p, w, rows):
-    b = cuda.grid(1)
-    if b < w.episode_step.shape[0]:
-        if rows.mask[b]:
-            start_row(p, w, b, rows.camera_obs[b], rows.target_obs[b])
-        else:
-            advance_row(p, w, b, rows.camera_actions[b], rows.target_actions[b])
-            joint_observation(p, w, b, rows.camera_obs[b], rows.target_obs[b])
 
 
 def _finish(p, w, rows, out, restart):
@@ -157,12 +150,12 @@ class States(NamedTuple):
 def _kernel_functions() -> dict:
     """The kernels' Python functions (thread b: row b), by name."""
     cuda_module()
-    return {'step': _step, 'reset': _reset, 'advance': _advance, 'finish': _finish, 'state': _state}
+    return {'step': _step, 'reset': _reset, 'finish': _finish, 'state': _state}
 
 
-KERNEL_NAMES = ('step', 'reset', 'advance', 'finish', 'state')
-"""The device kernels: `step` advances every game and writes its observations, `reset` starts the masked games,
-`advance` is `step` but for the masked games, which start their next episode instead (next-step autoreset),
+KERNEL_NAMES = ('step', 'reset', 'finish', 'state')
+"""The device kernels: `step` advances every game and writes its observations (told to, the games of the mask
+start their next episode instead: next-step autoreset), `reset` starts the masked games,
 `finish` copies a step's rewards and flags into `Outputs` and sets the mask to the games that ended (restarting
 them at once if told: same-step autoreset), `state` writes every game's global state into `States`."""
 
@@ -182,12 +175,21 @@ def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64
     functions = _kernel_functions()
     world = empty_world(params, batch_size)
     rows = _host_rows(params, batch_size, (1, 1), dtype)     # (the observations' lengths do not change the code)
-    extra = {'finish': (_host_outputs(batch_size), True), 'state': (States(np.zeros((batch_size, 1), dtype)),)}
+    extra = {'step': (True,), 'finish': (_host_outputs(batch_size), True),
+             'state': (States(np.zeros((batch_size, 1), dtype)),)}
     arguments = (params, world, rows) + extra.get(name, ())
     signature = tuple(typeof(argument) for argument in arguments)
     with _compute_capability(cc):
         ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
     return ptx
+
+
+def launch_arguments(*groups: tuple) -> tuple:
+    """A kernel's named-tuple arguments as they are; under numba's CUDA simulator with the host arrays its device
+    arrays wrap, which the CPU-compiled row functions take (scalar fields pass through)."""
+    if not _simulated():
+        return groups
+    return tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in groups)
 
 
 def _simulated() -> bool:
@@ -285,10 +287,7 @@ class DeviceCore:
     def _launch(self, name: str, *flags: bool) -> None:
         grid = (self.batch_size + self.block - 1) // self.block
         groups = {'finish': (self.out,), 'state': (self._states,)}.get(name, ())
-        arguments = (self.params, self.world, self.rows) + groups
-        if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
-            arguments = tuple(type(group)(*(getattr(field, '_ary', field) for field in group)) for group in arguments)
-        kernels()[name][grid, self.block](*arguments, *flags)
+        kernels()[name][grid, self.block](*launch_arguments(self.params, self.world, self.rows, *groups), *flags)
 
     def reset(self, mask=None, seeds: Iterable[int | None] | None = None) -> None:
         """Start new episodes in the games where `mask` (B,) is true (None: all); with `seeds` (one int or None per
@@ -318,7 +317,7 @@ class DeviceCore:
             if getattr(actions, 'shape', None) != buffer.shape:
                 raise ValueError(f'{name}: expected shape {buffer.shape}, got {getattr(actions, "shape", None)}')
             buffer.copy_to_device(actions)
-        self._launch('advance' if restart_masked else 'step')
+        self._launch('step', bool(restart_masked))
 
     def finish(self, restart: bool = True) -> None:
         """After a step: copy its rewards, flags and coverage into `self.out`, set `self.rows.mask` to the games

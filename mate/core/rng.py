@@ -38,6 +38,15 @@ def randint(rng, b, n):
     return min(k, n - 1)
 
 
+def mix64(values: np.ndarray) -> np.ndarray:
+    """The SplitMix64 finaliser `uniform` applies, on uint64 numpy arrays (wrapping): to derive stream keys."""
+    with np.errstate(over='ignore'):
+        z = np.asarray(values, dtype=np.uint64)
+        z = (z ^ (z >> _S30)) * _MIX1
+        z = (z ^ (z >> _S27)) * _MIX2
+        return z ^ (z >> _S31)
+
+
 def key_from_seed(seed: int | None) -> np.uint64:
     """A 64-bit stream key derived from `seed` (None: fresh OS entropy) with SeedSequence."""
     return np.random.SeedSequence(seed).generate_state(1, dtype=np.uint64)[0]

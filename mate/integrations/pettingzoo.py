@@ -167,13 +167,11 @@ class _Opponent:
     own agents' rewards of the chosen kind."""
 
     def __init__(self, env: MultiAgentTracking, opponent, team, reward: str) -> None:
-        from ..team_vector import REWARDS, opponent_factory
+        from ..protocol import checked_reward
+        from ..team_vector import opponent_factory
         from ..teams.protocol import as_team
 
-        self.env, self.team, self.reward = env, as_team(team), reward
-        name = self.team.name.lower()
-        if reward not in REWARDS[name]:
-            raise ValueError(f"reward {reward!r} is not one of the {name} team's: {', '.join(REWARDS[name])}")
+        self.env, self.team, self.reward = env, as_team(team), checked_reward(team, reward)
         self.counts = (env.num_cameras, env.num_targets, env.num_obstacles)
         self.factory = opponent_factory(opponent, self.team)
         self.players = self.factory(1, self.counts, None)

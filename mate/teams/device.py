@@ -31,7 +31,8 @@ import numpy as np
 from numba import njit
 
 from ..constants import PRESERVED_DIM
-from ..core.rng import uniform
+from ..core.device import BLOCK, _compute_capability, cuda_module, launch_arguments
+from ..core.rng import mix64, uniform
 from ..messages import Team
 from ..spaces import observation_indices_of
 from . import rules
@@ -43,28 +44,18 @@ __all__ = ['CameraSettings', 'CameraState', 'DeviceTeam', 'HostTeam', 'RandomSet
            'stream_keys', 'top_up_row']
 
 OWN = PRESERVED_DIM
-_GAMMA, _MIX1, _MIX2 = 0x9E3779B97F4A7C15, 0xBF58476D1CE4E5B9, 0x94D049BB133111EB
+_GAMMA, _ODD = np.uint64(0x9E3779B97F4A7C15), np.uint64(0xBF58476D1CE4E5B9)
 _MASK = (1 << 64) - 1
-
-
-def _splitmix(value: np.ndarray) -> np.ndarray:
-    """The SplitMix64 finaliser of uint64 values (numpy, wrapping)."""
-    with np.errstate(over='ignore'):
-        z = value.astype(np.uint64)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(_MIX1)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(_MIX2)
-        return z ^ (z >> np.uint64(31))
 
 
 def stream_keys(seeds: Sequence[int], num_agents: int, stream: int) -> np.ndarray:
     """(B x N, 2) uint64 counter streams (key, counter 0): agent i of row b, stream 0 (its own) or 1 (its action
-    space), keyed by a SplitMix64 hash of (seeds[b], i, stream)."""
+    space), keyed by a SplitMix64 hash (`mate.core.rng.mix64`) of (seeds[b], i, stream)."""
     seeds = np.asarray([int(s) & _MASK for s in seeds], dtype=np.uint64)
     agents = np.arange(num_agents, dtype=np.uint64)
     with np.errstate(over='ignore'):
-        mixed = _splitmix(seeds[:, None] * np.uint64(_GAMMA) + np.uint64(1))
-        mixed = _splitmix(mixed ^ ((agents[None, :] * np.uint64(2) + np.uint64(stream) + np.uint64(1))
-                                   * np.uint64(_MIX1)))
+        mixed = mix64(seeds[:, None] * _GAMMA + np.uint64(1))
+        mixed = mix64(mixed ^ ((agents[None, :] * np.uint64(2) + np.uint64(stream) + np.uint64(1)) * _ODD))
     keys = np.zeros((len(seeds) * num_agents, 2), dtype=np.uint64)
     keys[:, 0] = mixed.reshape(-1)
     return keys
@@ -311,17 +302,15 @@ class DeviceTeam(NamedTuple):
 
     def to_device(self) -> DeviceTeam:
         """The same team with its state copied to the current CUDA device."""
-        from ..core.device import cuda_module
-
         to_device = cuda_module().to_device
         return self._replace(state=type(self.state)(*(to_device(array) for array in self.state)))
 
-    def reset(self, observation, mask, block: int = 128) -> None:
+    def reset(self, observation, mask, block: int = BLOCK) -> None:
         """Device arrays: the games of `mask` (B,) bool start an episode from `observation` (B, N, D), a kernel
         (`block` threads a block)."""
         _launch(ROW_FUNCTIONS[self.kind][0], self.settings, self.state, observation, mask, block)
 
-    def act(self, observation, mask, block: int = 128) -> None:
+    def act(self, observation, mask, block: int = BLOCK) -> None:
         """Device arrays: every game of `mask` (B,) bool decides its actions into `self.action`, a kernel."""
         _launch(ROW_FUNCTIONS[self.kind][1], self.settings, self.state, observation, mask, block)
 
@@ -443,8 +432,6 @@ simulator finds it too."""
 
 def _cuda():
     global cuda
-    from ..core.device import cuda_module
-
     cuda = cuda_module()
     return cuda
 
@@ -470,13 +457,8 @@ class Inputs(NamedTuple):
 
 
 def _launch(row, settings, state, observation, mask, block: int) -> None:
-    from ..core.device import _simulated
-
     count = mask.shape[0]
-    if _simulated():        # the simulator's device arrays wrap numpy arrays, which the row functions take
-        state = type(state)(*(getattr(field, '_ary', field) for field in state))
-        observation, mask = (getattr(array, '_ary', array) for array in (observation, mask))
-    row_kernel(row)[(count + block - 1) // block, block](settings, state, Inputs(observation, mask))
+    row_kernel(row)[(count + block - 1) // block, block](*launch_arguments(settings, state, Inputs(observation, mask)))
 
 
 def compile_ptx(kind: str, which: str, counts=(4, 8, 9), observation_dtype=np.float64,
@@ -484,8 +466,6 @@ def compile_ptx(kind: str, which: str, counts=(4, 8, 9), observation_dtype=np.fl
     """The PTX of the `which` ('reset' or 'act') kernel of the team `kind` (a key of `ROW_FUNCTIONS`) for compute
     capability `cc`; needs no GPU (numba-cuda with NVVM): what CI checks."""
     from numba import typeof
-
-    from ..core.device import _compute_capability
 
     name, side = kind.split('-')
     team = device_team(name, side, 2, counts, seed=0)
@@ -525,8 +505,6 @@ def compile_hrl_ptx(observation_dtype=np.float64, cc: tuple[int, int] = (9, 0)) 
     """The PTX of the HRL executor kernel for compute capability `cc` (no GPU needed)."""
     from numba import typeof
 
-    from ..core.device import _compute_capability
-
     kernel = _hrl_kernel()
     arrays = HRLArrays(np.zeros((2, 1), observation_dtype), np.zeros((2, 8), bool), np.zeros((2, 2)))
     with _compute_capability(cc):
@@ -534,12 +512,8 @@ def compile_hrl_ptx(observation_dtype=np.float64, cc: tuple[int, int] = (9, 0)) 
     return ptx
 
 
-def hrl_actions(observation, keep, begin: int, out, block: int = 128) -> None:
+def hrl_actions(observation, keep, begin: int, out, block: int = BLOCK) -> None:
     """Device arrays: the HRL executor's actions (R, 2) into `out` from camera observations (R, D) and keep bits
     (R, Nt) bool (R = B x Nc rows), one thread a camera (`mate.learn.hrl.executor_actions` on the host)."""
-    from ..core.device import _simulated
-
-    if _simulated():
-        observation, keep, out = (getattr(array, '_ary', array) for array in (observation, keep, out))
     count = out.shape[0]
-    _hrl_kernel()[(count + block - 1) // block, block](HRLArrays(observation, keep, out), begin)
+    _hrl_kernel()[(count + block - 1) // block, block](*launch_arguments(HRLArrays(observation, keep, out)), begin)
