@@ -84,57 +84,44 @@ class MateTorchRLEnv(EnvBase):
     def _set_seed(self, seed: int | None) -> None:
         self._seed = seed
 
-    def _tensor(self, array: np.ndarray, dtype=torch.float32) -> torch.Tensor:
-        return torch.as_tensor(np.ascontiguousarray(array), dtype=dtype, device=self.device)
+    def _own(self, values, dtype) -> torch.Tensor:
+        """`values` (a numpy array or a tensor, possibly the env's buffer) as a tensor of its own on `self.device`."""
+        if isinstance(values, torch.Tensor):
+            return values.to(self.device, dtype, copy=True)
+        return torch.tensor(np.asarray(values), dtype=dtype, device=self.device)
+
+    def _output(self, observation, rewards=None, terminated=None, truncated=None) -> TensorDictBase:
+        """The TensorDict of a reset (no rewards, no flags set) or of a step, every tensor its own (the env's
+        buffers are overwritten at its next step): `rewards` (B,) repeated to every agent, or (B, N)."""
+        observation = self._own(observation, torch.float32)
+        N = observation.shape[1]
+        group = {'observation': observation}
+        if rewards is None:
+            terminated, truncated = (torch.zeros(self.batch_size, dtype=torch.bool, device=self.device)
+                                     for _ in range(2))
+        else:
+            rewards = self._own(rewards, torch.float32)
+            group['reward'] = (rewards[:, None].expand(-1, N) if rewards.dim() == 1 else rewards)[..., None].clone()
+            terminated, truncated = self._own(terminated, torch.bool), self._own(truncated, torch.bool)
+        return TensorDict({self.group: TensorDict(group, batch_size=self.batch_size + torch.Size([N])),
+                           'done': (terminated | truncated)[:, None], 'terminated': terminated[:, None],
+                           'truncated': truncated[:, None]}, batch_size=self.batch_size, device=self.device)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
         partial = tensordict is not None and '_reset' in tensordict.keys() and self._current is not None
-        if self.on_device:
-            return self._device_reset(tensordict if partial else None)
         if not partial:
             seed, self._seed = self._seed, None
             self._current, _ = self.envs.reset(seed=seed)
-        flags = torch.zeros(self.batch_size + (1,), dtype=torch.bool, device=self.device)
-        return TensorDict({self.group: TensorDict({'observation': self._tensor(self._current)},
-                                                  batch_size=self.batch_size + self._current.shape[1:2]),
-                           'done': flags, 'terminated': flags.clone(), 'truncated': flags.clone()},
-                          batch_size=self.batch_size, device=self.device)
-
-    def _device_reset(self, tensordict: TensorDictBase | None) -> TensorDictBase:
-        """`_reset` over the device env: a partial reset restarts the masked games now (their streams going on)."""
-        if tensordict is None:
-            seed, self._seed = self._seed, None
-            self._current, _ = self.envs.reset(seed=seed)
-        else:
+        elif self.on_device:            # the ended games waited (next_step): restart them now, streams going on
             self.envs.restart(tensordict.get('_reset').reshape(-1).cpu().numpy())
-        flags = torch.zeros(self.batch_size + (1,), dtype=torch.bool, device=self.device)
-        observation = self._current.to(self.device, torch.float32, copy=True)
-        return TensorDict({self.group: TensorDict({'observation': observation},
-                                                  batch_size=self.batch_size + observation.shape[1:2]),
-                           'done': flags, 'terminated': flags.clone(), 'truncated': flags.clone()},
-                          batch_size=self.batch_size, device=self.device)
-
-    def _device_step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        """`_step` over the device env (next_step autoreset: an ended game shows its last observation as is)."""
-        observations, rewards, terminated, truncated, _ = self.envs.step(
-            tensordict.get((self.group, 'action')).detach().to(torch.float64))
-        N = observations.shape[1]
-        rewards = rewards.to(self.device, torch.float32)
-        rewards = rewards[:, None].expand(-1, N) if rewards.dim() == 1 else rewards
-        agents = self.batch_size + torch.Size([N])
-        return TensorDict({self.group: TensorDict({'observation': observations.to(self.device, torch.float32,
-                                                                                  copy=True),
-                                                   'reward': rewards[..., None].clone()}, batch_size=agents),
-                           'done': (terminated | truncated)[:, None].to(self.device, copy=True),
-                           'terminated': terminated[:, None].to(self.device, copy=True),
-                           'truncated': truncated[:, None].to(self.device, copy=True)},
-                          batch_size=self.batch_size, device=self.device)
+        return self._output(self._current)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        if self.on_device:
-            return self._device_step(tensordict)
-        actions = tensordict.get((self.group, 'action')).detach().to('cpu', torch.float64).numpy()
-        observations, rewards, terminated, truncated, infos = self.envs.step(actions)
+        actions = tensordict.get((self.group, 'action')).detach()
+        if self.on_device:          # next_step autoreset: an ended game shows its last observation as it is
+            observations, rewards, terminated, truncated, _ = self.envs.step(actions.to(torch.float64))
+            return self._output(observations, rewards, terminated, truncated)
+        observations, rewards, terminated, truncated, infos = self.envs.step(actions.to('cpu', torch.float64).numpy())
         self._current = observations
         shown = observations
         ended = terminated | truncated
@@ -142,13 +129,4 @@ class MateTorchRLEnv(EnvBase):
             shown = observations.copy()
             for i in np.flatnonzero(ended):
                 shown[i] = infos['final_obs'][i]
-        N = observations.shape[1]
-        rewards = np.asarray(rewards, dtype=np.float32)
-        rewards = np.broadcast_to(rewards[:, None], (len(rewards), N)) if rewards.ndim == 1 else rewards
-        agents = self.batch_size + torch.Size([N])
-        return TensorDict({self.group: TensorDict({'observation': self._tensor(shown),
-                                                   'reward': self._tensor(rewards[..., None])}, batch_size=agents),
-                           'done': self._tensor(ended[:, None], torch.bool),
-                           'terminated': self._tensor(terminated[:, None], torch.bool),
-                           'truncated': self._tensor(truncated[:, None], torch.bool)},
-                          batch_size=self.batch_size, device=self.device)
+        return self._output(shown, rewards, terminated, truncated)

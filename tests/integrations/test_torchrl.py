@@ -58,6 +58,23 @@ def test_the_rollout_is_the_single_team_envs_games():
     assert ended_any
 
 
+def test_a_rollout_keeps_every_steps_observation():
+    """Each step's tensors are the adapter's own: the env's buffers, overwritten at its next step, are copied."""
+    B, steps = 2, 6
+    env = MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=50)
+    env.set_seed(3)
+    rollout = env.rollout(steps)
+    reference = mate.make_team_vec('MATE-2v4-0', team='target', num_envs=B, max_episode_steps=50,
+                                   autoreset_mode='same_step', observation_dtype=np.float32)
+    expected = [reference.reset(seed=3)[0].copy()]
+    for step in range(steps):
+        actions = rollout['target', 'action'][:, step].to(torch.float64).numpy()
+        expected.append(reference.step(actions)[0].copy())
+    for step in range(steps):
+        assert np.array_equal(rollout['target', 'observation'][:, step].numpy(), expected[step])
+        assert np.array_equal(rollout['next', 'target', 'observation'][:, step].numpy(), expected[step + 1])
+
+
 def test_autoreset_is_the_adapters_own():
     with pytest.raises(ValueError, match='autoreset_mode'):
         MateTorchRLEnv('MATE-2v4-0', team='target', num_envs=2, autoreset_mode='next_step')
