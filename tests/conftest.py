@@ -40,6 +40,43 @@ def needs_extra(module: str):
     return importlib.import_module(module)
 
 
+SIMULATOR_PRELUDE = """
+try:   # mate's kernels never synchronise the threads of a block (a thread is a game): wait on them with join()
+    import numpy as _np
+    from numba.cuda.simulator import kernel as _kernel
+
+    def _run_block(self, grid_point, *args):
+        threads = [_kernel.BlockThread(lambda: self._f(*args), self, grid_point, point, self._debug)
+                   for point in _np.ndindex(*self._block_dim)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        for thread in threads:
+            if thread.exception:
+                raise thread.exception[0].with_traceback(thread.exception[1])
+
+    if hasattr(_kernel, 'BlockThread') and hasattr(_kernel.BlockManager, 'run'):
+        _kernel.BlockManager.run = _run_block
+except ImportError:
+    pass
+"""
+"""Put before a simulated script by `run_simulated`: the simulator polls its threads in a busy loop, which takes the
+GIL from them (about half the time of a launch); joining them instead changes nothing a kernel computes, for kernels
+without `cuda.syncthreads()` (mate has none; one that had would hang, and the test time out)."""
+
+
+def run_simulated(script: str, *args: str, timeout: float = 600, cwd=None):
+    """Run the Python `script` (with `args`) in its own process under numba's CUDA simulator (the switch is read
+    when numba.cuda loads) and return its `subprocess.CompletedProcess` (text output captured)."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
+    return subprocess.run([sys.executable, '-c', SIMULATOR_PRELUDE + script, *args], env=env, capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd)
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """In CI, any skip fails the run (the reasons are in pytest's short summary, `-ra`)."""
     if not in_ci():

@@ -8,14 +8,11 @@ arithmetic is measured on a GPU by benchmarks/gpu.py."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import needs_extra
+from conftest import needs_extra, run_simulated
 from mate.config import read_config
 from mate.core.params import params_from_config
 
@@ -87,9 +84,7 @@ print(json.dumps(report))
 def test_the_simulated_device_plays_the_cpu_cores_games_exactly():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads)."""
     presets = ['MATE-4v8-9', 'MATE-8v8-9', 'MATE-2v4-0']
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
-    done = subprocess.run([sys.executable, '-c', GAMES, *presets], env=env, capture_output=True, text=True,
-                          timeout=600)
+    done = run_simulated(GAMES, *presets)
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert set(report) == set(presets)
@@ -98,7 +93,6 @@ def test_the_simulated_device_plays_the_cpu_cores_games_exactly():
 
 
 def test_wrong_shapes_are_refused_before_a_launch():
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
     code = """
 import numpy as np
 from mate.config import read_config
@@ -112,7 +106,7 @@ for call in (lambda: core.step(np.zeros((3, 2, 2)), np.zeros((2, 4, 2))), lambda
     except ValueError as exc:
         print(exc)
 """
-    done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True, timeout=300)
+    done = run_simulated(code, timeout=300)
     lines = done.stdout.strip().splitlines()
     assert lines == ['target_actions: expected shape (3, 4, 2), got (2, 4, 2)',
                      'reset mask: expected shape (3,), got (4,)', 'reset: 3 games reset, 2 seeds given'], done.stderr

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mate   # before torch: MATE_REPRODUCIBLE pins torch's kernels as torch loads
-from conftest import needs_extra
+from conftest import needs_extra, run_simulated
 
 torch = needs_extra('torch')
 needs_extra('torchrl')
@@ -123,13 +123,9 @@ def test_the_games_on_a_simulated_device_are_the_cpu_adapters():
     """`game_device='cuda'` under numba's CUDA simulator against the CPU adapter whose opponent is the device
     team's host twin: the same rollout, partial resets included."""
     import json
-    import os
-    import subprocess
-    import sys
 
     needs_extra('numba_cuda')
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
-    done = subprocess.run([sys.executable, '-c', ON_DEVICE], env=env, capture_output=True, text=True, timeout=600)
+    done = run_simulated(ON_DEVICE)
     assert done.returncode == 0, done.stderr[-3000:]
     found = json.loads(done.stdout.strip().splitlines()[-1])
     assert found['differing'] == [] and found['ends'] >= 3, found

@@ -182,7 +182,7 @@ def test_a_first_format_checkpoint_is_refused_in_one_line(tmp_path):
     old = tmp_path / 'old.pt'
     torch.save({'format': 'mate.learn/1', 'meta': {'team': 'camera'}, 'config': {}, 'actor': {}}, old)
     with pytest.raises(CheckpointError, match=r"format 'mate.learn/1'; expected one of \('mate.learn/2',\) \(the first "
-                                              'format, written before policy specs, is no longer read\)'):
+                                              r'format, written before policy specs, is no longer read\)'):
         load_checkpoint(old)
 
 

@@ -9,14 +9,11 @@ play compares with the CPU teams' over 300 seeds is measured by benchmarks/devic
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import needs_extra
+from conftest import needs_extra, run_simulated
 from mate.teams import device
 from mate.teams.streams import AGENT_BLOCK
 
@@ -182,9 +179,7 @@ def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     needs_extra('numba_cuda')
     needs_extra('torch')
     presets = ['MATE-2v4-0', 'MATE-4v8-9']
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
-    done = subprocess.run([sys.executable, '-c', SIMULATED, *presets], env=env, capture_output=True, text=True,
-                          timeout=900)
+    done = run_simulated(SIMULATED, *presets, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
     hrl = report.pop('hrl')
