@@ -20,19 +20,26 @@ CPU core's.
    (`play_batch`); the issue's bar is a difference within 3 standard errors.
 5. **Rollouts.** Decisions/s of one team's rollout on the device (`rollout`: HRL cameras with the executor kernel,
    or targets, against the greedy device team, a 256-256 MLP deciding every 5 env steps on the GPU): the trainers'
-   collection without their learning step, an upper bound of what `mate train` could reach once it uses the device
-   env (it does not yet).
+   collection without their learning step.
+6. **Training end to end.** Decisions/s of `mate train mappo` with `--device cuda --game-device cuda`
+   (`mate.learn.device_envs.DeviceTeamEnv`: the games, the greedy opponent, the features and the HRL executor on the
+   GPU): HRL-MAPPO cameras on MATE-4v8-9 and MAPPO targets on MATE-2v4-0, at 2,048 and 16,384 envs, timed between the
+   end of the first iteration (compilation, warm-up) and the first one `--train-seconds` later (the run then stops
+   as at Ctrl-C), and the minutes 10 M decisions take at that rate.
 
-Writes a JSON record (the device, the versions, every number) and prints one line per measurement; under 8 minutes
-on one H200 with the defaults (not yet timed there: `--seconds 3` or fewer batch sizes if time is short). Needs a
-CUDA GPU and the gpu extra (`pip install -e '.[gpu]'`).
+Writes a JSON record (the device, the versions, every number; rewritten after every measurement) and prints one
+line per measurement; about 8 minutes on one H200 with the defaults (not yet timed there: `--seconds 2
+--train-seconds 15` if time is short, as `benchmarks/gpu_session.sh` does). Needs a CUDA GPU and the gpu extra
+(`pip install -e '.[gpu]'`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import signal
 import time
 from pathlib import Path
 
@@ -212,21 +219,58 @@ def rollout(team: str, batch_size: int, seconds: float, frame_skip: int = 5, hid
                 env_steps_per_second=decisions * B * frame_skip / elapsed)
 
 
+def training(team: str, batch_size: int, seconds: float, device: str = 'cuda') -> dict:
+    """Decisions/s of a MAPPO run with the game on the device (module docstring, 6): HRL cameras (MATE-4v8-9) or
+    targets (MATE-2v4-0), the trainer's defaults otherwise, `batch_size` envs, timed from the end of its first
+    iteration for about `seconds`; the networks on `device` (the games always on the GPU)."""
+    import tempfile
+
+    from mate.learn.mappo import MAPPOConfig, train
+
+    marks = []
+
+    def mark(row):       # stop (as Ctrl-C does: after this iteration) once `seconds` have passed since the first one
+        marks.append((time.perf_counter(), int(row['env_steps'])))
+        if marks[-1][0] - marks[0][0] >= seconds:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with tempfile.TemporaryDirectory() as run_dir:
+        config = MAPPOConfig(team=team, hrl=team == 'camera', num_envs=batch_size, device=device, game_device='cuda',
+                             steps=10 ** 10, progress=False, run_dir=run_dir, fresh=True,
+                             checkpoint_every=10 ** 6)
+        started = time.perf_counter()
+        train(config, callback=mark)
+    (t0, s0), (t1, s1) = marks[0], marks[-1]
+    rate = (s1 - s0) / max(t1 - t0, 1e-9)
+    return dict(team=team, hrl=team == 'camera', batch_size=batch_size, iterations=len(marks),
+                first_iteration_seconds=t0 - started, decisions=s1 - s0, seconds=t1 - t0, decisions_per_second=rate,
+                minutes_for_10M=1e7 / rate / 60 if rate else None)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--batch-sizes', type=int, nargs='+', default=[4096, 16384, 65536])
     parser.add_argument('--seconds', type=float, default=5.0)
     parser.add_argument('--presets', nargs='+', default=['MATE-4v8-9', 'MATE-8v8-9'])
+    parser.add_argument('--train-seconds', type=float, default=25.0)
+    parser.add_argument('--train-batch-sizes', type=int, nargs='+', default=[2048, 16384])
     parser.add_argument('--json', default='benchmarks/results/gpu.json')
     args = parser.parse_args()
     cuda = cuda_module()
     gpu = cuda.get_current_device()
+    path = Path(args.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+
+    def save() -> None:      # after every measurement: a run cut short by its time limit keeps what it measured
+        path.write_text(json.dumps(record, indent=1) + '\n')
+
     record = dict(device=gpu.name.decode() if isinstance(gpu.name, bytes) else str(gpu.name),
                   compute_capability=list(gpu.compute_capability), cpu=platform.processor(),
                   numba_cuda=__import__('numba_cuda').__version__, same_game=[], speed=[])
     for preset in args.presets:
         found = same_game(preset)
         record['same_game'].append(found)
+        save()
         print(f"{preset}: obs differ by at most {found['max_obs_difference']:.3g}, world floats by "
               f"{found['max_world_float_difference']:.3g}; {found['games_apart_at_end']} of {found['batch_size']} "
               f"games apart after {found['steps']} steps (first at step {found['first_step_with_a_game_apart']})",
@@ -236,6 +280,7 @@ def main() -> None:
             for batch_size in args.batch_sizes:
                 found = speed(preset, batch_size, args.seconds, dtype)
                 record['speed'].append(found)
+                save()
                 print(f"{preset} B={batch_size} {found['dtype']}: {found['env_steps_per_second']:,.0f} env-steps/s",
                       flush=True)
     record['whole_game'] = []
@@ -243,6 +288,7 @@ def main() -> None:
         for batch_size in args.batch_sizes:
             found = whole_game('MATE-4v8-9', batch_size, args.seconds, target_agent)
             record['whole_game'].append(found)
+            save()
             print(f"MATE-4v8-9 greedy vs {target_agent} on the device, B={batch_size}: "
                   f"{found['env_steps_per_second']:,.0f} env-steps/s", flush=True)
     record['rollout'] = []
@@ -250,14 +296,23 @@ def main() -> None:
         for batch_size in args.batch_sizes:
             found = rollout(team, batch_size, args.seconds)
             record['rollout'].append(found)
+            save()
             print(f"rollout of {'HRL cameras' if team == 'camera' else 'targets'} vs greedy on the device, "
                   f"B={batch_size}: {found['decisions_per_second']:,.0f} decisions/s", flush=True)
+    record['training'] = []
+    for team in ('camera', 'target'):
+        for batch_size in args.train_batch_sizes:
+            found = training(team, batch_size, args.train_seconds)
+            record['training'].append(found)
+            save()
+            print(f"mate train mappo {'--hrl cameras' if team == 'camera' else 'targets'}, game on the device, "
+                  f"B={batch_size}: {found['decisions_per_second']:,.0f} decisions/s ({found['iterations']} "
+                  f"iterations; 10 M decisions in {found['minutes_for_10M']:.1f} min)", flush=True)
     found = record['greedy_statistics'] = greedy_statistics()
     print(f"greedy vs greedy, {found['seeds']} seeds: device {found['device_mean_coverage_rate']:.4f} "
           f"+- {found['device_standard_error']:.4f}, CPU {found['cpu_mean_coverage_rate']:.4f} "
           f"+- {found['cpu_standard_error']:.4f} ({found['difference_in_standard_errors']:+.2f} SE)", flush=True)
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(record, indent=1) + '\n')
+    save()
     print(f'written to {args.json}')
 
 

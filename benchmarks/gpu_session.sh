@@ -26,7 +26,7 @@ export PYTHONPATH="$PWD:/tmp/site"
 { lscpu | grep -E 'Model name|^CPU\(s\)'; nvidia-smi -L
   python3 -c 'import torch, numba; print(torch.__version__, numba.__version__)'; } 2>&1 | tee "$OUT/machine.log"
 # issue 57: the golden runs and the batched evaluation on this CPU family (about 2 minutes)
-MATE_GOLDEN_EXACT=1 timeout 240 python3 -m pytest -q -p no:cacheprovider tests/learn/test_golden.py \
+MATE_GOLDEN_EXACT=1 timeout 200 python3 -m pytest -q -p no:cacheprovider tests/learn/test_golden.py \
     tests/learn/test_batched_evaluation.py 2>&1 | tee "$OUT/golden.log"
 # issue 58: the device core, the whole game, rollouts and greedy vs greedy (benchmarks/gpu.py's docstring)
-timeout 330 python3 benchmarks/gpu.py --seconds 3 --json "$OUT/gpu.json" 2>&1 | tee "$OUT/gpu.log"
+timeout 350 python3 benchmarks/gpu.py --seconds 2 --train-seconds 15 --json "$OUT/gpu.json" 2>&1 | tee "$OUT/gpu.log"

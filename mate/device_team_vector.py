@@ -82,10 +82,10 @@ class DeviceTeamVecEnv:
         self._pending = torch.zeros(self.num_envs, dtype=torch.bool, device=like.device)
         self._started = False
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
         """Start new episodes in every game; returns (observations (B, N, D), infos). `seed` s: game i and the
-        opponent's row i are seeded s + i."""
-        observations, infos = self.vec.reset(seed=seed, options=options)
+        opponent's row i are seeded s + i (`opponent_seed` o: the opponent's row i with o + i)."""
+        observations, infos = self.vec.reset(seed=seed, options=options, team_seed=opponent_seed)
         self._sum.zero_()
         self._pending.zero_()
         self._started = True

@@ -114,16 +114,20 @@ class DeviceVecEnv:
             if team in self.teams:
                 self.teams[team].reset(observation, mask, self.core.block)
 
-    def reset(self, seed: int | None = None, options: dict | None = None):
+    def reset(self, seed: int | None = None, options: dict | None = None, *, team_seed: int | None = None):
         """Start every game; returns ((camera_obs, target_obs), {}). `seed` s: game b and the device teams' row b
         are seeded with s + b (the teams made anew); None: every stream goes on (the first reset draws fresh
-        entropy), as the CPU vector env's."""
+        entropy), as the CPU vector env's. `team_seed` t (with a seed): the teams' row b is seeded t + b instead
+        (`TeamVecEnv`'s opponent keeps the seed it was made with)."""
         if options:
             raise ValueError(f'DeviceVecEnv.reset takes no options, got {sorted(options)}')
+        for name, value in (('seed', seed), ('team_seed', team_seed)):
+            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 0):
+                raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')
+        if team_seed is not None and seed is None:
+            raise ValueError('team_seed needs a seed (an unseeded reset goes on with every stream)')
         if seed is not None:
-            if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-                raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
-            self.teams = self._make_teams(int(seed))
+            self.teams = self._make_teams(int(seed if team_seed is None else team_seed))
         if seed is not None:
             seeds = [int(seed) + b for b in range(self.num_envs)]
         else:                                     # streams go on; never-seeded games draw fresh entropy

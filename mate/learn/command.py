@@ -119,11 +119,13 @@ def run(args: argparse.Namespace, console) -> int:
         from .device import resolve_device
 
         device = resolve_device(config.device)
+        games = config.resolved_game_device(spec) if hasattr(config, 'resolved_game_device') else 'cpu'
     _write_command(config.run_dir, ['mate', 'train', args.algo, *args.options])
     name = run_name(args.algo, config)
     console.print(f'training {name.upper()} {config.team}s on {spec.env_id} ({spec.network} network'
                   f'{f", LSTM {spec.lstm}" if spec.lstm else ""}, {spec.action} actions, frame skip {spec.frame_skip}, '
-                  f'{config.num_envs} envs, {config.steps:,} decision steps, {device}) -> {config.run_dir}',
+                  f'{config.num_envs} envs, {config.steps:,} decision steps, {device}, games on {games}) -> '
+                  f'{config.run_dir}',
                   soft_wrap=True, highlight=False)
     return train_and_report(module.train, config, console, resuming)
 

@@ -386,6 +386,9 @@ class TeamVecEnv:
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
+        if 'device' in state:
+            raise ValueError('this checkpoint holds the state of games played on a GPU; resume it with '
+                             '--game-device cuda')
         self.envs.load_state_dict(dict(vec=state['vec'], opponent=state['opponent'],
                                        pending=state.get('pending', False)))   # (older checkpoints: none pending)
         if self.memory is not None:

@@ -1,7 +1,7 @@
 """The one PPO loop of `mate.learn`: MAPPO, IPPO, MAPPO-AS, their recurrent versions, TarMAC and I2C all train here.
 
     spec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games, the other team a
-            batched opponent)
+            batched opponent; `DeviceTeamEnv` with the games on a GPU, `--game-device`)
         ->  networks: the actor the spec names (`make_actor`), one critic (`critic_inputs`: the global state, each
             agent's observation, or both; TarMAC's messages appended), the value normaliser, and an algorithm's own
             modules (`Auxiliary`: I2C's training signals)
@@ -209,12 +209,15 @@ def train(config: PPOConfig, spec: PolicySpec, envs=None, callback=None, console
     elif config.init_from:
         warm_start(config.init_from, spec, actor, dict(critic=value_net, value_norm=value_norm), config.algo,
                    config.credit)
-    obs, state = run.first_observations(envs, saved)
-    obs, state = torch.from_numpy(obs).to(device), torch.from_numpy(state).to(device)
+    # the envs' arrays: numpy on the host (`TeamVecEnv`), or torch tensors where the games run on a device
+    # (`DeviceTeamEnv`, `tensors = True`: nothing crosses to the host but the decision's episode records)
+    to_envs = (lambda x: x) if getattr(envs, 'tensors', False) else (lambda x: x.cpu().numpy())
+    here = lambda x: torch.as_tensor(x, device=device)   # noqa: E731  (numpy: no copy on the CPU)
+    obs, state = map(here, run.first_observations(envs, saved))
     masking = config.mask_invisible and spec.hrl
 
     def allowed_of(obs_t):   # (..., N, H, C) choices the policy may take, or None (all)
-        return torch.from_numpy(envs.allowed_actions(obs_t.cpu().numpy())).to(device) if masking else None
+        return here(envs.allowed_actions(to_envs(obs_t))) if masking else None
 
     def values_of(obs_t, state_t, messages_t=None):   # (..., N) values of every agent, in return units
         inputs = critic_inputs(critic, obs_t, state_t, messages_t)
@@ -267,24 +270,23 @@ def train(config: PPOConfig, spec: PolicySpec, envs=None, callback=None, console
                     dist = action_distribution(logits, H, C, allowed_of(obs))
                     action = torch.multinomial(dist.probs.reshape(-1, C), 1, generator=generator).reshape(B, N, H)
                     value = values_of(obs, state, messages)
-                chosen = action.cpu().numpy()
+                chosen = to_envs(action)
                 next_obs, next_state, reward, done, truncated, info = envs.step(chosen[..., 0] if H == 1 else chosen)
-                reward = torch.from_numpy(reward).float().to(device)
+                reward = here(reward).float()
                 reward = reward if per_agent_rewards else reward[:, None].expand(B, N)     # (B, N)
                 if truncated.any():   # horizon cut: bootstrap from the critic's value of the last observation
                     with torch.no_grad():   # (TarMAC: with the messages just sent, which the next decision reads)
-                        final = values_of(torch.from_numpy(info['final_obs']).to(device),
-                                          torch.from_numpy(info['final_state']).to(device), heard(actor, memory))
+                        final = values_of(here(info['final_obs']), here(info['final_state']), heard(actor, memory))
                     final = final if per_agent_rewards else final.mean(-1, keepdim=True)   # (B, N) or (B, 1)
                     reward = bootstrapped(reward, truncated, final, config.gamma)
-                done = torch.from_numpy(done).to(device)
+                done = here(done)
                 obs_buf[t], state_buf[t], action_buf[t] = obs, state, action
                 logp_buf[t], value_buf[t] = dist.log_prob(action).sum(-1), value
                 reward_buf[t], done_buf[t] = reward, done.float()
                 start_buf[t], starting = starting, done.clone()
                 if message_buf is not None:
                     message_buf[t] = messages
-                obs, state = torch.from_numpy(next_obs).to(device), torch.from_numpy(next_state).to(device)
+                obs, state = here(next_obs), here(next_state)
                 coverage.append(float(info['coverage'].mean()))
                 episodes += info['episodes']
             collect_seconds = time.perf_counter() - t_collect

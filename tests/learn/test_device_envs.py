@@ -1,0 +1,199 @@
+"""The training envs on a device (`mate.learn.device_envs`): the torch pipeline equals the spec's numpy pipeline; under
+numba's CUDA simulator `DeviceTeamEnv` plays `TeamVecEnv`'s games (with the device team's host twin as its opponent)
+number for number, and a PPO run over it logs the rows of a run over `TeamVecEnv` and resumes exactly."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import torch
+from conftest import needs_extra, run_simulated
+
+from mate.agents.utils import normalize_observation
+from mate.learn.device_envs import TorchPipeline, device_unsupported
+from mate.learn.envs import TeamVecEnv, compress
+from mate.learn.memory import SightingMemory
+from mate.learn.mappo import MAPPOConfig, policy_spec
+from mate.learn.spec import PolicySpec
+from mate.vector import make_vec
+
+
+def _played(preset: str, steps: int = 12, seed: int = 0):
+    """(camera obs, target obs, state) float32 after `steps` random env steps of 6 games, episodes of 5 steps (so
+    that some games restart)."""
+    vec = make_vec(f'{preset}-v0', 6, observation_dtype=np.float32, max_episode_steps=5)
+    vec.reset(seed=seed)
+    for _ in range(steps):
+        (camera, target), *_ = vec.step(vec.action_space.sample())
+    return camera.copy(), target.copy(), vec
+
+
+def _check_memory_and_velocity(preset, raw, vec):
+    """The pipeline's memory and velocity columns are `SightingMemory.features` and `target_displacements` bit for
+    bit, on a memory that saw a few steps of the games and lost some targets."""
+    spec = PolicySpec.for_game('camera', f'{preset}-v0', frame_skip=5, action='hrl', memory=3, velocity=True)
+    pipeline = TorchPipeline(spec, 'cpu')
+    memory = SightingMemory(raw.shape[0], spec.counts, spec.memory)
+    previous = raw
+    for _ in range(4):
+        (now, _), *_ = vec.step(vec.action_space.sample())
+        memory.tick()
+        memory.observe_team(now)
+        previous, raw = raw, now.copy()
+    state = (torch.from_numpy(memory.age), torch.from_numpy(memory.location))
+    assert (memory.age == spec.memory).any() and (memory.age == 0).any()   # forgotten targets and fresh ones
+    expected = spec.features(raw, memory.features(raw), previous)
+    got = pipeline.features(torch.from_numpy(raw), state, torch.from_numpy(previous))
+    assert np.array_equal(got.numpy(), expected)
+    assert np.abs(expected[..., -2 * spec.counts[1]:]).max() > 0           # some target moved while seen
+
+
+@pytest.mark.parametrize('preset', ['MATE-4v8-9', 'MATE-2v4-0', 'MATE-8v8-9'])
+def test_the_torch_pipeline_is_the_specs_pipeline_bit_for_bit(preset):
+    camera, target, vec = _played(preset)
+    state = vec.state()
+    rng = np.random.default_rng(1)
+    for team, raw in (('camera', camera), ('target', target)):
+        actions = ('grid', 'continuous') + (('hrl', 'hrl-joint') if team == 'camera' else ())
+        for action in actions:
+            spec = PolicySpec.for_game(team, f'{preset}-v0', frame_skip=5, action=action)
+            pipeline = TorchPipeline(spec, 'cpu')
+            features = spec.features(raw)
+            got = pipeline.features(torch.from_numpy(raw))
+            assert got.dtype == torch.float32 and np.array_equal(got.numpy(), features), (team, action)
+            expected_state = compress(normalize_observation(state, vec.single_state_space))
+            assert np.array_equal(pipeline.state(torch.from_numpy(state)).numpy(), expected_state)
+            allowed = spec.allowed(features)
+            got_allowed = pipeline.allowed(torch.from_numpy(features))
+            if allowed is None:
+                assert got_allowed is None
+            else:
+                assert allowed.any(-1).all() and not allowed.all()           # some choices masked, never all
+                assert np.array_equal(got_allowed.numpy(), allowed), (team, action)
+            if team == 'camera' and action == 'hrl':      # the sighting memory and velocity columns
+                _check_memory_and_velocity(preset, raw, vec)
+            if action in ('grid', 'continuous'):
+                held = rng.integers(0, spec.choices, raw.shape[:2] + (1,)) if action == 'grid' else \
+                    rng.uniform(-1.5, 1.5, raw.shape[:2] + (2,))
+                decoded = pipeline.decode(torch.from_numpy(held), torch.from_numpy(raw))
+                assert np.array_equal(decoded.numpy(), spec.decode(held, raw)), (team, action)
+            else:
+                held = rng.integers(0, spec.choices, raw.shape[:2] + (spec.heads,))
+                bits = held if action == 'hrl' else (held[..., :1] >> np.arange(spec.counts[1])) & 1
+                assert np.array_equal(pipeline.keep_bits(torch.from_numpy(held)).numpy(), bits.astype(bool))
+
+
+def test_what_the_device_does_not_play_is_named_and_auto_keeps_it_on_the_cpu(tmp_path):
+    spec = PolicySpec.for_game('camera', 'MATE-4v8-9-v0', frame_skip=5, action='hrl', memory=25, velocity=True)
+    assert device_unsupported(spec) == []
+    assert device_unsupported(spec.replace(full_observability=True), camera_reward='mixed') == \
+        ['--full-observability', "the 'mixed' camera reward"]
+    config = MAPPOConfig(hrl=True, full_observability=True, device='cpu', run_dir=str(tmp_path), num_envs=2)
+    assert config.resolved_game_device(policy_spec(config)) == 'cpu'            # auto: the networks are on the CPU
+    assert isinstance(config.make_env(policy_spec(config)), TeamVecEnv)
+    config = MAPPOConfig(full_observability=True, device='cpu', game_device='cuda', run_dir=str(tmp_path))
+    with pytest.raises(ValueError, match=r'^--game-device cuda: --full-observability is not played on the device '
+                                         r'yet; use --game-device cpu$'):
+        config.resolved_game_device(policy_spec(config))
+    with pytest.raises(ValueError, match='--game-device must be auto, cpu or cuda'):
+        MAPPOConfig(game_device='gpu')
+    envs = MAPPOConfig(num_envs=2, device='cpu', game_device='cpu').make_env(policy_spec(MAPPOConfig()))
+    with pytest.raises(ValueError, match='played on a GPU; resume it with --game-device cuda'):
+        envs.load_state_dict(dict(device={}, raw=None, returns=None))
+
+
+SIMULATED = """
+import csv, json, sys, tempfile
+from pathlib import Path
+import numpy as np, torch
+sys.path.insert(0, sys.argv[1])
+from resume import assert_same_run, stopped_and_resumed
+from mate.learn.device_envs import DeviceTeamEnv
+from mate.learn.envs import TeamVecEnv
+from mate.learn.mappo import MAPPOConfig, policy_spec, train
+from mate.learn.run import TIMING_COLUMNS
+from mate.learn.spec import PolicySpec
+from mate.teams.device import HostTeam
+
+def host_twin(team):
+    other = 'target' if team == 'camera' else 'camera'
+    return lambda n, counts, seed: HostTeam('greedy', other, n, counts, seed=seed)
+
+report = {}
+for team, preset, action, credit in (('camera', 'MATE-4v8-9', 'hrl', 'difference'),
+                                     ('target', 'MATE-2v4-0', 'continuous', 'team')):
+    columns = dict(memory=4, velocity=True) if team == 'camera' else {}
+    spec = PolicySpec.for_game(team, preset + '-v0', frame_skip=3, action=action, **columns)
+    cpu = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, opponent=host_twin(team))
+    dev = DeviceTeamEnv(spec, 2, horizon=10, seed=4, credit=credit, block=2)
+    differing, episodes = [], 0
+    def compare(tag, a, b):
+        b = b.numpy() if isinstance(b, torch.Tensor) else b
+        if not (np.shape(a) == np.shape(b) and np.array_equal(a, b)):
+            differing.append(tag)
+    for tag, a, b in zip(('obs', 'state'), cpu.reset(seed=11), dev.reset(seed=11)):
+        compare(f'reset {tag}', a, b)
+    rng = np.random.default_rng(0)
+    for t in range(8):
+        shape = (2, spec.num_agents, 2 if spec.continuous else spec.heads)
+        act = rng.uniform(-1.2, 1.2, shape) if spec.continuous else rng.integers(0, spec.choices, shape)
+        expected, got = cpu.step(act), dev.step(torch.as_tensor(act))
+        for tag, a, b in zip(('obs', 'state', 'reward', 'done', 'truncated'), expected, got):
+            compare(f'{t} {tag}', a, b)
+        ended = expected[3]
+        for key in ('final_obs', 'final_state'):
+            compare(f'{t} {key}', expected[5][key][ended], got[5][key].numpy()[ended])
+        compare(f'{t} coverage', expected[5]['coverage'], got[5]['coverage'])
+        if expected[5]['episodes'] != got[5]['episodes']:
+            differing.append(f'{t} episodes')
+        episodes += len(expected[5]['episodes'])
+    report[f'env {team} {action} {credit}'] = dict(differing=differing[:5], episodes=episodes)
+
+folder = Path(tempfile.mkdtemp())
+for hrl in (True, False):
+    def config_of(run_dir, fresh, game='cuda'):
+        return MAPPOConfig(seed=1, steps=18, num_envs=2, rollout_length=3, epochs=1, minibatches=2, horizon=10,
+                           frame_skip=2, threads=1, progress=False, hrl=hrl, device='cpu', game_device=game,
+                           run_dir=run_dir, fresh=fresh, checkpoint_every=1,
+                           **(dict(memory=4, velocity=True) if hrl else dict(team='target', credit='own')))
+    device_config, cpu_config = config_of(str(folder / f'device-{hrl}'), True), config_of(str(folder / f'cpu-{hrl}'),
+                                                                                         True, 'cpu')
+    made = type(device_config.make_env(policy_spec(device_config))).__name__
+    train(device_config)
+    train(cpu_config, envs=TeamVecEnv(policy_spec(cpu_config), 2, horizon=10, seed=1, credit=cpu_config.credit,
+                                      opponent=host_twin(cpu_config.team)))
+    rows = []
+    for run_dir in (device_config.run_dir, cpu_config.run_dir):
+        with open(Path(run_dir) / 'progress.csv', newline='') as f:
+            rows.append([{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(f)])
+    found = dict(env=made, same=rows[0] == rows[1], rows=len(rows[0]), episodes=int(rows[0][-1]['episodes']))
+    if hrl:
+        straight, stopped = stopped_and_resumed(train, config_of, 1, folder / 'resume')
+        assert_same_run(straight, stopped)
+        found['resumed'] = True
+    report[f'train hrl={hrl}'] = found
+print(json.dumps(report))
+"""
+
+
+def test_the_simulated_device_env_trains_as_the_cpu_env():
+    """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads): two settings'
+    envs step for step (HRL cameras with difference credit, the sighting memory and velocities; continuous targets), then PPO runs (HRL cameras, targets with their own credit) over the device env and over the
+    CPU env with the host twin, and a stopped and resumed run on the device."""
+    needs_extra('numba_cuda')
+    here = str(Path(__file__).parent)
+    done = run_simulated(SIMULATED, here, timeout=900, cwd=here)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(report) == 4, report
+    for name, found in report.items():
+        if name.startswith('env'):
+            assert found['differing'] == [] and found['episodes'] >= 2, (name, found)
+        else:
+            assert found['env'] == 'DeviceTeamEnv' and found['same'] and found['rows'] == 3, (name, found)
+            assert found['episodes'] >= 2, (name, found)
+    assert report['train hrl=True']['resumed']
