@@ -224,6 +224,12 @@ class DeviceVecEnv:
                     array.copy_to_device(np.ascontiguousarray(arrays[name]))
         self._started, self._seeded = bool(state['started']), bool(state.get('seeded', True))
 
+    @property
+    def observations(self):
+        """(camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)) tensors: both teams' current observations (the env's
+        buffers, overwritten by the next step)."""
+        return self._observations
+
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
         'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt))."""

@@ -5,7 +5,8 @@ It steps `mate.device_team_vector.DeviceTeamVecEnv` (the games and the greedy op
 the device, as torch operations, what `TeamVecEnv` does in numpy on the host: the policy spec's features and the
 compressed global state (`TorchPipeline`, checked against `PolicySpec.features` and `compress`), the decoding of a held
 decision (grid moves, continuous shares; HRL selections through the executor kernel, re-aimed at every env step),
-the cameras' sighting memory and target velocities (`--memory`, `--velocity`), frame skip, the reward kinds ('team', cameras 'difference', targets 'own'), horizon cuts with the last observation kept
+the cameras' sighting memory and target velocities (`--memory`, `--velocity`), full observability (the
+`EnhancedObservation` arrays of `enhance_observations`), frame skip, the reward kinds ('team', cameras 'difference', targets 'own'), horizon cuts with the last observation kept
 for bootstrapping, and the finished episodes' records. Only their list (`info['episodes']`) and the decision's coverage
 come to the host, once per decision.
 
@@ -16,8 +17,8 @@ opponent's random streams: the device teams draw from counter-based streams of t
 `TeamVecEnv` (whose greedy team draws as the Python agents) play other games of the same distribution (docs:
 design notes).
 
-Not on the device (each refused with the option to drop): full observability, the population players' 'mixed' camera
-reward and opponents other than the greedy rules. `mate train --game-device auto` (the default) plays those on the CPU.
+Not on the device (each refused with the option to drop): the population players' 'mixed' camera reward and
+opponents other than the greedy rules. `mate train --game-device auto` (the default) plays those on the CPU.
 """
 
 from __future__ import annotations
@@ -33,16 +34,12 @@ from ..spaces import observation_indices_of, observation_space_of, state_space_o
 from .memory import target_record_scale
 from .spec import PolicySpec, as_team
 
-__all__ = ['DEVICE_UNSUPPORTED', 'DeviceTeamEnv', 'TorchPipeline', 'device_game_available', 'device_unsupported']
-
-DEVICE_UNSUPPORTED = ('full_observability',)
-"""The policy spec's settings whose views are built on the host only (`device_unsupported`)."""
-
+__all__ = ['DeviceTeamEnv', 'TorchPipeline', 'device_game_available', 'device_unsupported']
 
 def device_unsupported(spec: PolicySpec, camera_reward: str = 'coverage', opponent=None) -> list[str]:
     """The settings of a training env that `DeviceTeamEnv` cannot play, in the words of the command line (empty:
     it plays them all)."""
-    found = ['--full-observability'] if spec.full_observability else []
+    found = []
     if spec.action == 'discrete':
         found.append("'discrete' actions (a toy task)")
     if camera_reward != 'coverage':
@@ -282,6 +279,12 @@ class DeviceTeamEnv:
             nt = self.counts[1]
             self._age = torch.full((self.num_envs, nt), spec.memory, dtype=torch.long, device=self.device)
             self._location = torch.zeros((self.num_envs, nt, 2), dtype=torch.float64, device=self.device)
+        self._observation_slices = None
+        if spec.full_observability:
+            from ..spaces import camera_observation_slices_of, target_observation_slices_of
+
+            slices_of = camera_observation_slices_of if team is Team.CAMERA else target_observation_slices_of
+            self._observation_slices = slices_of(*self.counts)
         self._hrl = None
         if spec.hrl:
             B, N = self.num_envs, self.num_agents
@@ -300,6 +303,39 @@ class DeviceTeamEnv:
         observation = raw.reshape(out.shape[0], raw.shape[-1]).contiguous()
         hrl_actions(from_torch(observation), from_torch(keep), self.pipeline.begin, from_torch(out))
         return out.reshape(self.num_envs, self.num_agents, 2).clone()
+
+    def _enhanced(self, raw):
+        """The team's raw observations (B, N, D) as it sees them: unchanged, or (full observability) a copy with every
+        record filled as `mate.wrappers.enhanced_observation.enhance_observations` fills it (every entity's public
+        state and flag 1; targets: the true empty warehouses). The opponent keeps its partial view."""
+        import torch
+
+        if not self.spec.full_observability:
+            return raw
+        from ..constants import CAMERA_STATE_DIM_PUBLIC, TARGET_STATE_DIM_PUBLIC
+        from ..wrappers.enhanced_observation import TARGET_EMPTY_BITS
+
+        def flagged(records):      # (B, n, d) -> (B, 1, n (d + 1)): each record and a flag 1, one row block
+            ones = torch.ones(*records.shape[:-1], 1, dtype=torch.float64, device=records.device)
+            return torch.cat([records.double(), ones], dim=-1).reshape(records.shape[0], 1, -1)
+
+        camera_obs, target_obs = self.vec.observations
+        cameras = flagged(camera_obs[..., PRESERVED_DIM:PRESERVED_DIM + CAMERA_STATE_DIM_PUBLIC])   # public states
+        targets = flagged(target_obs[..., PRESERVED_DIM:PRESERVED_DIM + TARGET_STATE_DIM_PUBLIC])
+        obstacles = flagged(torch.cat([self.vec.world_tensor('obstacle_pos'),
+                                       self.vec.world_tensor('obstacle_radius')[..., None]], dim=-1))
+        out = raw.clone()
+        slices = self._observation_slices
+        if self.team is Team.CAMERA:
+            records = (targets, obstacles, cameras)
+        else:
+            records = (cameras, obstacles, targets)
+            stock = self.vec.world_tensor('remaining_cargoes').any(dim=-1)           # (B, W): cargo left to send
+            out[..., TARGET_EMPTY_BITS] = (~stock).to(out.dtype)[:, None, :]
+        for name, values in zip(('opponent_states_with_mask', 'obstacle_states_with_mask', 'teammate_states_with_mask'),
+                                records):
+            out[..., slices[name]] = values.to(out.dtype)
+        return out
 
     def _remember(self, raw, restarting=None) -> None:
         """One env step of the sighting memory (`TeamVecEnv._remember`): the rows of `restarting` forget, a step
@@ -359,7 +395,7 @@ class DeviceTeamEnv:
 
     def reset(self, seed: int | None = None):
         raw, _ = self.envs.reset(seed=self._seed if seed is None else seed, opponent_seed=self._opponent_seed)
-        self._raw = raw.clone()
+        self._raw = self._enhanced(raw).clone()
         self._before = self._raw.clone() if self.spec.velocity else None
         if self.spec.memory:
             self._age.fill_(self.spec.memory)
@@ -448,6 +484,7 @@ class DeviceTeamEnv:
 
         previous = previous.clone() if self.spec.velocity else None
         raw, rewards, terminated, truncated, info = self.envs.step(own_actions)
+        raw = self._enhanced(raw)
         if previous is not None:
             self._before = torch.where(restarting[:, None, None], raw, previous)
         self._remember(raw, restarting)

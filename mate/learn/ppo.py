@@ -80,9 +80,9 @@ class PPOConfig(RunConfig, TeamEnvConfig):
     init_from: str | None = option(None, 'warm start from the networks of a checkpoint or policy file of the same '
                                          'setting (steps and schedules start from 0)', metavar='PATH')
     game_device: Literal['auto', 'cpu', 'cuda'] = option(
-        'auto', 'where the games and the greedy opponent run: cuda (CUDA kernels, the gpu extra; not with '
-                '--full-observability), cpu (numba), or auto: on the GPU when --device is one and the settings allow '
-                'it, else the CPU')
+        'auto', 'where the games and the greedy opponent run: cuda (CUDA kernels, the gpu extra), cpu (numba), or '
+                'auto: on the GPU when --device is one and the settings allow it (not PSRO\'s mixed rewards and '
+                'population opponents), else the CPU')
 
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)

@@ -88,17 +88,18 @@ def test_the_torch_pipeline_is_the_specs_pipeline_bit_for_bit(preset):
 
 
 def test_what_the_device_does_not_play_is_named_and_auto_keeps_it_on_the_cpu(tmp_path):
-    spec = PolicySpec.for_game('camera', 'MATE-4v8-9-v0', frame_skip=5, action='hrl', memory=25, velocity=True)
+    spec = PolicySpec.for_game('camera', 'MATE-4v8-9-v0', frame_skip=5, action='hrl', memory=25, velocity=True,
+                               full_observability=True)
     assert device_unsupported(spec) == []
-    assert device_unsupported(spec.replace(full_observability=True), camera_reward='mixed') == \
-        ['--full-observability', "the 'mixed' camera reward"]
-    config = MAPPOConfig(hrl=True, full_observability=True, device='cpu', run_dir=str(tmp_path), num_envs=2)
+    assert device_unsupported(spec, camera_reward='mixed', opponent=lambda n, counts, seed: None) == \
+        ["the 'mixed' camera reward", 'an opponent other than the greedy rules']
+    config = MAPPOConfig(hrl=True, memory=25, device='cpu', run_dir=str(tmp_path), num_envs=2)
     assert config.resolved_game_device(policy_spec(config)) == 'cpu'            # auto: the networks are on the CPU
     assert isinstance(config.make_env(policy_spec(config)), TeamVecEnv)
-    config = MAPPOConfig(full_observability=True, device='cpu', game_device='cuda', run_dir=str(tmp_path))
-    with pytest.raises(ValueError, match=r'^--game-device cuda: --full-observability is not played on the device '
+    config = MAPPOConfig(device='cpu', game_device='cuda', run_dir=str(tmp_path))
+    with pytest.raises(ValueError, match=r"^--game-device cuda: the 'mixed' camera reward is not played on the device "
                                          r'yet; use --game-device cpu$'):
-        config.resolved_game_device(policy_spec(config))
+        config.resolved_game_device(policy_spec(config), camera_reward='mixed')
     with pytest.raises(ValueError, match='--game-device must be auto, cpu or cuda'):
         MAPPOConfig(game_device='gpu')
     envs = MAPPOConfig(num_envs=2, device='cpu', game_device='cpu').make_env(policy_spec(MAPPOConfig()))
@@ -126,7 +127,8 @@ def host_twin(team):
 report = {}
 for team, preset, action, credit in (('camera', 'MATE-4v8-9', 'hrl', 'difference'),
                                      ('target', 'MATE-2v4-0', 'continuous', 'team')):
-    columns = dict(memory=4, velocity=True) if team == 'camera' else {}
+    columns = dict(memory=4, velocity=True, full_observability=True) if team == 'camera' else \
+        dict(full_observability=True)
     spec = PolicySpec.for_game(team, preset + '-v0', frame_skip=3, action=action, **columns)
     cpu = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, opponent=host_twin(team))
     dev = DeviceTeamEnv(spec, 2, horizon=10, seed=4, credit=credit, block=2)
@@ -182,7 +184,8 @@ print(json.dumps(report))
 
 def test_the_simulated_device_env_trains_as_the_cpu_env():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads): two settings'
-    envs step for step (HRL cameras with difference credit, the sighting memory and velocities; continuous targets), then PPO runs (HRL cameras, targets with their own credit) over the device env and over the
+    envs step for step (with full observability: HRL cameras with difference credit, the sighting memory and
+    velocities; continuous targets), then PPO runs (HRL cameras, targets with their own credit) over the device env and over the
     CPU env with the host twin, and a stopped and resumed run on the device."""
     needs_extra('numba_cuda')
     here = str(Path(__file__).parent)
