@@ -283,31 +283,28 @@ def main() -> None:
                 save()
                 print(f"{preset} B={batch_size} {found['dtype']}: {found['env_steps_per_second']:,.0f} env-steps/s",
                       flush=True)
-    record['whole_game'] = []
-    for target_agent in ('greedy', 'random'):
-        for batch_size in args.batch_sizes:
-            found = whole_game('MATE-4v8-9', batch_size, args.seconds, target_agent)
-            record['whole_game'].append(found)
+    def measure(section: str, calls, line) -> None:     # each call's record, saved, and its line printed
+        record[section] = []
+        for call in calls:
+            found = call()
+            record[section].append(found)
             save()
-            print(f"MATE-4v8-9 greedy vs {target_agent} on the device, B={batch_size}: "
-                  f"{found['env_steps_per_second']:,.0f} env-steps/s", flush=True)
-    record['rollout'] = []
-    for team in ('camera', 'target'):
-        for batch_size in args.batch_sizes:
-            found = rollout(team, batch_size, args.seconds)
-            record['rollout'].append(found)
-            save()
-            print(f"rollout of {'HRL cameras' if team == 'camera' else 'targets'} vs greedy on the device, "
-                  f"B={batch_size}: {found['decisions_per_second']:,.0f} decisions/s", flush=True)
-    record['training'] = []
-    for team in ('camera', 'target'):
-        for batch_size in args.train_batch_sizes:
-            found = training(team, batch_size, args.train_seconds)
-            record['training'].append(found)
-            save()
-            print(f"mate train mappo {'--hrl cameras' if team == 'camera' else 'targets'}, game on the device, "
-                  f"B={batch_size}: {found['decisions_per_second']:,.0f} decisions/s ({found['iterations']} "
-                  f"iterations; 10 M decisions in {found['minutes_for_10M']:.1f} min)", flush=True)
+            print(line(found), flush=True)
+
+    measure('whole_game', [lambda agent=agent, b=b: whole_game('MATE-4v8-9', b, args.seconds, agent)
+                           for agent in ('greedy', 'random') for b in args.batch_sizes],
+            lambda found: f"MATE-4v8-9 {found['teams']} on the device, B={found['batch_size']}: "
+                          f"{found['env_steps_per_second']:,.0f} env-steps/s")
+    measure('rollout', [lambda team=team, b=b: rollout(team, b, args.seconds)
+                        for team in ('camera', 'target') for b in args.batch_sizes],
+            lambda found: f"rollout of {'HRL cameras' if found['team'] == 'camera' else 'targets'} vs greedy on the "
+                          f"device, B={found['batch_size']}: {found['decisions_per_second']:,.0f} decisions/s")
+    measure('training', [lambda team=team, b=b: training(team, b, args.train_seconds)
+                         for team in ('camera', 'target') for b in args.train_batch_sizes],
+            lambda found: f"mate train mappo {'--hrl cameras' if found['team'] == 'camera' else 'targets'}, game on "
+                          f"the device, B={found['batch_size']}: {found['decisions_per_second']:,.0f} decisions/s "
+                          f"({found['iterations']} iterations; 10 M decisions in {found['minutes_for_10M'] or 0:.1f} "
+                          'min)')
     found = record['greedy_statistics'] = greedy_statistics()
     print(f"greedy vs greedy, {found['seeds']} seeds: device {found['device_mean_coverage_rate']:.4f} "
           f"+- {found['device_standard_error']:.4f}, CPU {found['cpu_mean_coverage_rate']:.4f} "
