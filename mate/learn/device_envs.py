@@ -6,16 +6,17 @@ the device, as torch operations, what `TeamVecEnv` does in numpy on the host: th
 compressed global state (`TorchPipeline`, checked against `PolicySpec.features` and `compress`), the decoding of a held
 decision (grid moves, continuous shares; HRL selections through the executor kernel, re-aimed at every env step),
 the cameras' sighting memory and target velocities (`--memory`, `--velocity`), full observability (the
-`EnhancedObservation` arrays of `enhance_observations`), frame skip, the reward kinds ('team', cameras 'difference', targets 'own'), horizon cuts with the last observation kept
-for bootstrapping, and the finished episodes' records. Only their list (`info['episodes']`) and the decision's coverage
+`EnhancedObservation` arrays of `enhance_observations`), frame skip, the reward kinds ('team', cameras
+'difference', targets 'own'), horizon cuts with the last observation kept for bootstrapping, and the finished
+episodes' records. Only their list (`info['episodes']`) and the decision's coverage
 come to the host, once per decision.
 
 Semantics are `TeamVecEnv`'s, step for step: an env whose opponent is the device team's host twin
-(`mate.teams.device.HostTeam`, seeded seed + 7919 as here) plays the same games and returns the same numbers (the tests
+(`mate.teams.device.HostTeam`, seeded seed + 7919 as here: `OPPONENT_SEED_OFFSET`) plays the same games and returns the same numbers (the tests
 check this under numba's CUDA simulator, and a PPO run over either env logs the same rows). What differs is the
 opponent's random streams: the device teams draw from counter-based streams of their own, so a run here and a run of
-`TeamVecEnv` (whose greedy team draws as the Python agents) play other games of the same distribution (docs:
-design notes).
+`TeamVecEnv` (whose greedy team draws as the Python agents) play other games of the same distribution
+(docs/performance.md, "The game on a CUDA device").
 
 Not on the device (each refused with the option to drop): the population players' 'mixed' camera reward and
 opponents other than the greedy rules. `mate train --game-device auto` (the default) plays those on the CPU.
@@ -27,7 +28,7 @@ import functools
 
 import numpy as np
 
-from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
+from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..registration import resolve_config
 from ..spaces import observation_indices_of, observation_space_of, state_space_of
@@ -35,6 +36,7 @@ from .memory import target_record_scale
 from .spec import PolicySpec, as_team
 
 __all__ = ['DeviceTeamEnv', 'TorchPipeline', 'device_game_available', 'device_unsupported']
+
 
 def device_unsupported(spec: PolicySpec, camera_reward: str = 'coverage', opponent=None) -> list[str]:
     """The settings of a training env that `DeviceTeamEnv` cannot play, in the words of the command line (empty:
@@ -227,7 +229,7 @@ class DeviceTeamEnv:
         spec: the trained policy's spec.
         num_envs: B.
         horizon: env steps per episode (None: 500 decisions).
-        seed: seed of `reset()` without a seed; the opponent's rows are seeded seed + 7919 + b.
+        seed: seed of `reset()` without a seed; the opponent's rows are seeded seed + 7919 + b (as `TeamVecEnv`'s).
         credit: 'team', 'difference' (cameras) or 'own' (targets).
         block: threads per CUDA block.
         **overrides: config keys of the game.
@@ -242,7 +244,7 @@ class DeviceTeamEnv:
 
         from ..core.device import BLOCK
         from ..device_team_vector import DeviceTeamVecEnv
-        from .envs import CREDITS
+        from .envs import CREDITS, OPPONENT_SEED_OFFSET
 
         team = as_team(spec.team)
         if credit not in CREDITS:
@@ -266,7 +268,7 @@ class DeviceTeamEnv:
         self.obs_dim, self.state_dim = spec.obs_dim, spec.state_dim
         self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
         self._seed = seed
-        self._opponent_seed = None if seed is None else seed + 7919
+        self._opponent_seed = None if seed is None else seed + OPPONENT_SEED_OFFSET
         like = self.envs.vec.world_tensor('target_reward')
         self.device = like.device
         self.pipeline = TorchPipeline(spec, self.device)
@@ -372,13 +374,9 @@ class DeviceTeamEnv:
     def positions(self) -> np.ndarray:
         """(B, N, 2) float64 host array: the team's agents' world positions, cut from the global state as
         `TeamVecEnv.positions` does (for a channel's range limit)."""
-        state = self.vec.state().cpu().numpy()
-        nc, nt, _ = self.counts
-        if self.team is Team.CAMERA:
-            begin, count, width = PRESERVED_DIM, nc, CAMERA_STATE_DIM_PRIVATE
-        else:
-            begin, count, width = PRESERVED_DIM + CAMERA_STATE_DIM_PRIVATE * nc, nt, TARGET_STATE_DIM_PRIVATE
-        return state[:, begin:begin + count * width].reshape(self.num_envs, count, width)[..., :2].astype(np.float64)
+        from .envs import team_positions
+
+        return team_positions(self.vec.state().cpu().numpy(), self.team, self.counts)
 
     def allowed_actions(self, features):
         """The spec's allowed choices (B, N, heads, choices) bool tensor of features (B, N, D); None when all are."""

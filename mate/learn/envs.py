@@ -56,8 +56,8 @@ from ..wrappers.enhanced_observation import empty_warehouses, enhance_observatio
 from .memory import SightingMemory, camera_sightings
 from .spec import PolicySpec, as_team
 
-__all__ = ['CAMERA_REWARDS', 'CREDITS', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv', 'compress',
-           'difference_rewards', 'game_of', 'mixed_camera_reward']
+__all__ = ['CAMERA_REWARDS', 'CREDITS', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv',
+           'compress', 'difference_rewards', 'game_of', 'mixed_camera_reward', 'team_positions']
 
 CREDITS = ('team', 'difference', 'own')
 """How an agent's reward is assigned: the team's (both teams); a camera's own marginal contribution to the coverage
@@ -152,6 +152,22 @@ def compress(x: np.ndarray) -> np.ndarray:
     return np.where(magnitude > 1.0, np.sign(x) * (1.0 + np.log(np.maximum(magnitude, 1.0))), x).astype(np.float32)
 
 
+def team_positions(state: np.ndarray, team: Team, counts) -> np.ndarray:
+    """(B, N, 2) float64 world positions of `team`'s agents, cut from the global states (B, S) of games of `counts`
+    = (Nc, Nt, No) (each agent's private state block starts with its x, y)."""
+    nc, nt, _ = counts
+    if team is Team.CAMERA:
+        begin, count, width = PRESERVED_DIM, nc, CAMERA_STATE_DIM_PRIVATE
+    else:
+        begin, count, width = PRESERVED_DIM + CAMERA_STATE_DIM_PRIVATE * nc, nt, TARGET_STATE_DIM_PRIVATE
+    rows = np.asarray(state)[:, begin:begin + count * width].reshape(len(state), count, width)
+    return rows[..., :2].astype(np.float64)
+
+
+OPPONENT_SEED_OFFSET = 7919
+"""A training env of seed s seeds its opponent with s + 7919 (its row b with s + 7919 + b), apart from the games'."""
+
+
 def greedy_opponent(team: Team, num_envs: int, counts, seed):
     """The default opponent of a team in training: the other team's greedy agents (`mate.teams.GreedyTeam`, draw
     for draw the Python agents; row b seeded seed + b)."""
@@ -199,7 +215,7 @@ class TeamVecEnv:
         self.frame_skip = spec.frame_skip
         self.horizon = int(horizon or 500 * spec.frame_skip)
         self.num_envs = int(num_envs)
-        opponent_seed = None if seed is None else seed + 7919
+        opponent_seed = None if seed is None else seed + OPPONENT_SEED_OFFSET
         factory = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
         self.envs = SingleTeamVecEnv(resolve_config(spec.env_id, spec.config), team, self.num_envs,
                                      opponent=lambda n, counts, _: factory(n, counts, opponent_seed),
@@ -285,14 +301,7 @@ class TeamVecEnv:
     def positions(self) -> np.ndarray:
         """(B, N, 2) float64 world positions of the trained team's agents at the current decision, cut from the
         global state as `RestrictedCommunicationRange` reads them (the training channel's range test)."""
-        state = self.vec.state()
-        nc, nt, _ = self.counts
-        if self.team is Team.CAMERA:
-            begin, count, width = PRESERVED_DIM, nc, CAMERA_STATE_DIM_PRIVATE
-        else:
-            begin, count, width = PRESERVED_DIM + CAMERA_STATE_DIM_PRIVATE * nc, nt, TARGET_STATE_DIM_PRIVATE
-        rows = state[:, begin:begin + count * width].reshape(self.num_envs, count, width)
-        return rows[..., :2].astype(np.float64)
+        return team_positions(self.vec.state(), self.team, self.counts)
 
     def allowed_actions(self, features: np.ndarray) -> np.ndarray | None:
         """The spec's allowed choices (..., N, heads, choices) of features (..., N, D); None when all are."""
