@@ -104,17 +104,17 @@ class DeviceTeamVecEnv:
     def _rewards(self, team_rewards, info, live):
         import torch
 
-        if self.reward_kind == 'team':
-            return team_rewards[self._own]
-        if self.reward_kind == 'coverage':
-            return info['coverage_rate']
+        zero = torch.zeros((), dtype=torch.float64, device=live.device)
+        if self.reward_kind in ('team', 'coverage'):    # a game restarting at this step (next_step) is rewarded 0
+            step = team_rewards[self._own] if self.reward_kind == 'team' else info['coverage_rate']
+            return torch.where(live, step, zero)
         if self.reward_kind == 'own':
             parts = self.vec.world_tensor('target_reward_parts')
         else:                                         # 'difference': the share of the targets each camera alone sees
             sees = self.vec.world_tensor('camera_target_view_mask')
             alone = sees & (sees.sum(dim=-2, keepdim=True) == 1)
             parts = alone.sum(dim=-1).to(torch.float64) / sees.shape[-1]
-        return torch.where(live[:, None], parts, torch.zeros((), dtype=parts.dtype, device=parts.device))
+        return torch.where(live[:, None], parts, zero)
 
     def step(self, actions):
         """One env step of every game with the team's `actions` (B, N, 2); returns (observations, rewards,

@@ -194,9 +194,8 @@ class SingleTeamVecEnv(VectorEnv):
         observations, team_rewards, terminations, truncations, infos = self.vec.step(self._joint(actions))
         self._other_obs = observations[1 - self._own]
         rewards = step_rewards(self.reward_kind, self.vec.world, team_rewards[self._own], infos['coverage_rate'])
-        live = ~restarting
-        if self.reward_kind in ('own', 'difference'):
-            rewards = np.where(live[:, None], rewards, 0.0)
+        live = ~restarting               # a game restarting at this step (next_step) is rewarded 0, whatever the kind
+        rewards = np.where(live if rewards.ndim == 1 else live[:, None], rewards, 0.0)
         if 'final_info' in infos:          # same_step: the ended games were reset; their step is in final_info
             rewards = self._final_rewards(rewards, infos['final_info'], infos['_final_info'])
         ended = live & (terminations | truncations)

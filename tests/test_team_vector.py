@@ -60,15 +60,23 @@ def test_spaces_shapes_and_bad_actions():
         mate.make_team_vec('MATE-4v8-9', 'camera', 2, opponent='smart')
 
 
-def test_next_step_autoreset_restarts_the_opponent_and_pays_nothing():
-    envs = mate.make_team_vec('MATE-2v4-0', 'target', 2, max_episode_steps=5, reward='own')
+@pytest.mark.parametrize('team, reward', [('target', 'own'), ('target', 'team'), ('camera', 'coverage'),
+                                          ('camera', 'difference')])
+def test_next_step_autoreset_restarts_the_opponent_and_pays_nothing(team, reward):
+    """The step that restarts a game (next_step) rewards it 0 in every reward kind (the coverage reward too, which
+    would otherwise be the new episode's first coverage rate)."""
+    envs = mate.make_team_vec('MATE-2v4-0', team, 2, max_episode_steps=5, reward=reward)
     observations, _ = envs.reset(seed=1)
     for _ in range(5):
         observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
     assert truncations.all() and infos['_episode'].all() and (infos['episode']['l'] == 5).all()
     observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
-    assert rewards.shape == (2, 4) and (rewards == 0).all() and not truncations.any()
+    assert rewards.shape[0] == 2 and (rewards == 0).all() and not truncations.any()
     assert (infos['episode_step'] == 0).all()
+    if reward == 'coverage':
+        assert infos['coverage_rate'].any()      # the new episode's first coverage rate, not paid
+    observations, rewards, *_ = envs.step(envs.action_space.sample())
+    assert rewards.any()                          # paid again from the episode's first step on
 
 
 def test_per_agent_rewards_sum_to_the_team_reward():
