@@ -15,7 +15,9 @@ Autoreset, as the CPU vector env's (`autoreset_mode`): 'next_step' (the default)
 ignores its actions, starts its next episode and returns its first observations with reward 0 and no end flags --
 or 'same_step' -- a game that ends starts its next episode in the same step (without the final observation): the
 step returns that step's rewards and end flags and the new episode's first observations. Either way `info` holds
-the step's coverage rate and, where `terminated | truncated`, the ended episodes' length and mean coverage rate. A
+the step's coverage rate (in same_step that of the step played, also in the games that ended: the CPU env's `info`
+shows their new episode's there and keeps the step played in `final_info`) and, where `terminated | truncated`, the
+ended episodes' length and mean coverage rate. A
 game's random stream goes on into its next episode, as on the CPU, so with the caller's actions the games are the
 CPU env's with the same autoreset mode, game for game (to the rounding of the device's math library).
 
