@@ -292,7 +292,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
             'real_coverage_rate': float(w.real_coverage_rate[0]),
             'mean_transport_rate': float(w.mean_transport_rate[0]),
             'num_delivered_cargoes': int(w.num_delivered_cargoes[0]),
-            **{key: float(value[0]) for key, value in episode_statistics(self.params, w).items()},
+            **episode_statistics(self.params, w, row=0),
         }
         return (self._team_infos(Team.CAMERA, -target_reward, shared),
                 self._team_infos(Team.TARGET, target_reward, shared))

@@ -76,3 +76,21 @@ def test_the_single_team_envs_episodes_are_the_cores():
     game = infos.get('final_info', infos)
     assert np.array_equal(episode['coverage_rate'], game['episode_coverage_rate'])
     assert np.array_equal(episode['target_return'], game['episode_target_return'])
+
+
+def test_one_rows_statistics_are_the_batchs_row_exactly():
+    """`episode_statistics(params, world, row=b)` (Python floats, the single env's infos) is row b of the batch's
+    arrays bit for bit, dense and sparse rewards, before the first step (0) and after episodes ended."""
+    from mate.core.world import episode_statistics
+
+    for sparse in (False, True):
+        vec = mate.make_vec('MATE-4v8-9-v0', 5, max_episode_steps=7, reward_type='sparse' if sparse else 'dense')
+        vec.reset(seed=3)
+        for step in range(12):
+            batch = episode_statistics(vec.params, vec.world)
+            for b in range(5):
+                one = episode_statistics(vec.params, vec.world, row=b)
+                assert set(one) == set(batch) and all(type(value) is float for value in one.values())
+                assert all(one[key] == batch[key][b] for key in batch), (sparse, step, b)
+            vec.step(vec.action_space.sample())
+        assert vec.params.sparse_reward == sparse

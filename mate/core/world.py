@@ -99,14 +99,20 @@ EPISODE_STATISTICS = ('episode_coverage_rate', 'episode_real_coverage_rate', 'ep
 """What `episode_statistics` gives of every row's episode so far."""
 
 
-def episode_statistics(params: Params, world: World) -> dict[str, np.ndarray]:
-    """Every row's episode so far, as the core counted it, (B,) float64 arrays: the coverage and real coverage rates
+def episode_statistics(params: Params, world: World, row: int | None = None) -> dict:
+    """Every row's episode so far, as the core counted it, (B,) float64 arrays (or, for one `row`, Python floats:
+    the single env's infos at every step, without numpy's per-call cost): the coverage and real coverage rates
     averaged over its steps (the reset not counted; 0 before the first step) and the target team's raw return
     (dense or sparse, as the config pays; the cameras' is its negative). Every consumer (the envs' infos,
     evaluation, training logs, RLlib) reads these: an episode metric is computed in one place."""
-    steps = np.maximum(world.episode_step, 1)
     target_return = world.delayed_target_team_episode_reward if params.sparse_reward else \
         world.target_team_episode_reward
+    if row is not None:            # the same IEEE divisions on Python floats
+        steps = max(int(world.episode_step[row]), 1)
+        return dict(episode_coverage_rate=float(world.coverage_rate_sum[row]) / steps,
+                    episode_real_coverage_rate=float(world.real_coverage_rate_sum[row]) / steps,
+                    episode_target_return=float(target_return[row]))
+    steps = np.maximum(world.episode_step, 1)
     return dict(episode_coverage_rate=world.coverage_rate_sum / steps,
                 episode_real_coverage_rate=world.real_coverage_rate_sum / steps,
                 episode_target_return=target_return.copy())
