@@ -300,9 +300,13 @@ class MultiAgentTracking(GameDescription, gym.Env):
     def _team_infos(self, team: Team, reward: float, shared: dict) -> list[dict]:
         buffers, out_edges, in_edges = self._channel.step_summary(team)
         normalized = reward / self.params.max_target_team_episode_reward
-        return [{'raw_reward': reward, 'normalized_raw_reward': normalized, 'messages': messages,
-                 'out_communication_edges': out, 'in_communication_edges': into, **shared}
-                for messages, out, into in zip(buffers, out_edges, in_edges)]
+        infos = []
+        for messages, out, into in zip(buffers, out_edges, in_edges):   # (a copy and five stores: the fastest way)
+            info = shared.copy()
+            info['raw_reward'], info['normalized_raw_reward'] = reward, normalized
+            info['messages'], info['out_communication_edges'], info['in_communication_edges'] = messages, out, into
+            infos.append(info)
+        return infos
 
     # ------------------------------------------------------------------ world access
     def joint_observation(self) -> tuple[np.ndarray, np.ndarray]:
