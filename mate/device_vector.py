@@ -96,6 +96,7 @@ class DeviceVecEnv:
         self._rewards = (to_torch(out.camera_reward), to_torch(out.target_reward))
         self._flags = (to_torch(out.terminated), to_torch(out.truncated))
         self._info = {name: to_torch(getattr(out, name)) for name in INFO_KEYS}
+        self._world_views = {}                    # world_tensor's views, by name
         self._started = self._seeded = False
 
     def _make_teams(self, seed: int) -> dict:
@@ -130,7 +131,6 @@ class DeviceVecEnv:
             raise ValueError('team_seed needs a seed (an unseeded reset goes on with every stream)')
         if seed is not None:
             self.teams = self._make_teams(int(seed if team_seed is None else team_seed))
-        if seed is not None:
             seeds = [int(seed) + b for b in range(self.num_envs)]
         else:                                     # streams go on; never-seeded games draw fresh entropy
             seeds = None if self._seeded else [None] * self.num_envs
@@ -234,8 +234,12 @@ class DeviceVecEnv:
 
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
-        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt))."""
-        return to_torch(getattr(self.core.world, name))
+        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt)): one view per name, made at its first
+        call and kept (the world's arrays stay in place: steps and `load_state_dict` write into them)."""
+        view = self._world_views.get(name)
+        if view is None:
+            view = self._world_views[name] = to_torch(getattr(self.core.world, name))
+        return view
 
     def close(self) -> None:
         """Nothing to release (the device arrays go with the object)."""
