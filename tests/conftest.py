@@ -66,7 +66,7 @@ GIL from them (about half the time of a launch); joining them instead changes no
 without `cuda.syncthreads()` (mate has none; one that had would hang, and the test time out)."""
 
 
-def run_simulated(script: str, *args: str, timeout: float = 600, cwd=None):
+def run_simulated(script: str, *args: str, timeout: float = 600):
     """Run the Python `script` (with `args`) in its own process under numba's CUDA simulator (the switch is read
     when numba.cuda loads) and return its `subprocess.CompletedProcess` (text output captured)."""
     import subprocess
@@ -74,7 +74,7 @@ def run_simulated(script: str, *args: str, timeout: float = 600, cwd=None):
 
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM='1')
     return subprocess.run([sys.executable, '-c', SIMULATOR_PRELUDE + script, *args], env=env, capture_output=True,
-                          text=True, timeout=timeout, cwd=cwd)
+                          text=True, timeout=timeout)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:

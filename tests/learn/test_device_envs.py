@@ -185,11 +185,11 @@ print(json.dumps(report))
 def test_the_simulated_device_env_trains_as_the_cpu_env():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads): two settings'
     envs step for step (with full observability: HRL cameras with difference credit, the sighting memory and
-    velocities; continuous targets), then PPO runs (HRL cameras, targets with their own credit) over the device env and over the
-    CPU env with the host twin, and a stopped and resumed run on the device."""
+    velocities; continuous targets), then PPO runs (HRL cameras, targets with their own credit) over the device env
+    and over the CPU env with the host twin, and a stopped and resumed run on the device."""
     needs_extra('numba_cuda')
     here = str(Path(__file__).parent)
-    done = run_simulated(SIMULATED, here, timeout=900, cwd=here)
+    done = run_simulated(SIMULATED, here, timeout=900)   # (here: where the script imports resume from)
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert len(report) == 4, report
