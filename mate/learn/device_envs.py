@@ -439,10 +439,7 @@ class DeviceTeamEnv:
             raw, rewards, terminated, truncated_now, info = self._step(own_actions, own_raw, restarting)
             live = ~done & ~restarting
             team_reward = self._team_reward(info)
-            if self.credit == 'team':
-                reward += torch.where(live, rewards, zero)
-            else:
-                reward += torch.where(live[:, None], rewards, zero)
+            reward += torch.where(live if rewards.dim() == 1 else live[:, None], rewards, zero)   # (B,) or (B, N)
             coverage += torch.where(live, info['coverage_rate'], zero)
             counted += live
             self._return += torch.where(live, team_reward, zero)
