@@ -25,8 +25,10 @@ python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upg
 export PYTHONPATH="$PWD:/tmp/site"
 { lscpu | grep -E 'Model name|^CPU\(s\)'; nvidia-smi -L
   python3 -c 'import torch, numba; print(torch.__version__, numba.__version__)'; } 2>&1 | tee "$OUT/machine.log"
-# issue 57: the golden runs and the batched evaluation on this CPU family (about 2 minutes)
-MATE_GOLDEN_EXACT=1 timeout 200 python3 -m pytest -q -p no:cacheprovider tests/learn/test_golden.py \
+# the golden runs on this CPU (bitwise where it is the recordings' machine, within the measured tolerance elsewhere)
+# and the batched evaluation (about 2 minutes); --check prints how far each variant parts from its recording
+timeout 200 python3 -m pytest -q -p no:cacheprovider tests/learn/test_golden.py \
     tests/learn/test_batched_evaluation.py 2>&1 | tee "$OUT/golden.log"
+MATE_REPRODUCIBLE=1 timeout 120 python3 tests/learn/golden.py --check 2>&1 | tee "$OUT/golden-check.log"
 # issue 58: the device core, the whole game, rollouts and greedy vs greedy (benchmarks/gpu.py's docstring)
 timeout 350 python3 benchmarks/gpu.py --seconds 2 --train-seconds 15 --json "$OUT/gpu.json" 2>&1 | tee "$OUT/gpu.log"

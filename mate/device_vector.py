@@ -53,8 +53,9 @@ class DeviceVecEnv:
         config: a preset name, a path or a dict, as `mate.make`'s; `overrides` are deep-merged into it.
         num_envs: B.
         observation_dtype: float64 or float32 (the world is float64 either way).
-        camera_agent, target_agent: None (the caller acts for that team) or a built-in agent played on the device,
-            'greedy' or 'random'; `camera_options` / `target_options` are its options.
+        camera_agent: None (the caller acts for the cameras) or a built-in agent played on the device, 'greedy' or
+            'random'; `camera_options` are its options.
+        target_agent: the same for the targets (`target_options`).
         seed: the teams' seeds (row b: seed + b; their random streams, not the games').
         autoreset_mode: 'next_step' (default) or 'same_step' (module docstring).
         block: threads per CUDA block.

@@ -12,7 +12,7 @@ import importlib
 import importlib.util
 import os
 
-os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # before mate and torch load: golden runs hold on any x86-64 CPU
+os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # before mate and torch load: the kernels the golden runs were recorded with
 
 import pytest  # noqa: E402
 
