@@ -51,10 +51,10 @@ import numpy as np
 
 from .teams.protocol import as_team
 
-__all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EVALUATION_SEEDS', 'FRESH_SEEDS', 'PAPER_SETTINGS',
-           'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES', 'TEAM_METRIC',
-           'REWARDS', 'agent_team_factory', 'checked_reward', 'evaluate', 'horizon', 'paper_config', 'score_policy',
-           'training_reset_seed']
+__all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EPISODE_INFO', 'EVALUATION_SEEDS', 'FRESH_SEEDS',
+           'PAPER_SETTINGS', 'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES',
+           'TEAM_METRIC', 'REWARDS', 'MAX_EVAL_EPISODES', 'SEED_BLOCK', 'agent_team_factory', 'check_eval_episodes',
+           'checked_reward', 'evaluate', 'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
 
 EVALUATION_SEEDS = 1_000_000
 """First env seed of the periodic evaluation episodes (and the end of the training seeds)."""
@@ -85,18 +85,39 @@ DEFAULT_EPISODES = 32
 """Episodes of one evaluation (the benchmark's `eval_episodes`); the absolute metric plays ten times as many."""
 RESET_SEED_STRIDE = 10_007
 """A training session that cannot continue its checkpoint's episodes resets from `training_reset_seed`."""
+SEED_BLOCK = 1000
+"""The training seeds are dealt in blocks of this many: the benchmark's run seed k trains in block k (`mate train
+--seed k x SEED_BLOCK`, at most SEED_BLOCK envs), and a resumed session stays in the blocks its rows start in
+(`training_reset_seed`), so that no run plays another's training games."""
+MAX_EVAL_EPISODES = (SEED_RANGES['absolute'][1] - SEED_RANGES['absolute'][0]) // ABSOLUTE_FACTOR
+"""The most episodes one evaluation may play (100,000): the absolute metric plays ABSOLUTE_FACTOR times as many, on
+seeds ABSOLUTE_SEEDS, ... that must stay below the payoff seeds (and the evaluation's below the absolute ones)."""
+
+
+def check_eval_episodes(episodes, option: str = 'eval_episodes') -> int:
+    """`episodes` as an int if it is a whole number in 1..`MAX_EVAL_EPISODES`; ValueError (one line, naming `option`
+    and the valid range) otherwise."""
+    whole = isinstance(episodes, (int, np.integer)) and not isinstance(episodes, bool)
+    if not whole or not 1 <= episodes <= MAX_EVAL_EPISODES:
+        first, end = SEED_RANGES['absolute']
+        raise ValueError(f'{option} must be a whole number in 1..{MAX_EVAL_EPISODES:,} (the absolute metric plays '
+                         f'{ABSOLUTE_FACTOR} x as many, on seeds {first:,}-{end - 1:,}), got {episodes!r}')
+    return int(episodes)
 
 
 def training_reset_seed(seed: int, iteration: int, num_envs: int) -> int:
     """The seed a training batch of `num_envs` rows resets with at `iteration` (0: a fresh run, `seed` itself; later:
     a resumed session without the batch's state): `seed + RESET_SEED_STRIDE x iteration`, wrapped so that every row
-    (this seed + row) stays in the training range [0, EVALUATION_SEEDS). ValueError when `seed + num_envs` leaves it
-    already."""
+    (this seed + row) stays in the `SEED_BLOCK`-seed blocks the fresh run's rows [seed, seed + num_envs) fall in (one
+    block for a benchmark run: it never plays another run's games), inside the training range [0,
+    EVALUATION_SEEDS). ValueError when `seed + num_envs` leaves that range already."""
     end = SEED_RANGES['training'][1]
     if seed < 0 or num_envs < 1 or seed + num_envs > end:
         raise ValueError(f'training seeds: seed + num_envs must be at most {end:,} (the evaluation seeds start there), '
                          f'got seed {seed:,} with {num_envs:,} envs')
-    return (seed + RESET_SEED_STRIDE * iteration) % (end - num_envs + 1)
+    first = seed - seed % SEED_BLOCK
+    last = min(end, -(-(seed + num_envs) // SEED_BLOCK) * SEED_BLOCK)        # the blocks' end, rounded up
+    return first + (seed - first + RESET_SEED_STRIDE * iteration) % (last - first - num_envs + 1)
 
 
 def horizon(team) -> int:
@@ -108,6 +129,11 @@ def horizon(team) -> int:
 REWARDS = {'camera': ('team', 'coverage', 'difference'), 'target': ('team', 'own')}
 """The reward kinds one team can be played for (`mate.SingleTeamVecEnv`'s docstring): the team's reward, the coverage
 rate (cameras), each camera's marginal share of it ('difference'), each target's own part of the team reward."""
+
+
+EPISODE_INFO = 'mate_episode'
+"""The infos key of the ended games' statistics in the single-team envs (`mate.SingleTeamVecEnv`, its device form;
+mask `'_' + EPISODE_INFO`): not `'episode'`, which Gymnasium's `RecordEpisodeStatistics` adds and will not overwrite."""
 
 
 def checked_reward(team, reward: str) -> str:
@@ -254,8 +280,7 @@ def agent_team_factory(agent, team, role: str = 'agent', device: str = 'cpu'):
 def _settings(team, config, episodes, max_episode_steps) -> tuple[str, str, int, int]:
     team = as_team(team).name.lower()
     config = paper_config(team) if config is None else str(config)
-    if not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise ValueError(f'episodes must be a positive integer, got {episodes!r}')
+    episodes = check_eval_episodes(episodes, 'episodes')
     steps = horizon(team) if max_episode_steps is None else max_episode_steps
     if not isinstance(steps, (int, np.integer)) or steps < 1:
         raise ValueError(f'max_episode_steps must be a positive integer, got {max_episode_steps!r}')

@@ -56,7 +56,7 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match='NaN or inf'):
         mate.score_policy(lambda o: np.full((*o.shape[:2], 2), np.nan), team='camera', episodes=1,
                           max_episode_steps=5, references=())
-    with pytest.raises(ValueError, match='episodes must be a positive integer'):
+    with pytest.raises(ValueError, match=r'episodes must be a whole number in 1\.\.100,000'):
         mate.score_policy(still, team='camera', episodes=0)
     with pytest.raises(ValueError, match="team must be 'camera' or 'target'"):
         mate.score_policy(still, team='cameras')

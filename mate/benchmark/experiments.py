@@ -30,6 +30,8 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
+from ..protocol import check_eval_episodes
+
 __all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'REFERENCE_NAMES', 'Setting', 'experiment', 'experiment_of']
 
 REFERENCE_NAMES = ('random', 'greedy', 'upper-bound')
@@ -134,7 +136,8 @@ class Claim:
     the interval of the probability of improvement P(better > worse) against 1/2 and the exact Mann-Whitney
     permutation test (*confirmed*, *refuted*, *unresolved*; 3 runs a side can never be decisive); between a setting
     and a reference: the paired bootstrap interval of the difference on the same held-out episodes and a t-test whose
-    error counts the runs' and the episodes' spread; agreement: *equivalent* by two one-sided tests within `margin`,
+    error counts the runs' and the episodes' spread once each; a test whose statistic points the other way from the
+    interval leaves the claim *unresolved*; agreement: *equivalent* by two one-sided tests within `margin`,
     *differ*, or *no difference detected*.
     """
 
@@ -226,13 +229,18 @@ class Experiment:
 
     def _check_counts(self) -> None:
         """ValueError unless the budget and counts are positive integers (`horizon` and, for a population
-        experiment, `iterations` may be left out)."""
+        experiment, `iterations` may be left out) and `eval_episodes` is at most `mate.protocol.MAX_EVAL_EPISODES`
+        (its absolute metric's seeds stay in their range)."""
         counts = dict(steps=self.steps, eval_every=self.eval_every, eval_episodes=self.eval_episodes, seeds=self.seeds)
         counts.update({} if self.horizon is None else dict(horizon=self.horizon))
         counts.update(dict(iterations=self.iterations) if self.population else {})
         for key, value in counts.items():
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f'experiment {self.name!r}: {key} is a positive whole number, got {value!r}')
+        try:
+            check_eval_episodes(self.eval_episodes)
+        except ValueError as exc:
+            raise ValueError(f'experiment {self.name!r}: {exc}') from None
 
     def to_dict(self) -> dict:
         """The experiment as plain data (what a benchmark directory's manifest keeps; `from_dict` reads it)."""

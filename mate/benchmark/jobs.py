@@ -19,8 +19,11 @@ A job is one command line of the package (`python -m mate ...`) whose output goe
   each cut at the training horizon, the same episodes the learners are scored on; done when both JSON files exist.
 
 Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
-of a run are seeded `seed + row`) and every run stays below the evaluation seeds; a population run with `mate psro
---seed k`, which spaces its best responses' seeds by 1,000 itself (`PSROSettings.best_response_seed`).
+of a run are seeded `seed + row`, at most SEED_STRIDE of them: `plan` refuses a setting with more; a session resumed
+without its batch's state resets inside the run's block, `mate.protocol.training_reset_seed`) and every run stays
+below the evaluation seeds; a population run with `mate psro --seed k`, which spaces its best responses' seeds by
+1,000 itself (`PSROSettings.best_response_seed`: seed k x 1,000 + 2 x iteration + side, each with its envs' rows,
+which `plan` keeps within the 1,000).
 """
 
 from __future__ import annotations
@@ -34,13 +37,17 @@ from pathlib import Path
 from ..arguments import positive_int
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
+from ..protocol import SEED_BLOCK
 from .experiments import Experiment, Setting
 
-__all__ = ['MAX_SEED', 'SEED_STRIDE', 'Job', 'add_job_arguments', 'by_setting', 'horizon_of', 'job_name', 'job_values', 'parse_presets',
-           'parse_seeds', 'parse_settings', 'plan']
+__all__ = ['MAX_SEED', 'PSRO_ENVS', 'SEED_STRIDE', 'Job', 'add_job_arguments', 'by_setting', 'check_run_seeds',
+           'horizon_of', 'job_name', 'job_values', 'parse_presets', 'parse_seeds', 'parse_settings', 'plan']
 
-SEED_STRIDE = 1000
-"""Run seed k trains with `--seed k * SEED_STRIDE`: the training env rows of different runs never share a seed."""
+SEED_STRIDE = SEED_BLOCK
+"""Run seed k trains with `--seed k * SEED_STRIDE` (1,000; `mate.protocol.SEED_BLOCK`) on at most SEED_STRIDE envs: the
+training env rows of different runs never share a seed."""
+PSRO_ENVS = 16
+"""`mate psro`'s envs per best response when a setting does not say (`--num-envs`)."""
 MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1
 """The largest run seed: its training envs (up to SEED_STRIDE rows) stay below the evaluation seeds."""
 
@@ -223,6 +230,7 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     (setting, preset) for each seed. `steps`: decision steps per training run (None: the experiment's budget);
     `threads`: torch threads per training run; `presets`: only these of the experiment's games, `settings` only the
     settings of these labels (None: all)."""
+    check_run_seeds(experiment)
     out = Path(out)
     steps = int(steps or experiment.steps)
     wanted = set(experiment.presets if presets is None else presets)
@@ -237,6 +245,43 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
                 jobs.append(_population(experiment, setting, preset, seed, steps, out) if setting.kind == 'psro'
                             else _training(experiment, setting, preset, seed, steps, out, threads))
     return jobs
+
+
+def _option(options: tuple[str, ...], name: str) -> str | None:
+    """The value of `--name V` or `--name=V` among a setting's options (the last one given), else None."""
+    value = None
+    for index, option in enumerate(options):
+        if option == name and index + 1 < len(options):
+            value = options[index + 1]
+        elif option.startswith(name + '='):
+            value = option[len(name) + 1:]
+    return value
+
+
+def check_run_seeds(experiment: Experiment) -> None:
+    """ValueError (one line, naming the setting and the valid range) for a setting whose runs would play another run
+    seed's training games: a trainer's `--num-envs` above SEED_STRIDE, or a population run whose best responses'
+    rows (seed k x 1,000 + 2 x iteration + side + row) leave its 1,000 seeds. A user's command line or function picks
+    its own envs (`mate.benchmark.user` says how to keep them in the run's seeds)."""
+    for setting in experiment.settings:
+        if setting.kind not in ('trainer', 'psro'):
+            continue
+        given = _option(setting.options, '--num-envs')
+        try:
+            envs = PSRO_ENVS if given is None and setting.kind == 'psro' else None if given is None else int(given)
+        except ValueError:
+            continue                    # not a number: the trainer's own parser says so
+        if envs is None:
+            continue
+        if setting.kind == 'trainer' and envs > SEED_STRIDE:
+            raise ValueError(f'experiment {experiment.name!r}, setting {setting.label!r}: --num-envs {envs:,} would '
+                             f'play another run\'s training games; a benchmark run has 1..{SEED_STRIDE:,} envs (run '
+                             f'seed k trains on seeds k x {SEED_STRIDE:,} to k x {SEED_STRIDE:,} + {SEED_STRIDE - 1})')
+        rows = 2 * experiment.iterations + 1 + envs       # best responses' first seeds after the run's own, + rows
+        if setting.kind == 'psro' and rows > SEED_STRIDE:
+            raise ValueError(f'experiment {experiment.name!r}, setting {setting.label!r}: {experiment.iterations} '
+                             f'iterations with --num-envs {envs:,} play seeds up to k x 1,000 + {rows - 1:,}, another '
+                             f'run\'s; 2 x iterations + 1 + num_envs must be at most {SEED_STRIDE:,}')
 
 
 def job_values(experiment: Experiment, preset: str, seed: int, steps: int, out, threads: int,

@@ -168,7 +168,8 @@ def claim_rows(claims: list[dict]) -> list[str]:
     for claim in claims:
         evidence = '-' if 'point' not in claim else f'{claim["statistic"]}: {format_interval(claim)}'
         test = '-' if 'p' not in claim else f'{claim["test"]}: {p_value(claim["p"])} ({p_value(claim["p_holm"])})'
-        rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} | {test} |')
+        verdict = f'**{claim["verdict"]}**' + (f' ({claim["reason"]})' if claim.get('reason') else '')
+        rows.append(f'| {claim["text"]} | {claim["task"]} | {verdict} | {evidence} | {test} |')
     return rows
 
 
@@ -180,10 +181,11 @@ def p_value(p: float) -> str:
 VERDICT_RULE = ('a verdict is decisive only where the 95 % interval and a test agree at 5 % after Holm\'s correction '
                 'over these claims: between two settings, the interval of P(better > worse) against 1/2 and the exact '
                 'Mann-Whitney permutation test (3 runs a side can never be decisive: its smallest p is 0.1); against a '
-                'reference, the interval of the difference paired by episode against 0 and a t-test counting the '
-                "runs' and the episodes' spread. confirmed: on the claim's side; refuted: on the other; unresolved: "
-                'not decisive. For two settings that should agree: equivalent (two one-sided tests within a declared '
-                'margin), differ, or no difference detected (which is not evidence that they agree)')
+                'reference, the interval of the difference paired by episode against 0 and a t-test of the mean '
+                "difference counting the runs' and the episodes' spread once each; and the tested statistic on the "
+                "interval's side. confirmed: on the claim's side; refuted: on the other; unresolved: not decisive. "
+                'For two settings that should agree: equivalent (two one-sided tests within a declared margin), '
+                'differ, or no difference detected (which is not evidence that they agree)')
 """How a report's verdicts are reached, in words (`mate.benchmark.verdicts`)."""
 
 

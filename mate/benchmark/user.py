@@ -25,7 +25,8 @@ of three kinds:
   env_steps=k, episodes=..., max_episode_steps=...)` to draw a learning curve.
 
 The seed a run gets is what a mate trainer gets (`seed x SEED_STRIDE`, rows below the evaluation seeds); its
-training games must stay below `EVALUATION_SEEDS` (`mate.protocol`). The benchmark directory's manifest keeps the
+training games must stay in seed .. seed + SEED_STRIDE - 1 (its run seed's block: the next run seed trains from
+there), below `EVALUATION_SEEDS` (`mate.protocol`). The benchmark directory's manifest keeps the
 whole experiment, so `mate benchmark report` and `status` need nothing but the directory.
 """
 

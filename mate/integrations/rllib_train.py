@@ -29,6 +29,7 @@ from ..learn.evaluation import EVALUATION_SEEDS
 from ..learn.run_config import RunConfig
 from ..learn.schedules import check_network_options
 from ..options import add_options, option
+from ..protocol import check_eval_episodes
 
 __all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
 
@@ -96,9 +97,10 @@ class RLlibPPOConfig(RunConfig, TeamEnvConfig):
             if points[0][0] != 0:
                 raise ValueError(f'--{name.replace("_", "-")} must start at step 0 (RLlib schedules do), '
                                  f'got {points[0][0]:g}')
-        if self.eval_every and self.seed + self.num_envs > EVALUATION_SEEDS:
+        if self.seed + self.num_envs > EVALUATION_SEEDS:       # rows play seed + row (mate.integrations.rllib)
             raise ValueError(f'--seed {self.seed} with --num-envs {self.num_envs} would train on evaluation seeds: '
-                             f'with --eval-every, seed + num_envs must be at most {EVALUATION_SEEDS:,}')
+                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} (mate.protocol.SEED_RANGES)')
+        check_eval_episodes(self.eval_episodes, '--eval-episodes')
         if self.num_env_runners and self.num_envs % self.num_env_runners:
             raise ValueError(f'--num-envs {self.num_envs} must be a multiple of --num-env-runners '
                              f'{self.num_env_runners} (each runner plays the same number of games)')

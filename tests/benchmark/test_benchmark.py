@@ -18,6 +18,7 @@ from mate.benchmark.directory import (EXTENDED_NOTE, REUSED_NOTE, _ends_on_an_ev
                                       reuse_jobs, write_manifest)
 from mate.benchmark.identity import JOB_CONFIG, command_config, job_config, ran_config
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, parse_settings, plan
+from mate.benchmark.results import collect
 from mate.benchmark.stats import iqm
 from mate.cli import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
@@ -110,6 +111,7 @@ def _write_seed_manifest(out: str, seed: int) -> None:
         write_manifest(exp, plan(exp, [seed], out, steps=500_000), out, 500_000, [seed])
 
 
+@pytest.mark.slow
 def test_runners_side_by_side_merge_their_seeds_into_one_manifest(tmp_path):
     """Two runners on one directory (`--seeds 0,2` and `--seeds 1,3`) write the manifest at the same moments:
     neither reads it half written and neither loses the other's seeds or jobs."""
@@ -259,6 +261,7 @@ def smoke(tmp_path_factory):
     return runs, report
 
 
+@pytest.mark.slow
 def test_smoke_run_writes_every_run_and_reference(smoke):
     runs, _ = smoke
     manifest = json.loads((runs / 'benchmark.json').read_text())
@@ -280,6 +283,7 @@ def test_smoke_run_writes_every_run_and_reference(smoke):
     assert sum('done in' in line for line in log) == len(manifest['jobs'])
 
 
+@pytest.mark.slow
 def test_smoke_run_again_runs_nothing_and_recovers_a_missing_absolute_metric(smoke, capsys):
     runs, _ = smoke
     target = runs / 'runs' / 'mappo-MATE-2v4-0-seed1' / 'absolute.json'
@@ -293,6 +297,7 @@ def test_smoke_run_again_runs_nothing_and_recovers_a_missing_absolute_metric(smo
     assert 'running 0' in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_reuse_copies_the_jobs_run_with_the_same_command_lines_only(smoke, tmp_path, capsys):
     runs, _ = smoke
     jobs = plan(experiment('smoke'), range(experiment('smoke').seeds), runs)
@@ -335,6 +340,7 @@ def _trained(folder):
     return rows, (folder / 'evaluations.jsonl').read_text(), json.loads((folder / 'absolute.json').read_text())
 
 
+@pytest.mark.slow
 def test_extend_continues_a_shorter_run_to_the_same_numbers_as_a_fresh_run(smoke, tmp_path, capsys):
     """`--extend DIR`: a training job of a larger budget continues DIR's run of the same command lines but --steps
     from its last checkpoint, and ends with the very numbers a run of that budget from the start has; the result
@@ -396,6 +402,7 @@ def test_extend_continues_a_shorter_run_to_the_same_numbers_as_a_fresh_run(smoke
     assert "--extend: '" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_path, capsys):
     """`mate benchmark keep DIR DEST`: a copy without policies or checkpoints from which the report is the same; with a
     job's results missing in DIR, that job is left out of DEST, and `run` in the copy runs that job alone."""
@@ -555,10 +562,15 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
     for claim in claims.values():
         centre = 0.5 if claim is pair else 0.0         # against a reference: the difference paired by episode
         decisive = claim['p_holm'] < verdicts.ALPHA
-        expected = 'confirmed' if decisive and claim['low'] > centre else \
-            'refuted' if decisive and claim['high'] < centre else 'unresolved'
+        tested = claim.get('mean', claim['point'] - centre)           # the tested statistic, against its centre
+        expected = 'confirmed' if decisive and claim['low'] > centre and tested > 0 else \
+            'refuted' if decisive and claim['high'] < centre and tested < 0 else 'unresolved'
         assert claim['verdict'] == expected
-    assert claims['MAPPO > random']['test'] == 'paired t (runs and episodes)'
+    assert claims['MAPPO > random']['test'] == verdicts.REFERENCE_TEST
+    collected = collect([runs])['smoke']            # the test's p from the runs' and the reference's episodes
+    played = np.array([run.absolute for run in collected.runs_of('MAPPO', 'MATE-2v4-0')])
+    assert claims['MAPPO > random']['p'] == pytest.approx(
+        verdicts.reference_p(played, collected.references[('random', 'MATE-2v4-0')]['absolute']))
     assert pair['p'] == pytest.approx(verdicts.mann_whitney_p(task['settings']['MAPPO']['values'],
                                                               task['settings']['IPPO']['values']))
     assert (agree['text'], agree['low'], agree['high']) == ('(pipeline check) MAPPO and IPPO agree', pair['low'],
@@ -624,6 +636,7 @@ def test_shell_quoting_of_the_recipe():
     assert shlex.split(shlex.join(setting.options)) == list(setting.options)
 
 
+@pytest.mark.slow
 def test_population_smoke_run_and_report(tmp_path):
     """A population experiment end to end: mate psro jobs, then the exploitability from the payoff matrix and on
     fresh seeds, with intervals."""
@@ -685,6 +698,7 @@ def test_report_numbers_that_round_to_zero_carry_no_minus_sign():
     assert format_interval(dict(point=-1e-5, low=-0.0751, high=0.1329)) == '0.000 [-0.075, 0.133]'
 
 
+@pytest.mark.slow
 def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tmp_path):
     """SIGTERM to `mate benchmark run` (a scheduler's stop) reaches each running training job once: it checkpoints
     and exits; the benchmark exits with status 130 and says so; the same command continues the runs."""

@@ -115,7 +115,7 @@ class _RecordingEnvs:
 def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_seed(tmp_path):
     from types import SimpleNamespace
 
-    from mate.protocol import RESET_SEED_STRIDE
+    from mate.protocol import SEED_BLOCK, training_reset_seed
 
     run = Run(tmp_path, 'toy', SimpleNamespace(seed=7), SPEC, total_steps=100)
     envs = _RecordingEnvs()
@@ -127,6 +127,6 @@ def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_
     envs.calls.clear()
     run.iteration = 3                                                                    # an older checkpoint
     run.first_observations(envs, {'networks': {}})
-    assert envs.calls == [('reset', 7 + 3 * RESET_SEED_STRIDE)]
+    assert envs.calls == [('reset', training_reset_seed(7, 3, 4))] and 7 < envs.calls[0][1] <= SEED_BLOCK - 4
     assert not Run.continues_episodes(None) and not Run.continues_episodes({'networks': {}})
     assert Run.continues_episodes({'envs': 'batch'})
