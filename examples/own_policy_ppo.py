@@ -125,15 +125,14 @@ def train(args: Args, say=print):
                 action, logp, _, value = agent.act(x)
             observations, rewards, terminations, truncations, infos = envs.step(
                 np.clip(action.numpy(), -1.0, 1.0) * high)
-            rewards = np.broadcast_to(np.asarray(rewards).reshape(B, -1), (B, N))
             obs_buf[t], act_buf[t], logp_buf[t], val_buf[t] = x, action, logp, value
-            rew_buf[t] = torch.as_tensor(rewards, dtype=torch.float32)
+            rew_buf[t] = torch.as_tensor(rewards.reshape(B, -1), dtype=torch.float32)   # (B, 1) team: to every agent
             live_buf[t] = torch.as_tensor(live, dtype=torch.float32)[:, None]
             ended = terminations | truncations
             cut_buf[t] = torch.as_tensor(ended, dtype=torch.float32)[:, None]
             live = ~ended
-            if '_episode' in infos:
-                finished += infos['episode']['coverage_rate'][infos['_episode']].tolist()
+            if '_mate_episode' in infos:
+                finished += infos['mate_episode']['coverage_rate'][infos['_mate_episode']].tolist()
         with torch.no_grad():                          # GAE; a truncated episode is not bootstrapped (kept simple)
             next_value = agent.value(scale(observations))
             advantages, last = torch.zeros(T, B, N), torch.zeros(B, N)

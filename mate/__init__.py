@@ -28,12 +28,12 @@ from .env import MultiAgentTracking
 from .messages import Message, MessageChannel, Team
 from .protocol import PolicyScore, score_policy
 from .registration import WrapperSpec, make, make_environment, registered_ids
-from .team_vector import SingleTeamVecEnv, make_team_vec
+from .team_vector import AgentsAsEnvs, SingleTeamVecEnv, make_team_vec
 from .spaces import (camera_coordinate_mask_of, camera_observation_indices_of, camera_observation_slices_of,
                      camera_observation_space_of, coordinate_mask_of, observation_indices_of, observation_slices_of,
                      observation_space_of, state_space_of, target_coordinate_mask_of, target_observation_indices_of,
                      target_observation_slices_of, target_observation_space_of)
-from .vector import MultiAgentTrackingVectorEnv, make_vec
+from .vector import MultiAgentTrackingVectorEnv, TeamReward, make_vec
 from .wrappers import (AuxiliaryCameraRewards, AuxiliaryTargetRewards, DiscreteCamera, DiscreteTarget,
                        EnhancedObservation, ExtraCommunicationDelays, MateWrapper, MessageFilter,
                        MoreTrainingInformation, MultiCamera, MultiTarget, NoCommunication, RandomMessageDropout,

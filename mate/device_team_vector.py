@@ -7,9 +7,11 @@ DeviceVecEnv`, with torch tensors on the device in and out. The opponent is a de
 'random' (`mate.teams.device`: the CPU teams' rules with their own random streams, so the games agree with the CPU
 env's in distribution; with a `HostTeam` opponent on the CPU env they agree game for game, what the tests check).
 
-Differences from the CPU env, for speed on a GPU (no host round trip per step): `infos` always holds `episode` and
-its mask `_episode` (all false on a step where no game ended) beside `coverage_rate`; no `final_obs` (same_step);
-the returned tensors are the env's buffers, overwritten by the next step. `state_dict()` holds host arrays.
+Differences from the CPU env, for speed on a GPU (no host round trip per step): `infos` always holds `mate_episode`
+and its mask `_mate_episode` (all false on a step where no game ended) beside `coverage_rate` (also under the
+earlier names `episode` / `_episode`, the same objects, which the device training env of `mate.learn` reads; no
+Gymnasium wrapper applies to torch tensors on a device); no `final_obs` (same_step); the returned tensors are the
+env's buffers, overwritten by the next step. `state_dict()` holds host arrays.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import numpy as np
 from .core.device import BLOCK
 from .device_vector import DeviceVecEnv
 from .messages import Team
-from .protocol import checked_reward, paper_config
+from .protocol import EPISODE_INFO, checked_reward, paper_config
 from .teams.protocol import as_team
 
 __all__ = ['DEVICE_OPPONENTS', 'DeviceTeamVecEnv']
@@ -151,7 +153,7 @@ class DeviceTeamVecEnv:
             self._pending = ended
         else:
             self.vec.restart_ended()
-        infos = {'coverage_rate': info['coverage_rate'], 'episode': episode, '_episode': ended}
+        infos = {'coverage_rate': info['coverage_rate'], EPISODE_INFO: episode, f'_{EPISODE_INFO}': ended}
         return observations[self._own], rewards, terminated, truncated, infos
 
     def state_dict(self) -> dict:

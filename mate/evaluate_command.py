@@ -301,10 +301,18 @@ def _evaluation_wrappers(args: argparse.Namespace) -> list:
     return stack
 
 
+def _summary_title(env, args: argparse.Namespace) -> str:
+    """The heading of the summary table: the game, the agents, the episodes."""
+    return (f'{env.name}: {args.camera_agent} cameras vs {args.target_agent} targets, '
+            f'{args.episodes} episode{"s" if args.episodes > 1 else ""} (seeds {args.seed}..'
+            f'{args.seed + args.episodes - 1}, at most {args.max_episode_steps} steps)')
+
+
 def _print_summary(env, args: argparse.Namespace, summary: list[dict]) -> None:
-    table = Table(title=f'{env.name}: {args.camera_agent} cameras vs {args.target_agent} targets, '
-                        f'{args.episodes} episode{"s" if args.episodes > 1 else ""} (seeds {args.seed}..'
-                        f'{args.seed + args.episodes - 1}, at most {args.max_episode_steps} steps)')
+    # The heading is a line of its own above the table, never wrapped: rich wraps a table's title to the table's
+    # width (about 50 columns here), three lines for a long agent name, on a terminal and in a log alike.
+    console.print(_summary_title(env, args), soft_wrap=True, highlight=False)
+    table = Table()
     for column in ('team', 'metric', 'mean', 'std'):
         table.add_column(column, justify='right' if column in ('mean', 'std') else 'left')
     for row in summary:

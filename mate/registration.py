@@ -2,18 +2,21 @@
 
 IDs: `MultiAgentTracking-v0` and `MATE-v0` (default preset MATE-4v8-9 unless `config=` is
 given) and `MATE-<preset>-v0` for every shipped preset (e.g. `MATE-8v8-9-v0`). The same IDs
-are registered with Gymnasium, so `gymnasium.make('MATE-4v8-9-v0')` works too.
+are registered with Gymnasium, so `gymnasium.make('MATE-4v8-9-v0')` works too. `mate.make` and
+`mate.make_vec` take the preset names as well (`'MATE-8v8-9'`), as everything that takes a config
+name takes the ids (`mate.config.preset_name` reads both spellings).
 """
 
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Callable, Iterable
 from typing import Any
 
 import gymnasium as gym
 
-from .config import list_presets
+from .config import list_presets, preset_name
 from .env import MultiAgentTracking
 
 __all__ = ['make', 'make_environment', 'WrapperSpec', 'registered_ids', 'resolve_config']
@@ -54,6 +57,7 @@ def _preset_ids() -> dict[str, str | None]:
 
 
 _IDS = _preset_ids()
+_BY_LOWER = {env_id.lower(): env_id for env_id in _IDS}
 
 
 def registered_ids() -> list[str]:
@@ -73,12 +77,20 @@ def make(env_id: str = 'MultiAgentTracking-v0', config: Any = None, wrappers: It
 
 def resolve_config(env_id: str, config: Any = None) -> Any:
     """The configuration an ID stands for: `config` when given, else the ID's preset (None for
-    the default IDs). Unknown IDs raise ValueError with the closest known ones."""
-    if env_id not in _IDS:
-        close = difflib.get_close_matches(env_id, _IDS, n=3)
-        hint = f' Did you mean {" or ".join(map(repr, close))}?' if close else ''
-        raise ValueError(f'unknown environment id {env_id!r}.{hint} Known ids: {", ".join(_IDS)}')
-    return _IDS[env_id] if config is None else config
+    the default IDs). `env_id` is a registered ID (`registered_ids`) or a preset name
+    (`'MATE-4v8-9'`, as `read_config` takes it; `mate.config.preset_name`), case-insensitive.
+    Unknown names raise ValueError (one line) with the closest known IDs."""
+    if isinstance(env_id, str) and env_id.strip().lower() in _BY_LOWER:
+        preset = _IDS[_BY_LOWER[env_id.strip().lower()]]
+    else:
+        preset = preset_name(env_id)
+        if preset is None:
+            spelled_as_id = re.search(r'-v\d+$', str(env_id)) is not None    # suggest in the spelling given
+            close = difflib.get_close_matches(str(env_id), list(_IDS) if spelled_as_id else list_presets(), n=3)
+            hint = f' Did you mean {" or ".join(map(repr, close))}?' if close else ''
+            raise ValueError(f'unknown environment id {env_id!r}.{hint} Known ids: {", ".join(_IDS)} '
+                             "(or a preset name: an id without '-v0', e.g. 'MATE-4v8-9')")
+    return preset if config is None else config
 
 
 def _register_with_gymnasium() -> None:

@@ -6,17 +6,19 @@
     observations, infos = envs.reset(seed=0)                                       # (64, 4, D) float64
     for _ in range(1000):
         observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
-        if '_episode' in infos:                                                    # some games ended at this step
-            print(infos['episode']['coverage_rate'][infos['_episode']])
+        if '_mate_episode' in infos:                                               # some games ended at this step
+            print(infos['mate_episode']['coverage_rate'][infos['_mate_episode']])
 
 What a researcher's own algorithm steps (CleanRL-style files, `examples/own_policy_ppo.py`), torch-free. It follows
 Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
 
-* **spaces**: `single_observation_space` Box(N, D) and `observation_space` Box(B, N, D) of the team's raw
-  observations (the layouts of `mate.spaces`, in `observation_dtype`); `single_action_space` Box(N, 2) and
-  `action_space` Box(B, N, 2), float64: cameras (rotation, zoom) in degrees, targets a displacement (dx, dy). The
-  bounds are the largest any agent of the game has; the core clips each agent's action to its own step limits, as
-  the two-team env does. Actions of another shape raise ValueError (nothing is reshaped).
+* **spaces**: one env of the vector env is one game of the whole team, so `single_observation_space` is
+  Box(N, D), one row per agent (not Box(D)), and `observation_space` Box(B, N, D): the team's raw observations (the
+  layouts of `mate.spaces`, in `observation_dtype`); `single_action_space` Box(N, 2) and `action_space`
+  Box(B, N, 2), float64: cameras (rotation, zoom) in degrees, targets a displacement (dx, dy). The bounds are the
+  largest any agent of the game has; the core clips each agent's action to its own step limits, as the two-team
+  env does. Actions of another shape raise ValueError (nothing is reshaped). `AgentsAsEnvs` views the same games
+  with one env per agent: Box(D) and Box(2).
 * **rewards** (`reward`): 'team', the team's dense reward of the config, (B,) (camera reward = -target reward);
   'coverage' (cameras), the coverage rate of the step, (B,), the reward the paper trains cameras on; 'own'
   (targets), each target's own part of the team reward (its tracking penalty and deliveries; they sum to the
@@ -26,12 +28,23 @@ Gymnasium's vector conventions (a `gymnasium.vector.VectorEnv`):
   the ended episodes' last observations); the opponent starts its episode where the game does.
 * **infos**: a dict of (B,) arrays (`coverage_rate`, `real_coverage_rate`, `mean_transport_rate`,
   `num_delivered_cargoes`, `episode_step`, and the episode so far as the core counts it: `episode_coverage_rate`,
-  `episode_real_coverage_rate`, `episode_target_return`); on a step where games end, `infos['episode']` holds each ended
-  game's statistics with the mask `infos['_episode']` (Gymnasium's `RecordEpisodeStatistics` form): `r` the
-  summed reward of the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps,
-  `coverage_rate`, `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end),
-  `camera_return` and `target_return` (the config's team rewards summed), `normalized_target_return` (the target return
-  divided by the preset's largest one: the targets' benchmark metric), `delivered_cargoes`.
+  `episode_real_coverage_rate`, `episode_target_return`); on a step where games end, `infos['mate_episode']` holds
+  each ended game's statistics (zeros elsewhere) with the mask `infos['_mate_episode']`: `r` the summed reward of
+  the chosen kind (summed over agents for per-agent rewards), `l` the length in env steps, `coverage_rate`,
+  `real_coverage_rate` (means over the episode's steps), `transport_rate` (at its end), `camera_return` and
+  `target_return` (the config's team rewards summed), `normalized_target_return` (the target return divided by the
+  preset's largest one: the targets' benchmark metric), `delivered_cargoes`. The key is not Gymnasium's
+  `episode`, which `gymnasium.wrappers.vector.RecordEpisodeStatistics` adds (`r`, `l`, `t`) and refuses to
+  overwrite.
+
+**Gymnasium's vector wrappers** (`gymnasium.wrappers.vector`) apply as to any `VectorEnv` (tested:
+`RecordEpisodeStatistics`, `NormalizeObservation`, `NormalizeReward`, `ClipAction`, `RescaleAction`,
+`TransformObservation`, `TransformReward`, `ClipReward`, `FlattenObservation`, `DtypeObservation`,
+`DictInfoToList`), with the rewards (B,) of 'team' and 'coverage'. They assume one reward per env: the per-agent
+kinds' (B, N) rewards go through `AgentsAsEnvs` first (one env per agent, so each agent's return is recorded and
+normalised). `NormalizeObservation` takes `next_step` autoreset only (Gymnasium's own check), and its statistics
+are per agent slot ((N, D)); `RecordEpisodeStatistics` counts as under `next_step` (with `same_step` its later
+episodes miss their first step; `mate_episode` does not).
 
 **Seeding**: `reset(seed=s)` seeds game i with s + i and the opponent's row i with s + i too, so game i is the
 episode `mate evaluate --seed s` plays as its episode i (and `mate.score_policy`, the PettingZoo adapters and the
@@ -52,18 +65,20 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import VectorEnv
+from gymnasium.vector import VectorEnv, VectorWrapper
+from gymnasium.vector.utils import batch_space
 
 from .messages import Team
-from .protocol import REWARDS, agent_team_factory, checked_reward, paper_config
+from .protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
 from .teams.protocol import as_team
 from .vector import AutoresetMode, make_vec
 
-__all__ = ['REWARDS', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec', 'opponent_factory', 'step_rewards']
+__all__ = ['EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec',
+           'opponent_factory', 'step_rewards']
 
 EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                 'normalized_target_return', 'delivered_cargoes')
-"""The statistics of `infos['episode']`."""
+"""The statistics of `infos['mate_episode']`."""
 
 
 def difference_rewards(sees: np.ndarray) -> np.ndarray:
@@ -104,6 +119,11 @@ def step_rewards(reward: str, world, team_reward, coverage_rate) -> np.ndarray:
 
 class SingleTeamVecEnv(VectorEnv):
     """B games of one team against a batched opponent, as a Gymnasium `VectorEnv` (module docstring).
+
+    One env is one game of the whole team of N agents: `single_observation_space` is Box(N, D) (a row per agent,
+    D the team's observation length), `observation_space` Box(B, N, D), `single_action_space` Box(N, 2) and
+    `action_space` Box(B, N, 2); rewards are (B,) ('team', 'coverage') or (B, N) ('own', 'difference'). For one env
+    per agent (Box(D), Box(2), rewards (B * N,)), wrap it in `AgentsAsEnvs`.
 
     Args:
         config: a preset name, a YAML/JSON path or a dict (None: the paper's game of the team, MATE-4v8-9 for
@@ -201,16 +221,19 @@ class SingleTeamVecEnv(VectorEnv):
         ended = live & (terminations | truncations)
         self._sums['r'] += np.where(live, rewards if rewards.ndim == 1 else rewards.sum(axis=1), 0.0)
         if ended.any():
-            infos['episode'], infos['_episode'] = self._episode_statistics(ended, infos), ended
+            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = self._episode_statistics(ended, infos), ended
         if self.vec.autoreset_mode is AutoresetMode.NEXT_STEP:
             if restarting.any():
                 self.opponent.reset(self._other_obs, restarting)
             self._pending = ended
         elif ended.any():                 # same_step: the ended games already show their next episode
             self.opponent.reset(self._other_obs, ended)
-        if 'final_obs' in infos:
-            infos['final_obs'] = np.array([None if pair is None else pair[self._own] for pair in infos['final_obs']],
-                                          dtype=object)
+        if 'final_obs' in infos:         # (B,) objects: (N, D) arrays of the ended games, None elsewhere
+            final = np.full(self.num_envs, None, dtype=object)
+            for game, pair in enumerate(infos['final_obs']):
+                if pair is not None:
+                    final[game] = pair[self._own]
+            infos['final_obs'] = final
         return observations[self._own], rewards, terminations, truncations, infos
 
     def _final_rewards(self, rewards: np.ndarray, final: dict, done: np.ndarray) -> np.ndarray:
@@ -225,9 +248,9 @@ class SingleTeamVecEnv(VectorEnv):
         return rewards
 
     def _episode_statistics(self, ended, infos) -> dict:
-        """`infos['episode']` of the games that ended at this step (zeros elsewhere): the learner's summed reward, and
-        the game's own statistics as the core counted them (`mate.core.world.episode_statistics`; with same_step
-        autoreset, from `final_info`, the ended games' last step before their reset)."""
+        """`infos['mate_episode']` of the games that ended at this step (zeros elsewhere): the learner's summed
+        reward, and the game's own statistics as the core counted them (`mate.core.world.episode_statistics`; with
+        same_step autoreset, from `final_info`, the ended games' last step before their reset)."""
         game = infos.get('final_info', infos)
         target_return = game['episode_target_return']
         stats = {'r': np.where(ended, self._sums['r'], 0.0),
@@ -283,6 +306,107 @@ class SingleTeamVecEnv(VectorEnv):
     def __repr__(self) -> str:
         return (f'SingleTeamVecEnv({self.team.name.lower()}s of {self.config!r} vs {type(self.opponent).__name__}, '
                 f'num_envs={self.num_envs}, reward={self.reward_kind!r})')
+
+
+class AgentsAsEnvs(VectorWrapper):
+    """The single-team env seen one agent at a time: B games of N agents as a `VectorEnv` of B * N envs.
+
+    Env k = b * N + n is agent n of game b. What single-agent learners and Gymnasium's vector wrappers expect, the
+    per-agent reward kinds included (independent learners with parameter sharing, CleanRL's PPO files unchanged):
+
+    * **spaces**: `single_observation_space` Box(D) and `observation_space` Box(B * N, D), in the env's dtype;
+      `single_action_space` Box(2), float64, `action_space` Box(B * N, 2) (the bounds of the team env: the largest
+      any agent has).
+    * **step** takes actions (B * N, 2) (any other shape: ValueError) and returns observations (B * N, D) (a view of
+      the team env's buffer, overwritten by the next step), rewards (B * N,) float64 (each agent's own for 'own' and
+      'difference', the game's reward repeated to its N agents for 'team' and 'coverage'), terminations and
+      truncations (B * N,) (a game's agents end together).
+    * **infos**: every array of the team env's infos with one row per game repeated to its agents
+      (`np.repeat(value, N, axis=0)`, nested dicts such as `mate_episode` and `final_info` too), so the masks
+      `_key` are (B * N,); `final_obs` (same_step) holds each agent's last observation (D,).
+    * **reset(seed=s)** seeds game b with s + b (its agents share their game); partial resets (`reset_mask`) are
+      refused: a game restarts with all its agents. `state()`: (B * N, S), the global state of each agent's game.
+
+    Gymnasium's `RecordEpisodeStatistics` then records each agent's return (`r`) and the game's length (`l`),
+    `NormalizeReward` normalises each agent's discounted return, `NormalizeObservation` pools its statistics over
+    the agents (D values).
+
+    Args:
+        env: a `SingleTeamVecEnv` (`mate.make_team_vec(...)`), or a Gymnasium wrapper of one whose spaces are still
+            Box(B, N, D) and Box(B, N, 2).
+    """
+
+    def __init__(self, env: VectorEnv) -> None:
+        super().__init__(env)
+        observations, actions = env.observation_space, env.action_space
+        if not (isinstance(observations, spaces.Box) and isinstance(actions, spaces.Box) and
+                len(observations.shape) == 3 and actions.shape == (*observations.shape[:2], 2)):
+            raise ValueError('AgentsAsEnvs needs a single-team env (mate.make_team_vec) with observations '
+                             f'Box(B, N, D) and actions Box(B, N, 2), got {observations} and {actions}')
+        self.num_games, self.num_agents = observations.shape[:2]
+        self._num_envs = self.num_games * self.num_agents
+        low, high = observations.low.min(axis=(0, 1)), observations.high.max(axis=(0, 1))
+        self.single_observation_space = spaces.Box(low, high, dtype=observations.dtype)
+        self.single_action_space = spaces.Box(actions.low.min(axis=(0, 1)), actions.high.max(axis=(0, 1)),
+                                              dtype=actions.dtype)
+        self.observation_space = batch_space(self.single_observation_space, self._num_envs)
+        self.action_space = batch_space(self.single_action_space, self._num_envs)
+
+    @property
+    def num_envs(self) -> int:
+        """B * N: one env per agent."""
+        return self._num_envs
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start new episodes in every game; returns (observations (B * N, D), infos with (B * N,) rows)."""
+        if options and 'reset_mask' in options:
+            raise ValueError('AgentsAsEnvs resets whole games: call reset() without a reset_mask (the games '
+                             'autoreset, next_step or same_step)')
+        observations, infos = self.env.reset(seed=seed, options=options)
+        return self._rows(observations), self._per_agent(infos)
+
+    def step(self, actions):
+        """One env step of every game with the agents' `actions` (B * N, 2); returns (observations (B * N, D),
+        rewards (B * N,), terminations (B * N,), truncations (B * N,), infos) (class docstring)."""
+        actions = np.asarray(actions)
+        if actions.shape != self.action_space.shape:
+            raise ValueError(f'actions must have shape {self.action_space.shape} (one row per agent: games x agents '
+                             f'= {self.num_games} x {self.num_agents}, 2), got {actions.shape}')
+        observations, rewards, terminations, truncations, infos = self.env.step(
+            actions.reshape(self.num_games, self.num_agents, 2))
+        rewards = np.asarray(rewards, dtype=np.float64)
+        rewards = (rewards.reshape(self._num_envs) if rewards.ndim == 2
+                   else np.repeat(rewards, self.num_agents))
+        return (self._rows(observations), rewards, np.repeat(terminations, self.num_agents),
+                np.repeat(truncations, self.num_agents), self._per_agent(infos))
+
+    def state(self) -> np.ndarray:
+        """(B * N, S): the global state of each agent's game (`SingleTeamVecEnv.state`, repeated to its agents)."""
+        return np.repeat(self.env.unwrapped.state(), self.num_agents, axis=0)
+
+    def _rows(self, observations: np.ndarray) -> np.ndarray:
+        return observations.reshape(self._num_envs, *observations.shape[2:])
+
+    def _per_agent(self, infos: dict) -> dict:
+        """`infos` with every per-game array repeated to the game's agents (nested dicts too)."""
+        out = {}
+        for key, value in infos.items():
+            if isinstance(value, dict):
+                out[key] = self._per_agent(value)
+            elif key == 'final_obs':        # (B,) objects: the ended games' (N, D) last observations, else None
+                rows = np.full(self._num_envs, None, dtype=object)
+                for game in np.flatnonzero([last is not None for last in value]):
+                    for agent in range(self.num_agents):
+                        rows[game * self.num_agents + agent] = value[game][agent]
+                out[key] = rows
+            elif isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == self.num_games:
+                out[key] = np.repeat(value, self.num_agents, axis=0)
+            else:
+                out[key] = value
+        return out
+
+    def __repr__(self) -> str:
+        return f'AgentsAsEnvs({self.env!r}: {self.num_games} games x {self.num_agents} agents)'
 
 
 def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, *, device: str | None = None, **kwargs):

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import VectorEnv
+from gymnasium.vector import VectorEnv, VectorRewardWrapper
 from gymnasium.vector.utils import batch_space
 
 from . import registration
@@ -20,6 +20,7 @@ from .core import engine
 from .core.snapshot import get_snapshot
 from .core.world import EPISODE_STATISTICS, empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
+from .messages import Team
 
 try:
     from gymnasium.vector import AutoresetMode
@@ -29,7 +30,7 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
         SAME_STEP = 'SameStep'
         DISABLED = 'Disabled'
 
-__all__ = ['MultiAgentTrackingVectorEnv', 'make_vec', 'AutoresetMode']
+__all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
 ADDED_FIELDS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
 """World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
@@ -85,7 +86,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     **Step.** `envs.step((camera_actions, target_actions))` returns
     `((camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)), (camera_rewards (B,), target_rewards (B,)),
     terminations (B,), truncations (B,), infos)`. The game is zero-sum:
-    `camera_rewards == -target_rewards`. `infos` is a dict of `(B,)` arrays (`coverage_rate`,
+    `camera_rewards == -target_rewards`; Gymnasium's vector reward wrappers, which expect one
+    (B,) reward, apply to `TeamReward(envs, team)` (one team's). `infos` is a dict of `(B,)` arrays (`coverage_rate`,
     `real_coverage_rate`, `mean_transport_rate`, `num_delivered_cargoes`, `episode_step`), each with
     Gymnasium's `_<key>` mask (all true). There is no per-agent info and no message channel: use the
     single env (`mate.make`) for communication. `step` before `reset` raises `RuntimeError`.
@@ -432,6 +434,33 @@ def _uniform(rng: np.random.Generator, box: spaces.Box, shape: tuple[int, ...]) 
 def _listing(indices: np.ndarray, limit: int = 10) -> str:
     shown = ', '.join(str(int(i)) for i in indices[:limit])
     return f'[{shown}{", ..." if len(indices) > limit else ""}]'
+
+
+class TeamReward(VectorRewardWrapper):
+    """The two-team vector env with one team's rewards: `step` returns that team's (B,) float64 array in place of the
+    (camera, target) pair, so that Gymnasium's reward wrappers apply (`RecordEpisodeStatistics`, `NormalizeReward`,
+    `TransformReward`, `ClipReward`: they expect one reward per env and fail on the pair).
+
+    The game is zero-sum: the other team's rewards are the negatives of the ones returned, and so is its episode
+    return (`RecordEpisodeStatistics`' `r`); `NormalizeReward` only divides by a running scale, so the other team's
+    normalised rewards are the negatives too. Observations, actions, autoreset and infos are the wrapped env's
+    (the pair of teams). The rewards returned are a fresh array (a wrapper above may write into it).
+
+    Args:
+        env: `mate.make_vec(...)` (a `MultiAgentTrackingVectorEnv`, or a wrapper of one).
+        team: 'camera' (default) or 'target', the team whose rewards are returned.
+    """
+
+    def __init__(self, env: VectorEnv, team='camera') -> None:
+        from .teams.protocol import as_team        # (mate.teams imports this module)
+
+        super().__init__(env)
+        self.team = as_team(team)
+        self._index = 0 if self.team is Team.CAMERA else 1
+
+    def rewards(self, rewards):
+        """The chosen team's (B,) rewards, copied, of the (camera, target) pair."""
+        return np.array(rewards[self._index], dtype=np.float64)
 
 
 def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None, *,

@@ -1,6 +1,6 @@
 """Episode metrics are counted once, by the core (`mate.core.world.episode_statistics`), and every consumer reads
 them: the single env's and the vector env's infos, `mate evaluate` (single env and batched), the single-team env's
-`infos['episode']`. They equal what a user adds up step by step, and the two evaluation paths now agree exactly."""
+`infos['mate_episode']`. They equal what a user adds up step by step, and the two evaluation paths now agree exactly."""
 
 from __future__ import annotations
 
@@ -70,8 +70,8 @@ def test_the_single_team_envs_episodes_are_the_cores():
     team.reset(seed=1)
     for _ in range(9):
         _, _, _, truncations, infos = team.step(np.full((2, team.num_agents, 2), 3.0))
-    assert truncations.all() and infos['_episode'].all()
-    episode = infos['episode']
+    assert truncations.all() and infos['_mate_episode'].all()
+    episode = infos['mate_episode']
     assert np.array_equal(episode['l'], [9, 9])
     game = infos.get('final_info', infos)
     assert np.array_equal(episode['coverage_rate'], game['episode_coverage_rate'])

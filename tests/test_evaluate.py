@@ -165,3 +165,26 @@ def test_an_agent_of_a_module_in_the_working_directory(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(['evaluate', '--camera-agent', 'my_cameras_here:StillCamera', '--episodes', '1',
                  '--max-episode-steps', '5', '--no-render']) == 0
+
+
+@pytest.mark.slow
+def test_the_summary_heading_is_one_line_in_a_log(tmp_path):
+    """Off a terminal (a pipe, a log file) rich's console is 80 columns wide, and a table's title wraps to the
+    table's width (about 50): the heading was three lines for a pretrained camera policy. It is a line of its own
+    now, whole however narrow the console; the table below keeps its columns."""
+    import subprocess
+    import sys
+
+    env = {key: value for key, value in os.environ.items() if key not in ('COLUMNS', 'LINES')}
+    policy = 'pretrained:hrl-mappo-camera-4v8-9'
+    result = subprocess.run([sys.executable, '-m', 'mate', 'evaluate', '--camera-agent', policy, '--episodes', '12',
+                             '--max-episode-steps', '5', '--no-render'],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    heading = (f'MultiAgentTracking(4v8, 9): {policy} cameras vs greedy targets, 12 episodes (seeds 0..11, at most '
+               '5 steps)')
+    assert heading in lines, result.stdout
+    table = lines[lines.index(heading) + 1:]
+    assert table[0].startswith('┏') and any('coverage rate' in line for line in table)
+    assert max(len(line) for line in table if line.startswith(('┏', '│', '└'))) <= 80

@@ -54,8 +54,8 @@ def test_a_changed_bounty_rule_reads_the_same_everywhere(reward_type):
             world = team_env.vec.world
             assert rewards.shape == (1, 4) and rewards.sum() == pytest.approx(world.target_reward[0], abs=1e-9)
             own += rewards.sum()
-            if '_episode' in infos:
-                episode = {key: values[0] for key, values in infos['episode'].items()}
+            if '_mate_episode' in infos:
+                episode = {key: values[0] for key, values in infos['mate_episode'].items()}
         assert own == pytest.approx(expected.target_return, abs=1e-9)
         assert episode['l'] == expected.episode_length
         for key in ('coverage_rate', 'real_coverage_rate', 'transport_rate', 'target_return',

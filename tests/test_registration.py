@@ -76,12 +76,69 @@ def test_overrides_without_any_config_start_empty():
 
 @pytest.mark.parametrize('bad_id, suggestion', [('MATE-4v8-8-v0', 'MATE-4v8-9-v0'),
                                                 ('MultiAgentTracking-v1', 'MultiAgentTracking-v0'),
-                                                ('MATE-navigation-v0', 'MATE-Navigation-v0')])
+                                                ('MATE-Navigaton-v0', 'MATE-Navigation-v0'),
+                                                ('MATE-4v8-8', 'MATE-4v8-9')])
 def test_unknown_id_raises_with_a_suggestion(bad_id, suggestion):
-    with pytest.raises(ValueError) as error:
-        mate.make(bad_id)
-    assert bad_id in str(error.value)
-    assert suggestion in str(error.value)
+    """In the spelling given (an id or a preset name), on one line that lists the valid ids."""
+    for make in (mate.make, lambda name: mate.make_vec(name, num_envs=2)):
+        with pytest.raises(ValueError) as error:
+            make(bad_id)
+        message = str(error.value)
+        assert bad_id in message and f"'{suggestion}'" in message and '\n' not in message
+        assert 'Known ids: MultiAgentTracking-v0, MATE-v0, MATE-1v1-0-v0' in message and 'preset name' in message
+
+
+# ----------------------------------------------------------------------------- both spellings of a game
+# `mate.make` / `make_vec` took env ids ('MATE-2v4-0-v0') where `make_team_vec`, `score_policy`, PettingZoo and the
+# command line took preset names ('MATE-2v4-0'); each now takes both (`mate.config.preset_name` resolves them).
+
+@pytest.mark.parametrize('name', ['MATE-2v4-0', 'MATE-2v4-0-v0', 'mate-2v4-0', 'MATE-2v4-0.yaml'])
+def test_make_and_make_vec_take_a_preset_name_or_an_id(name):
+    expected = mate.read_config('MATE-2v4-0')
+    assert mate.make(name).config == expected
+    envs = mate.make_vec(name, num_envs=2)
+    assert envs.config == expected and (envs.num_cameras, envs.num_targets) == (2, 4)
+    assert mate.make(name, config='MATE-1v1-0').config == mate.read_config('MATE-1v1-0')   # config= still wins
+
+
+def test_the_default_ids_keep_their_meaning_in_both_spellings():
+    """'MATE-v0' and 'MultiAgentTracking-v0' have no preset of their own in `mate.make` (overrides start empty, as in
+    the original); as a config name they stand for the default game, MATE-4v8-9."""
+    for name in ('MATE-v0', 'mate-v0', 'MultiAgentTracking-v0'):
+        assert mate.registration.resolve_config(name) is None
+        assert mate.read_config(name) == mate.read_config('MATE-4v8-9')
+    assert mate.registration.resolve_config('MATE') == 'MATE'
+    with pytest.raises(ValueError):
+        mate.make('mate-v0', reward_type='sparse')      # the empty start, whatever the case
+
+
+def test_config_names_take_env_ids_everywhere(capsys):
+    from mate.cli import main
+    from mate.integrations import pettingzoo as mate_pz
+
+    expected = mate.read_config('MATE-2v4-0')
+    assert mate.read_config('MATE-2v4-0-v0') == expected
+    assert mate.config.preset_path('MATE-2v4-0-v0') == mate.config.preset_path('MATE-2v4-0')
+    team = mate.make_team_vec('MATE-2v4-0-v0', team='target', num_envs=2)
+    assert team.vec.config == expected and team.single_observation_space.shape[0] == 4
+    zoo = mate_pz.parallel_env(config='MATE-2v4-0-v0')
+    assert zoo.env.config == expected
+    still = lambda observations: np.zeros((*observations.shape[:2], 2))
+    by_id = mate.score_policy(still, 'camera', 'MATE-2v4-0-v0', episodes=1, max_episode_steps=5)
+    by_name = mate.score_policy(still, 'camera', 'MATE-2v4-0', episodes=1, max_episode_steps=5)
+    assert by_id.absolute == by_name.absolute and by_id.reference_means == by_name.reference_means
+    assert main(['evaluate', '--config', 'MATE-2v4-0-v0', '--episodes', '1', '--max-episode-steps', '5',
+                 '--no-render']) == 0
+    assert '(2 cameras, 4 targets, 0 obstacle)' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('name, suggestion', [('MATE-4v8-8-v0', 'MATE-4v8-9-v0'), ('MATE-4v8-8', 'MATE-4v8-9')])
+def test_an_unknown_config_name_is_one_line_listing_the_presets(name, suggestion):
+    with pytest.raises(mate.ConfigError) as error:
+        mate.make_team_vec(name, team='camera', num_envs=1)
+    message = str(error.value)
+    assert '\n' not in message and f"did you mean '{suggestion}'" in message
+    assert 'Known presets: MATE, MATE-1v1-0' in message and "'MATE-4v8-9-v0'" in message
 
 
 def test_gymnasium_make():

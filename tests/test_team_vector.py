@@ -26,9 +26,9 @@ def first_episodes(envs, team_of, seed):
     found = {}
     while len(found) < envs.num_envs:
         observations, rewards, terminations, truncations, infos = envs.step(players.act(observations))
-        if '_episode' in infos:
-            for i in np.flatnonzero(infos['_episode']):
-                found.setdefault(int(i), {key: values[i] for key, values in infos['episode'].items()})
+        if '_mate_episode' in infos:
+            for i in np.flatnonzero(infos['_mate_episode']):
+                found.setdefault(int(i), {key: values[i] for key, values in infos['mate_episode'].items()})
     return [found[i] for i in range(envs.num_envs)]
 
 
@@ -69,7 +69,7 @@ def test_next_step_autoreset_restarts_the_opponent_and_pays_nothing(team, reward
     observations, _ = envs.reset(seed=1)
     for _ in range(5):
         observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
-    assert truncations.all() and infos['_episode'].all() and (infos['episode']['l'] == 5).all()
+    assert truncations.all() and infos['_mate_episode'].all() and (infos['mate_episode']['l'] == 5).all()
     observations, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
     assert rewards.shape[0] == 2 and (rewards == 0).all() and not truncations.any()
     assert (infos['episode_step'] == 0).all()
@@ -170,9 +170,9 @@ def test_state_dict_continues_exactly():
         replay = again.step(actions[step])
         np.testing.assert_array_equal(replay[0], observations)
         np.testing.assert_array_equal(replay[1], rewards)
-        assert ('_episode' in replay[4]) == ('_episode' in infos)
-        if '_episode' in infos:
-            np.testing.assert_array_equal(replay[4]['episode']['r'], infos['episode']['r'])
+        assert ('_mate_episode' in replay[4]) == ('_mate_episode' in infos)
+        if '_mate_episode' in infos:
+            np.testing.assert_array_equal(replay[4]['mate_episode']['r'], infos['mate_episode']['r'])
 
 
 @pytest.mark.parametrize('config, team, reward', [('MATE-2v4-0', 'target', 'own'),

@@ -14,11 +14,12 @@ from mate.config.loader import (
     DEFAULT_CONFIG,
     PRESETS_DIR,
     list_presets,
+    preset_name,
     preset_path,
     read_config,
 )
 from mate.config.schema import ConfigError
 
 __all__ = [
-    'read_config', 'ConfigError', 'PRESETS_DIR', 'DEFAULT_CONFIG', 'list_presets', 'preset_path',
+    'read_config', 'ConfigError', 'PRESETS_DIR', 'DEFAULT_CONFIG', 'list_presets', 'preset_name', 'preset_path',
 ]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -21,13 +22,18 @@ from mate.config.schema import (
 )
 
 __all__ = [
-    'PRESETS_DIR', 'DEFAULT_CONFIG', 'read_config', 'list_presets', 'preset_path', 'deep_merge',
+    'PRESETS_DIR', 'DEFAULT_CONFIG', 'ENV_ID_SUFFIX', 'read_config', 'list_presets', 'preset_path', 'preset_name',
+    'deep_merge',
 ]
 
 PRESETS_DIR = Path(__file__).resolve().parent / 'presets'
 """Directory of the preset YAML files shipped with mate."""
 DEFAULT_CONFIG = 'MATE-4v8-9.yaml'
 """The preset used when `read_config` gets neither a config nor overrides."""
+ENV_ID_SUFFIX = '-v0'
+"""What turns a preset name into an environment id of `mate.make` (`'MATE-4v8-9'` -> `'MATE-4v8-9-v0'`)."""
+DEFAULT_ENV_ID = 'MultiAgentTracking-v0'
+"""The environment id with no preset of its own: as a config name it stands for `DEFAULT_CONFIG`."""
 
 _SUFFIXES = ('.yaml', '.yml', '.json')
 _PRESET_SUFFIXES = ('.yaml', '.yml')
@@ -43,8 +49,30 @@ def list_presets() -> list[str]:
     return sorted(path.stem for path in PRESETS_DIR.glob('*.yaml'))
 
 
+def preset_name(name: object) -> str | None:
+    """The shipped preset a name stands for, in either spelling, or None if it names none.
+
+    `name`: a preset name (``'MATE-4v8-9'``, extension optional) or an environment id of `mate.make`
+    (``'MATE-4v8-9-v0'``; ``'MATE-v0'`` is the preset ``'MATE'`` and ``'MultiAgentTracking-v0'`` the default,
+    ``'MATE-4v8-9'``), case-insensitive. The one place where names are resolved: `read_config` (hence
+    `mate.make_team_vec`, `mate.score_policy`, the PettingZoo adapters and the command line) and `mate.make` /
+    `mate.make_vec` (`mate.registration.resolve_config`) all ask it.
+    """
+    if not isinstance(name, str):
+        return None
+    stem = name.strip()
+    if Path(stem).suffix.lower() in _PRESET_SUFFIXES:
+        stem = stem[: -len(Path(stem).suffix)]
+    if stem.lower() == DEFAULT_ENV_ID.lower():
+        stem = Path(DEFAULT_CONFIG).stem
+    elif stem.lower().endswith(ENV_ID_SUFFIX):
+        stem = stem[: -len(ENV_ID_SUFFIX)]
+    by_lower = {preset.lower(): preset for preset in list_presets()}
+    return by_lower.get(stem.lower())
+
+
 def preset_path(name: str) -> Path:
-    """The file of preset `name` (``'MATE-4v8-9'``, ``'MATE-4v8-9.yaml'``; case-insensitive).
+    """The file of preset `name` (``'MATE-4v8-9'``, ``'MATE-4v8-9.yaml'``, ``'MATE-4v8-9-v0'``; case-insensitive).
 
     Raises `ConfigError` with the closest preset names when there is no such preset.
     """
@@ -58,7 +86,8 @@ def read_config(config: object = None, **overrides: object) -> dict:
     """Load, merge and validate a configuration; return it as a new normalised dict.
 
     Args:
-        config: ``None``; a preset name such as ``'MATE-4v8-9'`` (extension optional);
+        config: ``None``; a preset name such as ``'MATE-4v8-9'`` (extension optional) or its
+            environment id ``'MATE-4v8-9-v0'`` (`preset_name`);
             a path (str or os.PathLike) to a ``.yaml`` / ``.yml`` / ``.json`` file, tried
             as given (relative paths against the working directory), then as a preset;
             or a mapping (never mutated).
@@ -128,26 +157,27 @@ def _resolve(text: str) -> Path:
 
 
 def _find_preset(name: str) -> Path | None:
-    """The preset file called `name` (extension optional, case-insensitive), if any."""
-    stem = name
-    if Path(name).suffix.lower() in _PRESET_SUFFIXES:
-        stem = name[: -len(Path(name).suffix)]
-    by_lower = {preset.lower(): preset for preset in list_presets()}
-    preset = by_lower.get(stem.lower())
+    """The preset file called `name` (a preset name or an env id, `preset_name`), if any."""
+    preset = preset_name(name)
     return None if preset is None else PRESETS_DIR / f'{preset}.yaml'
 
 
 def _unknown_config(text: str) -> ConfigError:
-    """The error for a name that is neither a config file nor a preset."""
+    """The error for a name that is neither a config file nor a preset (one line: the closest names in the
+    spelling given, preset names or env ids, and the presets)."""
     presets = list_presets()
     stem = text
     if Path(text).suffix.lower() in _SUFFIXES:
         stem = text[: -len(Path(text).suffix)]
+    choices = presets
+    if re.search(r'-v\d+$', stem):     # spelled as an env id: suggest ids
+        choices = [DEFAULT_ENV_ID] + [f'{preset}{ENV_ID_SUFFIX}' for preset in presets]
     message = f'unknown preset or config file {text!r}'
-    hint = did_you_mean(Path(stem).name, presets)
+    hint = did_you_mean(Path(stem).name, choices)
     if hint:
         message += f': {hint}'
-    message += f' Known presets: {", ".join(presets)}'
+    message += (f' Known presets: {", ".join(presets)} (each also as its env id, e.g. '
+                f"'{Path(DEFAULT_CONFIG).stem}{ENV_ID_SUFFIX}'), or a .yaml/.yml/.json file")
     return ConfigError(message, 'config', text)
 
 

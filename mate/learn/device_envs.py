@@ -32,6 +32,7 @@ from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..registration import resolve_config
 from ..spaces import observation_indices_of, observation_space_of, state_space_of
+from ..team_vector import EPISODE_INFO
 from .memory import target_record_scale
 from .spec import PolicySpec, as_team
 
@@ -453,7 +454,7 @@ class DeviceTeamEnv:
             final_state = torch.where(ended[:, None], self.vec.state(), final_state)
             truncated |= ended & truncated_now & ~terminated
             done |= ended
-            episode = info['episode']
+            episode = info[EPISODE_INFO]
             for name, value in (('coverage', episode['coverage_rate']), ('length', episode['l']),
                                 ('return', self._return),
                                 ('raw_return', episode['target_return'] / self._max_reward)):

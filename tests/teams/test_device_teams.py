@@ -20,6 +20,7 @@ from mate.teams.streams import AGENT_BLOCK
 KINDS = ['greedy-camera', 'greedy-target', 'random-camera']
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('which', ['reset', 'act'])
 @pytest.mark.parametrize('kind', KINDS)
 def test_every_team_kernel_compiles_for_a_gpu(kind, which):
@@ -122,13 +123,13 @@ for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_st
         do, dr, dterm, dtrunc, dinfo = dev.step(torch.from_numpy(actions))
         co, cr, cterm, ctrunc, cinfo = cpu.step(actions)
         for name, (a, b) in dict(obs=(do, co), reward=(dr, cr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
-                                 ended=(dinfo['_episode'], cinfo.get('_episode', np.zeros(4, bool)))).items():
+                                 ended=(dinfo['_mate_episode'], cinfo.get('_mate_episode', np.zeros(4, bool)))).items():
             if not np.array_equal(np.asarray(a), b):
                 differing.append(f'{step}: {name}')
-        if '_episode' in cinfo:
-            ends += int(cinfo['_episode'].sum())
-            for key, value in cinfo['episode'].items():
-                if not np.allclose(np.asarray(dinfo['episode'][key]), value, rtol=0, atol=1e-12):
+        if '_mate_episode' in cinfo:
+            ends += int(cinfo['_mate_episode'].sum())
+            for key, value in cinfo['mate_episode'].items():
+                if not np.allclose(np.asarray(dinfo['mate_episode'][key]), value, rtol=0, atol=1e-12):
                     differing.append(f'{step}: episode {key}')
     report[f'single {team} {reward} {mode}'] = dict(differing=differing[:5], ends=ends)
 
@@ -145,7 +146,7 @@ for mode, opponent, options in (('next_step', 'random', {'frame_skip': 4}), ('sa
     expected, ends = [], 0
     for step in range(9, 20):
         o, r, te, tr, info = first.step(actions[step])
-        expected.append([x.clone() for x in (o, r, te, tr, info['episode']['r'], first.state())])
+        expected.append([x.clone() for x in (o, r, te, tr, info['mate_episode']['r'], first.state())])
         ends += int((te | tr).sum())
     resumed = make()
     resumed.reset(seed=1)
@@ -153,7 +154,7 @@ for mode, opponent, options in (('next_step', 'random', {'frame_skip': 4}), ('sa
     differing = []
     for step in range(9, 20):
         o, r, te, tr, info = resumed.step(actions[step])
-        if not all(torch.equal(x, y) for x, y in zip(expected[step - 9], (o, r, te, tr, info['episode']['r'],
+        if not all(torch.equal(x, y) for x, y in zip(expected[step - 9], (o, r, te, tr, info['mate_episode']['r'],
                                                                            resumed.state()))):
             differing.append(f'{step}: resumed')
     report[f'resume {mode} {opponent}'] = dict(differing=differing[:5], ends=ends)
@@ -174,6 +175,7 @@ print(json.dumps(report))
 """
 
 
+@pytest.mark.slow
 def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads)."""
     needs_extra('numba_cuda')
@@ -230,6 +232,7 @@ def _play(seed: int, steps: int = 60):
     return np.array([np.concatenate([c.ravel(), t.ravel()]) for c, t in actions]), cameras, targets
 
 
+@pytest.mark.slow
 def test_host_twins_are_deterministic_and_never_short():
     first, cameras, targets = _play(1)
     again, _, _ = _play(1)
