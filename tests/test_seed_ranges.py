@@ -117,3 +117,19 @@ def test_an_experiment_refuses_what_would_leave_its_seeds():
     with pytest.raises(ValueError, match='2 x iterations \\+ 1 \\+ num_envs must be at most 1,000'):
         check_run_seeds(long)
     check_run_seeds(dataclasses.replace(population, iterations=497))                          # 999 rows
+
+
+def test_mate_train_and_psro_refuse_what_would_leave_their_seeds():
+    """`mate train --eval-episodes` is bounded like the protocol's evaluations; a standalone PSRO run's best
+    responses stay in their run seed's block (the next run seed trains from seed x 1,000 + 1,000)."""
+    from mate.learn.population.psro import PSROError, PSROSettings
+    from mate.learn.ppo import PPOConfig
+    from mate.protocol import MAX_EVAL_EPISODES, SEED_BLOCK
+
+    with pytest.raises(ValueError, match=f'--eval-episodes must be an integer >= 1 and <= {MAX_EVAL_EPISODES}'):
+        PPOConfig(eval_episodes=MAX_EVAL_EPISODES + 1)
+    PPOConfig(eval_episodes=MAX_EVAL_EPISODES)
+    iterations = (SEED_BLOCK - 1 - 4) // 2                       # 2 x iterations + 1 + 4 envs = 1,000: fits
+    PSROSettings(iterations=iterations, num_envs=4).validate()
+    with pytest.raises(PSROError, match='into the next seed.s block'):
+        PSROSettings(iterations=iterations + 1, num_envs=4).validate()

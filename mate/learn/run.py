@@ -239,7 +239,8 @@ class Run:
 
         A checkpoint with the batch's state (`saved['envs']`, what `resume` returned) continues the very episodes
         it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x
-        iteration` wrapped into the training seeds (`mate.protocol.training_reset_seed`), the config's seed for a
+        iteration` wrapped into the run's own 1,000-seed block(s) of the training seeds
+        (`mate.protocol.training_reset_seed`), the config's seed for a
         fresh run and other seeds for each later session of an older checkpoint."""
         if self.continues_episodes(saved):
             envs.load_state_dict(saved['envs'])

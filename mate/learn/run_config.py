@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..options import check_ranges, option
+from ..protocol import MAX_EVAL_EPISODES
 
 __all__ = ['RunConfig', 'default_run_dir', 'run_name']
 
@@ -31,7 +32,8 @@ class RunConfig:
     eval_every: int = option(0, 'decision steps between evaluations of the policy on held-out seeds '
                                 '(evaluations.jsonl, best-eval.pt, and at the end the absolute metric); 0: none',
                              minimum=0)
-    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1)
+    eval_episodes: int = option(32, 'episodes per evaluation (the absolute metric plays 10 times as many)', minimum=1,
+                                maximum=MAX_EVAL_EPISODES)
     wandb: bool = option(False, 'also log every row to Weights & Biases (pip install wandb; WANDB_MODE=offline works '
                                 'without an account)')
     wandb_project: str = option('mate', 'the Weights & Biases project of --wandb')

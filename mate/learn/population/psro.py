@@ -37,7 +37,7 @@ import numpy as np
 
 from ...progress import logged_steps
 from ...runners import STOP, LocalRunner, RayRunner
-from ...protocol import EVALUATION_SEEDS, FRESH_SEEDS, PAYOFF_SEEDS, SEED_RANGES
+from ...protocol import EVALUATION_SEEDS, FRESH_SEEDS, PAYOFF_SEEDS, SEED_BLOCK, SEED_RANGES
 from .jobs import TARGET_CREDITS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
@@ -87,6 +87,11 @@ class PSROSettings:
         if self.eval_steps is not None and (not isinstance(self.eval_steps, int) or self.eval_steps < 1):
             raise PSROError('eval_steps must be a positive integer (or None: the preset\'s limit), got '
                             f'{self.eval_steps!r}')
+        rows = 2 * self.iterations + 1 + self.num_envs       # the seeds past seed x 1,000 the best responses use
+        if rows > SEED_BLOCK:
+            raise PSROError(f'{self.iterations} iterations with {self.num_envs} envs train on {rows:,} seeds past '
+                            f'seed x {SEED_BLOCK:,}, into the next seed\'s block; 2 x iterations + 1 + num_envs must '
+                            f'be at most {SEED_BLOCK:,}')
         last_game = self.best_response_seed(self.iterations, 'target') + self.num_envs - 1
         if last_game >= EVALUATION_SEEDS:
             raise PSROError(f'seed {self.seed} with {self.iterations} iterations and {self.num_envs} envs trains on '
