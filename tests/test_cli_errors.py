@@ -201,6 +201,7 @@ def test_version(capsys):
     assert capsys.readouterr().out.strip() == f'mate {mate.__version__}'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('module', ['mate', 'mate.cli'])
 def test_python_dash_m_is_the_mate_command(module, tmp_path):
     """`python -m mate ...` (and `python -m mate.cli ...`) parse, report and exit exactly as `mate ...`."""
@@ -219,6 +220,7 @@ def test_evaluate_a_policy_on_a_game_it_was_not_trained_for(capsys, batched):
              'was trained with (cameras, targets, obstacles) = (4, 8, 9)', '(8, 8, 9)')
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_evaluate_exits_130_with_one_line(tmp_path):
     """SIGINT once the episodes are being played (its progress line shows): status 130, one line, no traceback.
 
@@ -241,6 +243,7 @@ def test_ctrl_c_during_evaluate_exits_130_with_one_line(tmp_path):
     assert err.strip() == 'mate evaluate: interrupted'
 
 
+@pytest.mark.slow
 def test_generate_config_shows_its_progress_in_a_log(tmp_path):
     result = subprocess.run([sys.executable, '-m', 'mate', 'generate-config', '--num-cameras', '2', '--path',
                              str(tmp_path / 'two.yaml')], capture_output=True, text=True, cwd=tmp_path)

@@ -13,6 +13,7 @@ def test_one_camera_sits_in_the_centre():
     assert placement.covering_distance == pytest.approx(1000 * np.sqrt(2), rel=0.005)
 
 
+@pytest.mark.slow
 def test_four_cameras_cover_the_quadrants():
     placement = place_cameras(4, restarts=1)
     # the optimum puts one camera at the centre of each quadrant: covering distance 500 sqrt(2)
@@ -20,6 +21,7 @@ def test_four_cameras_cover_the_quadrants():
     assert sorted(np.sign(placement.points).tolist()) == [[-1, -1], [-1, 1], [1, -1], [1, 1]]
 
 
+@pytest.mark.slow
 def test_generated_config_follows_the_rules_and_runs(tmp_path):
     config = generate_config(num_cameras=2, num_targets=3, num_obstacles=2, obstacle_transmittance=1.7, restarts=1)
     assert config['name'] == 'MultiAgentTracking(2v3, 2)'

@@ -39,6 +39,7 @@ def test_the_parser_and_help_need_no_extra(tmp_path):
     assert version.returncode == 0 and version.stdout.startswith('mate '), version.stderr
 
 
+@pytest.mark.slow
 def test_evaluate_plays_without_extras_and_leaves_the_gif_out(tmp_path):
     result = mate_without_extras(tmp_path, 'evaluate', '--episodes', '2', '--max-episode-steps', '50')
     assert result.returncode == 0, result.stderr

@@ -584,6 +584,7 @@ else:
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('display', [{}, {'DISPLAY': ':9999'}, {'WAYLAND_DISPLAY': 'mate-test-no-such-display'}],
                          ids=['no display', 'no X server', 'no Wayland compositor'])
 def test_human_mode_without_a_display_fails_with_one_clear_line(display):

@@ -63,6 +63,7 @@ def greedy_episodes():
     return [play(mate.GreedyCameraAgent, mate.GreedyTargetAgent, seed) for seed in SEEDS]
 
 
+@pytest.mark.slow
 def test_greedy_vs_greedy_matches_the_original(greedy_episodes):
     table = compare(greedy_episodes, GREEDY)
     print(report('greedy vs greedy', table))
@@ -73,6 +74,7 @@ def test_greedy_vs_greedy_matches_the_original(greedy_episodes):
         assert abs(ours - original) <= tolerance, report('greedy vs greedy', table)
 
 
+@pytest.mark.slow
 def test_random_vs_random_matches_the_original():
     episodes = [play(mate.RandomCameraAgent, mate.RandomTargetAgent, seed) for seed in SEEDS]
     table = compare(episodes, RANDOM)

@@ -53,6 +53,7 @@ def test_the_reference_must_be_one_of_the_policies(table, capsys):
     assert "--against 'greedy': must be one of the policies" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_markdown_holds_the_command_and_both_tables(table, tmp_path):
     out = tmp_path / 'table.md'
     argv = ['--team', 'camera', '--episodes', '2', '--max-episode-steps', '20', '--against', 'random',

@@ -118,6 +118,7 @@ def job_log(out: Path) -> list[dict]:
     return [json.loads(line) for line in (out / JOB_LOG).read_text().splitlines()]
 
 
+@pytest.mark.slow
 def test_the_runner_reruns_a_job_lost_with_its_node_and_reports_every_job_once(cluster, tmp_path):
     faults.register()
     runner = RayRunner()                     # the cluster this process is connected to
@@ -159,6 +160,7 @@ def test_the_runner_reruns_a_job_lost_with_its_node_and_reports_every_job_once(c
         assert 0 <= timing['fetch'] and 0 <= timing['seconds'] <= timing['wall']
 
 
+@pytest.mark.slow
 def test_jobs_on_gpus_need_a_cluster_with_gpus(cluster):
     """`mate psro --address ... --device cuda` on a cluster without GPUs: one line at once, not tasks that wait."""
     with pytest.raises(RunnerError, match=r'jobs on GPUs \(--device cuda\) need a Ray cluster with GPUs; this '

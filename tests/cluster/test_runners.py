@@ -76,6 +76,7 @@ def test_a_done_that_returns_stop_starts_no_further_job(workers, tmp_path):
         assert reported == [(0, 'first')] and started == ['first'] and runner.timings[1] is None
 
 
+@pytest.mark.slow
 def test_a_stop_on_ray_cancels_the_jobs_still_pending(tmp_path):
     """On a one-CPU Ray instance: after `done` returns STOP for the first job, the third (queued behind the second)
     never starts nor is reported, and `run` returns without an error; the second, started as the first ended, is

@@ -8,6 +8,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from mate.core import jit
 
 NOTICE_START = 'mate: compiling the simulation kernels'
@@ -25,6 +27,7 @@ def run_first_steps(cache_dir, notice: str | None) -> subprocess.CompletedProces
     return subprocess.run([sys.executable, '-c', FIRST_STEPS], capture_output=True, text=True, env=env, check=True)
 
 
+@pytest.mark.slow
 def test_notice_once_when_compiling_and_never_when_loading_from_the_cache(tmp_path):
     cold = run_first_steps(tmp_path, notice='1')
     assert cold.stderr.count(NOTICE_START) == 1, cold.stderr  # many kernels compiled, one line

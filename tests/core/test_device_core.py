@@ -21,6 +21,7 @@ needs_extra('numba_cuda')     # the gpu extra (CI installs it)
 from mate.core import device  # noqa: E402
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name, dtype', [(name, np.float64) for name in device.KERNEL_NAMES] + [('step', np.float32)])
 def test_every_kernel_compiles_for_a_gpu(name, dtype):
     """Every kernel with float64 observations; the step with float32 ones too (what the dtype changes: the
@@ -81,6 +82,7 @@ print(json.dumps(report))
 """
 
 
+@pytest.mark.slow
 def test_the_simulated_device_plays_the_cpu_cores_games_exactly():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads)."""
     presets = ['MATE-4v8-9', 'MATE-8v8-9', 'MATE-2v4-0']

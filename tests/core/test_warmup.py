@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from mate.core import warmup
 
@@ -57,6 +58,7 @@ def reference_trace() -> list[float]:
     return namespace['trace']
 
 
+@pytest.mark.slow
 def test_cold_first_run_compiles_the_step_aside_and_plays_the_same_episode(tmp_path):
     result = play_cold(tmp_path, parallel='1')
     assert '_reset_rows' in result['compiled'], result['compiled']       # a cold cache: this process compiles

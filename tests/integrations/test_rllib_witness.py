@@ -45,6 +45,7 @@ def progress(run_dir) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('team, horizon, metric', [('camera', 50, 'coverage_rate'),
                                                    ('target', 100, 'normalized_target_return')])
 def test_a_run_writes_the_files_and_evaluations_of_mate_train(tmp_path, capsys, team, horizon, metric):
@@ -88,6 +89,7 @@ def test_a_run_writes_the_files_and_evaluations_of_mate_train(tmp_path, capsys, 
         torch.testing.assert_close(final[name], exported[name], rtol=0, atol=0)
 
 
+@pytest.mark.slow
 def test_the_same_command_goes_on_from_the_checkpoint(tmp_path, capsys):
     run_dir = tmp_path / 'run'
     common = ['--horizon', '50', '--run-dir', str(run_dir), '--checkpoint-every', '1']

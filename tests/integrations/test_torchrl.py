@@ -119,6 +119,7 @@ print(json.dumps(dict(differing=differing[:5], ends=ends)))
 """
 
 
+@pytest.mark.slow
 def test_the_games_on_a_simulated_device_are_the_cpu_adapters():
     """`game_device='cuda'` under numba's CUDA simulator against the CPU adapter whose opponent is the device
     team's host twin: the same rollout, partial resets included."""

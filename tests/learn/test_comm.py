@@ -79,6 +79,7 @@ def test_sequences_equal_steps_with_episode_starts_inside():
     assert len(memory) == 3 and memory[2].shape == (3, 2, 16) and memory[2].abs().max() <= 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('seed', [0, 1])
 def test_only_a_communicating_team_solves_cue_exchange(tmp_path, seed):
     """Each agent's own cue is shown only to its teammate: chance (1/4) without messages, at best

@@ -182,6 +182,7 @@ print(json.dumps(report))
 """
 
 
+@pytest.mark.slow
 def test_the_simulated_device_env_trains_as_the_cpu_env():
     """Under numba's CUDA simulator (its own process: the switch is read when numba.cuda loads): two settings'
     envs step for step (with full observability: HRL cameras with difference credit, the sighting memory and

@@ -64,6 +64,7 @@ def test_evaluating_a_policy_is_playing_it_batched_against_the_greedy_agents():
     assert evaluate_policy(policy, 3, EVALUATION_SEEDS, max_episode_steps=100) == first
 
 
+@pytest.mark.slow
 def test_a_run_with_evaluations_resumes_exactly(tmp_path):
     def config_of(run_dir, fresh):
         return MAPPOConfig(steps=240, eval_every=60, eval_episodes=2, run_dir=run_dir, fresh=fresh, **TINY)

@@ -37,6 +37,7 @@ def one_torch_thread():
     torch.set_num_threads(previous)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', list(golden.VARIANTS))
 def test_golden_run_reproduces(name, tmp_path):
     path = golden.record_path(name)

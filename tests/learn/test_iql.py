@@ -95,6 +95,7 @@ def test_epsilon_greedy_explores_only_among_allowed_choices():
     assert set(np.unique(masked)) == {0, 1} and np.mean(masked == 1) > 0.7      # greedy among the allowed: 1
 
 
+@pytest.mark.slow
 def test_iql_learns_a_cue_matching_task(tmp_path):
     config = IQLConfig(steps=16 * 400, num_envs=16, buffer_size=20_000, batch_size=128, update_every=16,
                        learning_starts=500, target_update=200, hidden=(32,), epsilon_schedule=((0, 1.0), (2_000, 0.05)),

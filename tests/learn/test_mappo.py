@@ -155,6 +155,7 @@ def test_devices_are_checked():
         assert str(resolve_device('auto')) == 'cpu'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('hrl', [False, True])
 def test_a_run_stopped_by_sigint_and_resumed_is_the_same_run(tmp_path, hrl):
     """SIGINT ends the iteration, writes the checkpoint (networks, optimiser, generator, the envs with their

@@ -48,6 +48,7 @@ def test_recurrent_actor_sequences_equal_steps_with_several_episode_starts():
     assert actor.lstm.weight_hh_l0.grad is not None and actor.lstm.weight_hh_l0.grad.abs().sum() > 0
 
 
+@pytest.mark.slow
 def test_a_recurrent_actor_solves_cue_recall(tmp_path):
     """The cue is shown once per episode: a memoryless actor stays below (1 + 7/4) / 8 = 0.34 (test_mappo.py), the
     recurrent one remembers it."""

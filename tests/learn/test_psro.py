@@ -151,6 +151,7 @@ def test_best_response_job_returns_a_policy_of_its_team(tmp_path):
         best_response('target', ENV, ['random'], [0.0], steps=100, seed=0, run_dir=str(tmp_path / 'none'))
 
 
+@pytest.mark.slow
 def test_target_best_response_can_be_rewarded_by_each_targets_own_part(tmp_path):
     """`--target-credit own`: the target best response trains with `credit='own'` (per-agent rewards, as the
     benchmark's target learners); the cameras' reward has no such option."""
@@ -200,6 +201,7 @@ def _state_checks(state: dict, iterations: int) -> None:
                                                                   mean=gains['mean']))
 
 
+@pytest.mark.slow
 def test_psro_end_to_end_then_plots(tmp_path, capsys):
     out = tmp_path / 'run'
     assert main(['psro', '--solver', 'nash', *TINY, '--out', str(out)]) == 0      # two local worker processes
@@ -245,6 +247,7 @@ sys.exit(main(sys.argv[2:]))
 """
 
 
+@pytest.mark.slow
 def test_psro_resumes_after_a_kill(tmp_path):
     """Kill the process while the target best response of iteration 1 trains (the camera one is in the pool),
     start the same command again: the finished stages are kept, the run completes."""
@@ -277,6 +280,7 @@ def test_psro_resumes_after_a_kill(tmp_path):
     assert after['payoff'][0][0] == before['payoff'][0][0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('signal_number', [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_psro_at_an_iteration_of_a_best_response_and_the_run_resumes_exactly(tmp_path, signal_number):
     """SIGINT/SIGTERM while the camera best response trains: it finishes the iteration, writes its checkpoint
@@ -318,6 +322,7 @@ def test_a_signal_stops_psro_at_an_iteration_of_a_best_response_and_the_run_resu
         assert all(torch.equal(left[name], right[name]) for name in left), side
 
 
+@pytest.mark.slow
 def test_psro_on_a_local_ray_instance(tmp_path):
     ray = needs_extra('ray')   # the rllib extra (CI installs it)
 

@@ -136,6 +136,7 @@ def greedy_return(path) -> float:
     return sum(returns)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('seed', [0, 1])
 def test_qmix_solves_the_two_step_game_that_iql_does_not(tmp_path, seed):
     """Trained on fully exploratory data (epsilon 1 throughout), as in the QMIX paper: the greedy joint

@@ -55,6 +55,7 @@ def test_a_config_file_and_the_command_line_over_it(tmp_path, capsys):
     assert 'expected an integer >= 1' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_weights_and_biases_logs_every_row_offline(tmp_path, monkeypatch):
     pytest.importorskip('wandb', reason='needs wandb (the test extra)')
     monkeypatch.setenv('WANDB_MODE', 'offline')

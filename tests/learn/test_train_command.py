@@ -73,6 +73,7 @@ def test_the_options_and_defaults_come_from_the_config_dataclasses(capsys):
     assert '--paper' in text and '--critic' not in text          # `mappo` fixes the critic; `ippo` is its twin
 
 
+@pytest.mark.slow
 def test_a_signal_stops_training_at_an_iteration_and_the_command_continues(tmp_path):
     """SIGINT while `mate train` runs with its output in a file: status 130, a checkpoint of the iteration and a
     plain progress line in the log (no bar escape codes); the same command then finishes the run."""

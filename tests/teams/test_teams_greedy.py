@@ -39,6 +39,7 @@ def test_importing_the_teams_needs_no_torch():
 
 # ---------------------------------------------------------------------------- whole episodes
 
+@pytest.mark.slow
 def test_batched_games_are_the_episodes_of_the_python_agents():
     seeds = range(5)
     batch, timing = play_batch(PRESET, lambda b, counts: GreedyTeam('camera', b, counts, seed=0),

@@ -13,12 +13,14 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mate.teams import GreedyTeam, play_batch
 
 REFERENCE = Path(__file__).resolve().parents[1] / 'data' / 'greedy-4v8-9-python-300.json'
 
 
+@pytest.mark.slow
 def test_batched_greedy_covers_like_the_python_agents_over_300_seeds():
     reference = json.loads(REFERENCE.read_text())
     seeds = reference['seeds']
