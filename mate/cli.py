@@ -4,8 +4,9 @@ Each sub-command lives in a small function that parses nothing itself: `main` bu
 argument parser, and the sub-command receives the parsed namespace.
 
 Errors: a mistake in the arguments (a number out of range, an unknown preset or agent, a bad
-checkpoint, a missing file) prints one line, `mate COMMAND: error: MESSAGE`, and exits with
-status 2; `mate --debug ...` (or the environment variable MATE_DEBUG=1) prints the traceback too.
+checkpoint, a missing file) prints one line, `mate COMMAND: error: MESSAGE` (a sub-command named in full:
+`mate benchmark report: error: ...`), and exits with status 2; `mate --debug ...` (or the environment
+variable MATE_DEBUG=1) prints the traceback too.
 Any other exception is a bug and shows its traceback.
 """
 
@@ -252,19 +253,20 @@ def main(argv: list[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if unknown:                         # said by the subcommand that was given them: `mate evaluate: error: ...`
         _chosen_parser(parser, args).error(f'unrecognized arguments: {" ".join(unknown)}')
+    name = _chosen_parser(parser, args).prog       # 'mate evaluate', 'mate benchmark report', ...
     try:
         return args.run(args)
     except KeyboardInterrupt:
         if _debugging(args):
             traceback.print_exc()
-        print(f'mate {args.command}: interrupted', file=sys.stderr)
+        print(f'{name}: interrupted', file=sys.stderr)
         return 130
     except BaseException as exc:
         if not _is_user_error(exc):
             raise
         if _debugging(args):
             traceback.print_exc()
-        print(f'mate {args.command}: error: {exc}', file=sys.stderr)
+        print(f'{name}: error: {exc}', file=sys.stderr)
         return 2
 
 

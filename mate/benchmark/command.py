@@ -139,8 +139,11 @@ def run(args: argparse.Namespace, console) -> int:
 
         try:
             changed = quote_files(args.files, args.root, check=args.check, say=say)
-        except (ValueError, OSError) as exc:
+        except ValueError as exc:
             raise CommandError(str(exc)) from None
+        except OSError as exc:              # 'README.mdx: no such file or directory'
+            raise CommandError(f'{exc.filename}: {(exc.strerror or str(exc)).lower()}' if exc.filename else str(exc)) \
+                from None
         return 1 if args.check and changed else 0
     return _run(args, say)
 

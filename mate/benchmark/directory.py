@@ -77,10 +77,18 @@ def _merge_manifest(experiment: Experiment, jobs: list[Job], out: Path, steps: i
 
 def read_manifest(out) -> dict:
     """The `benchmark.json` of a benchmark directory (any of `BENCHMARK_FORMATS`; `experiment_of` gives its
-    experiment); ValueError when it has none or another format."""
+    experiment); ValueError, saying which, for a folder that does not exist, a file, a folder without one (a
+    report's folder named as such) or one of another format."""
     path = Path(out) / 'benchmark.json'
+    where = 'a benchmark directory is the --out of mate benchmark run'
+    if not Path(out).exists():
+        raise ValueError(f'{out}: no such directory ({where})')
+    if not Path(out).is_dir():
+        raise ValueError(f'{out}: a file, not a directory ({where})')
     if not path.exists():
-        raise ValueError(f'{out}: no benchmark.json (not a directory of mate benchmark run)')
+        what = ('a report (results.json) of mate benchmark report' if (Path(out) / 'results.json').exists() else
+                'an empty directory' if not any(Path(out).iterdir()) else 'a directory')
+        raise ValueError(f'{out}: no benchmark.json: {what}, not a benchmark directory ({where})')
     manifest = json.loads(path.read_text())
     if manifest.get('format') not in BENCHMARK_FORMATS:
         raise ValueError(f'{path}: format {manifest.get("format")!r}, expected one of {", ".join(BENCHMARK_FORMATS)} '

@@ -9,8 +9,9 @@ README and docs) and the experiment:
     <!-- end of mate benchmark quote -->
 
 A block whose marker names `verdicts` and one or more reports' `results.json` instead gets one table of every claim
-of those reports (`verdicts`): the experiment and its budget, linked to its report, the task, the claim, the verdict
-and the test's p, a line per claim with data; the results summary page and the README quote it:
+of those reports (`verdicts`): the experiment and its budget, linked to its report, the task, the claim, the verdict,
+the test's p and why a verdict is not decisive, a line per claim with data; the results summary page and the
+README quote it:
 
     <!-- mate benchmark quote: verdicts docs/results/fig4a-cameras-10M/results.json docs/results/fig7-psro/results.json -->
     <!-- end of mate benchmark quote -->
@@ -82,15 +83,18 @@ def headline(summary: dict, link: str) -> str:
 def verdicts(summaries: list[tuple[dict, str]]) -> str:
     """One table of the claims of several reports (`summaries`: (an entry of a `results.json`, the link to its
     `results.md`)): per claim with data, the experiment at its budget (linked), the task, the claim, the verdict in
-    bold and the test's p after Holm's correction over the report's claims."""
-    lines = ['| experiment, budget | task | claim | verdict | p (Holm) |', '|---|---|---|---|---|']
+    bold, the test's p after Holm's correction over the report's claims and, for a verdict that is not decisive,
+    why (`mate.benchmark.verdicts.decide`'s `reason`; the column only where some verdict is not decisive)."""
+    why = any('reason' in claim for summary, _ in summaries for claim in summary.get('claims', ()) if 'p' in claim)
+    lines = ['| experiment, budget | task | claim | verdict | p (Holm) |' + ' why not decisive |' * why,
+             '|---|---|---|---|---|' + '---|' * why]
     for summary, link in summaries:
         unit = 'per best response' if summary['team'] == 'both' else 'per run'
         name = f'[{summary["experiment"]}, {_budget(summary["steps"])} {unit}]({link})'
         for claim in summary.get('claims', ()):
             if 'p' in claim:
                 lines.append(f'| {name} | {claim["task"]} | {claim["text"]} | **{claim["verdict"]}** | '
-                             f'{p_value(claim["p_holm"])} |')
+                             f'{p_value(claim["p_holm"])} |' + f' {claim.get("reason", "-")} |' * why)
     return '\n'.join(lines)
 
 

@@ -12,6 +12,10 @@ experiment's seeds may be spread over several directories, e.g. run on several m
   the payoff matrix and with the best responses re-played on fresh seeds (`mate psro`'s `exploitability_fresh`),
   and how many policies each team's last meta-strategy spreads over (`effective_policies`, IQM with CIs).
 * `results.json`: the same numbers, machine-readable (what README and docs quote).
+* `<experiment>-intervals.png`: per task, each setting's absolute metric (population experiments: its final
+  exploitability) as a dot at the IQM with its 95 % CI as a bar and each run's score as a tick, the references as
+  marked rows, and the task's claims with their verdicts (`mate.benchmark.figures.plot_intervals`, drawn from the
+  summary alone: a committed report's picture is drawn again from its `results.json`).
 * `<experiment>-curves.png`: the periodic evaluations against decision steps, IQM with its 95 % CI band per
   setting, the references as horizontal lines; population experiments: `<experiment>-exploitability.png` (Fig. 7)
   and `<experiment>-meta-strategies.png` (Fig. 8: every run's meta-strategies, iteration x policy heat maps).
@@ -32,12 +36,12 @@ import numpy as np
 
 from ..learn.population.solvers import effective_policies
 from .experiments import Experiment
-from .figures import plot_curves, plot_exploitability, plot_meta_strategies
+from .figures import plot_curves, plot_exploitability, plot_intervals, plot_meta_strategies
 from .jobs import by_setting
 from .marl_eval import AbsoluteRecord, StepRecord, write_marl_eval
 from .results import Results, TrainingRun, collect, job_order
 from .stats import curve_intervals, improvement_intervals, interval_estimates, normalised
-from .verdicts import decide, weigh
+from .verdicts import decide, p_value, weigh
 
 __all__ = ['Results', 'TrainingRun', 'claim_rows', 'collect', 'format_each', 'p_value',
            'format_interval', 'summarise', 'write_report']
@@ -163,19 +167,17 @@ def format_interval(interval: dict | None, digits: int = 3) -> str:
 
 
 def claim_rows(claims: list[dict]) -> list[str]:
-    """The markdown table of the claims' verdicts (`summarise`'s 'claims'), header included."""
-    rows = ['| claim | task | verdict | evidence [95 % CI] | test: p (Holm) |', '|---|---|---|---|---|']
+    """The markdown table of the claims' verdicts (`summarise`'s 'claims'), header included; where a verdict with a
+    test is not decisive, a last column says why in its row (`mate.benchmark.verdicts.decide`'s `reason`)."""
+    why = any('reason' in claim for claim in claims)
+    rows = ['| claim | task | verdict | evidence [95 % CI] | test: p (Holm) |' + (' why not decisive |' * why),
+            '|---|---|---|---|---|' + '---|' * why]
     for claim in claims:
         evidence = '-' if 'point' not in claim else f'{claim["statistic"]}: {format_interval(claim)}'
         test = '-' if 'p' not in claim else f'{claim["test"]}: {p_value(claim["p"])} ({p_value(claim["p_holm"])})'
-        verdict = f'**{claim["verdict"]}**' + (f' ({claim["reason"]})' if claim.get('reason') else '')
-        rows.append(f'| {claim["text"]} | {claim["task"]} | {verdict} | {evidence} | {test} |')
+        rows.append(f'| {claim["text"]} | {claim["task"]} | **{claim["verdict"]}** | {evidence} | {test} |'
+                    + (f' {claim.get("reason", "-")} |' * why))
     return rows
-
-
-def p_value(p: float) -> str:
-    """'0.0079', '0.10', '<0.0001': two significant digits."""
-    return '<0.0001' if p < 1e-4 else f'{p:.2g}' if p < 0.1 else f'{p:.2f}'
 
 
 VERDICT_RULE = ('a verdict is decisive only where the 95 % interval and a test agree at 5 % after Holm\'s correction '
@@ -327,18 +329,19 @@ REPORT_HEADER = ('# Benchmark results', '',
 def write_report(directories: Iterable, out, reps: int = REPS, say: Callable[[str], None] = print) -> dict[str, Path]:
     """Write the report of the benchmark directories to `out` (module docstring); returns the files written."""
     out = Path(out)
+    merged = collect(directories)           # (a directory that is no benchmark: nothing written)
     out.mkdir(parents=True, exist_ok=True)
-    merged = collect(directories)
     files: dict[str, Path] = {}
     sections, summaries, records = list(REPORT_HEADER), {}, []
     for name, results in merged.items():
         summary = summarise(results, reps)
         summaries[name] = summary
+        figures = [plot_intervals(summary, out / f'{name}-intervals.png')]
         if results.experiment.population:
-            figures = [plot_exploitability(results, summary, out / f'{name}-exploitability.png'),
-                       plot_meta_strategies(results, out / f'{name}-meta-strategies.png')]
+            figures += [plot_exploitability(results, summary, out / f'{name}-exploitability.png'),
+                        plot_meta_strategies(results, out / f'{name}-meta-strategies.png')]
         else:
-            figures = [plot_curves(results, out / f'{name}-curves.png', reps)]
+            figures += [plot_curves(results, out / f'{name}-curves.png', reps)]
         figures = [figure for figure in figures if figure is not None]
         files.update({figure.name: figure for figure in figures})
         sections.append(markdown(summary, [figure.name for figure in figures]))

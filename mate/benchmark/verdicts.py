@@ -24,7 +24,9 @@ own statistic points the interval's way:
 The verdicts: *confirmed* / *refuted* (decisive, in the claim's direction or against it), *unresolved*, and for
 agreement claims *equivalent* / *not shown equivalent* (with a margin), *differ* or *no difference detected*. A claim
 whose test is significant but whose tested statistic (the mean difference; for two settings U) and interval point
-opposite ways is *unresolved* with a `reason` saying so (a few outlying runs move a mean and not an IQM).
+opposite ways is *unresolved* with a `reason` saying so (a few outlying runs move a mean and not an IQM); every
+verdict that is not decisive gets its `reason` in a few words (too few runs for the exact test to reach `ALPHA`, an
+interval across 1/2 or 0, a test not significant after Holm's correction), which the report's claims table shows.
 `weigh` gathers the evidence on one claim, `decide` gives an experiment's verdicts (`mate.benchmark.report` calls
 both). `simulate_false_decisive_rate` measures the rule's error rate on null data and `simulate_reference_claims`
 its rates against a reference at any true effect (tests/benchmark/test_verdicts.py: at most 5 % on null data at 3,
@@ -40,9 +42,9 @@ from collections.abc import Sequence
 import numpy as np
 
 __all__ = ['ALPHA', 'ENUMERATION_LIMIT', 'MIN_RUNS', 'REFERENCE_TEST', 'RUNS_VARIANCE_LEVEL', 'holm', 'mann_whitney_p',
-           'paired_reference_interval', 'reference_p', 'reference_freedom', 'equivalence_p',
-           'runs_for_a_decisive_verdict', 'simulate_false_decisive_rate', 'simulate_reference_claims', 'weigh',
-           'decide']
+           'paired_reference_interval', 'reference_p', 'reference_freedom', 'equivalence_p', 'p_value',
+           'runs_for_a_decisive_verdict', 'smallest_mann_whitney_p', 'simulate_false_decisive_rate',
+           'simulate_reference_claims', 'weigh', 'decide']
 
 ALPHA = 0.05
 """The false-positive rate a decisive verdict is held to (two-sided, after Holm's correction)."""
@@ -234,10 +236,17 @@ def equivalence_p(x: Sequence[float], y: Sequence[float], margin: float) -> floa
     return float(max(lower, upper))
 
 
+def smallest_mann_whitney_p(n: int, m: int) -> float:
+    """The smallest p-value the exact two-sided Mann-Whitney test can give with `n` and `m` runs: 2 / C(n + m, n)
+    (every run of one side above every run of the other: 0.1 at 3 a side, 0.029 at 4, 0.0079 at 5; 1 with a side
+    empty)."""
+    return min(1.0, 2.0 / math.comb(n + m, n)) if n and m else 1.0
+
+
 def runs_for_a_decisive_verdict(alpha: float = ALPHA, most: int = 20) -> int:
     """The fewest runs a side for which the exact two-sided permutation test can reach `alpha` (4 at 5 %)."""
     for runs in range(1, most + 1):
-        if 2.0 / math.comb(2 * runs, runs) <= alpha:
+        if smallest_mann_whitney_p(runs, runs) <= alpha:
             return runs
     raise ValueError(f'no number of runs up to {most} reaches alpha {alpha}')
 
@@ -320,8 +329,9 @@ def weigh(claim, task: str, scores: dict, reference_scores: dict, episodes: dict
     claim against a reference needs both). Returns the claim's row: text, better, worse, task, kind and either
     `verdict` (no data, too few runs) or the statistic with its interval (point, low, high), the test and its raw
     p-value `p` (against a reference also `mean`, the mean paired difference setting - reference the test tests),
-    and for `decide`: `lean`, 'holds' / 'fails' when the interval lies on one side, else None, and `test_lean`, the
-    side the tested statistic is on (U against n m / 2; the mean difference against 0)."""
+    `runs` (setting label -> its runs), and for `decide`: `lean`, 'holds' / 'fails' when the interval lies on one
+    side, else None, and `test_lean`, the side the tested statistic is on (U against n m / 2; the mean difference
+    against 0)."""
     from .stats import improvement_intervals
 
     row = dict(text=claim.text, better=claim.better, worse=claim.worse, task=task, kind=claim.kind)
@@ -333,6 +343,7 @@ def weigh(claim, task: str, scores: dict, reference_scores: dict, episodes: dict
     runs = min(len(scores[side]) for side in present)
     if runs < MIN_RUNS:
         return dict(row, verdict=f'too few runs ({runs}; a verdict needs {MIN_RUNS})')
+    row['runs'] = {side: len(scores[side]) for side in present}
     if len(present) == 2:
         better, worse = (np.asarray(scores[side], dtype=float) for side in sides)
         point, low, high = improvement_intervals({'b': better, 'w': worse}, pairs=[('b', 'w')], reps=reps)[('b', 'w')]
@@ -372,7 +383,8 @@ def decide(rows: list[dict]) -> list[dict]:
 
     A claim whose interval and corrected test are decisive but whose tested statistic lies on the other side (the
     mean difference of a few outlying runs against the IQM of the rest) is *unresolved* (*no difference detected*)
-    with a `reason` that says so."""
+    with a `reason` that says so; every other verdict that is not decisive (*unresolved*, *no difference detected*,
+    *not shown equivalent*) gets a `reason` too (`_not_decisive`)."""
     tested = [row for row in rows if 'p' in row]
     for row, adjusted in zip(tested, holm([row['p'] for row in tested])):
         lean, test_lean = row.pop('lean'), row.pop('test_lean', None)
@@ -381,6 +393,8 @@ def decide(rows: list[dict]) -> list[dict]:
         if decisive and lean and test_lean != lean and 'TOST' not in row['test']:
             row['reason'] = _disagreement(row, lean)
             decisive = False
+        elif not (decisive and (lean or 'TOST' in row['test'])):
+            row['reason'] = _not_decisive(row, lean, len(tested))
         if row['kind'] == 'agree' and 'TOST' in row['test']:
             row['verdict'] = 'equivalent' if decisive else 'not shown equivalent'
         elif row['kind'] == 'agree':
@@ -392,6 +406,35 @@ def decide(rows: list[dict]) -> list[dict]:
 
 REFERENCE_TEST = 'paired t, runs x episodes'
 """The name of the test of a claim against a reference in a report (`reference_p`)."""
+
+
+def p_value(p: float) -> str:
+    """'0.0079', '0.10', '<0.0001': two significant digits."""
+    return '<0.0001' if p < 1e-4 else f'{p:.2g}' if p < 0.1 else f'{p:.2f}'
+
+
+def _not_decisive(row: dict, lean: str | None, claims: int) -> str:
+    """Why a claim's verdict is not decisive, in a few words: the exact test cannot reach `ALPHA` with so few runs,
+    or the interval includes 1/2 (0 against a reference), or the test's p after Holm's correction over the `claims`
+    tested claims is not below `ALPHA` (the raw p named when it alone was)."""
+    if 'TOST' in row['test']:
+        return f"the equivalence test's p after Holm, {p_value(row['p_holm'])}, is not below {ALPHA:g}"
+    if row['test'] == 'exact Mann-Whitney':
+        n, m = row['runs'].values()
+        floor = smallest_mann_whitney_p(n, m)
+        if floor >= ALPHA:
+            runs = f'{n} runs a side' if n == m else f'{n} and {m} runs'
+            return f"{runs} cannot be decisive: the exact test's p is at least {p_value(floor)}"
+    centre = '1/2' if row['statistic'] == 'probability of improvement' else '0'
+    interval = f'the interval includes {centre}' if lean is None else \
+        f'the interval is {"above" if row["low"] > (0.5 if centre == "1/2" else 0.0) else "below"} {centre}'
+    if row['p_holm'] < ALPHA:
+        return f"{interval} (the test's p after Holm is {p_value(row['p_holm'])})"
+    joint = ' but' if lean else ' and'
+    if row['p'] < ALPHA:
+        return (f"{interval}{joint} the test's p, {p_value(row['p'])}, is {p_value(row['p_holm'])} after Holm's "
+                f'correction over {claims} claims, not below {ALPHA:g}')
+    return f"{interval}{joint} the test's p after Holm, {p_value(row['p_holm'])}, is not below {ALPHA:g}"
 
 
 def _disagreement(row: dict, lean: str) -> str:

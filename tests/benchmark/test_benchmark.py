@@ -433,6 +433,7 @@ def test_keep_copies_what_the_report_reads_and_a_run_goes_on_from_it(smoke, tmp_
     assert 'is the benchmark directory itself' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_job_is_known_by_its_resolved_config_wherever_it_is(smoke, tmp_path):
     """Every job's directory holds its resolved config (`job.json`): its command lines parsed by the commands'
     own parsers, defaults filled in, no paths. `--reuse` compares configs, so a kept copy (`mate benchmark keep`)
@@ -475,6 +476,7 @@ def test_a_job_is_known_by_its_resolved_config_wherever_it_is(smoke, tmp_path):
         [job for job in plan(exp, range(exp.seeds), other, threads=threads + 1) if job.kind == 'reference']
 
 
+@pytest.mark.slow
 def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     runs, _ = smoke
     exp = experiment('smoke')
@@ -534,6 +536,7 @@ def test_status_says_what_each_job_has_done(smoke, tmp_path, capsys):
     assert 'no benchmark.json' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
     runs, report = smoke
     exp = experiment('smoke')
@@ -581,6 +584,7 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
     assert '| MAPPO | 3 |' in markdown and '*upper-bound* (reference)' in markdown
     assert f'| (pipeline check) MAPPO beats IPPO | MATE-2v4-0 cameras | **{pair["verdict"]}** |' in markdown
     assert (report / 'smoke-curves.png').stat().st_size > 10_000
+    assert (report / 'smoke-intervals.png').stat().st_size > 10_000 and '![smoke](smoke-intervals.png)' in markdown
     data = json.loads((report / 'marl_eval.json').read_text())
     assert marl_eval_problems(data) == []           # what marl-eval's loader needs (tests/benchmark/test_marl_eval.py)
     runs_of = data['smoke']['MATE-2v4-0 cameras']
@@ -594,6 +598,7 @@ def test_smoke_report_has_intervals_references_and_marl_eval(smoke):
             assert len(run['step_0']['coverage_rate']) == exp.eval_episodes
 
 
+@pytest.mark.slow
 def test_a_report_names_the_runs_it_left_out_grouped_by_setting(smoke, tmp_path):
     """Runs not complete (no absolute metric yet) are left out of the statistics and named once per setting, seeds
     together, in results.json (which the quotes read) and results.md."""
@@ -619,6 +624,7 @@ def test_by_setting_groups_seeds_in_order_of_first_appearance():
     assert by_setting([]) == []
 
 
+@pytest.mark.slow
 def test_a_directory_of_another_budget_is_refused(smoke, capsys):
     runs, _ = smoke
     assert main(['benchmark', 'run', 'smoke', '--out', str(runs), '--steps', '400']) == 2

@@ -26,6 +26,7 @@ def test_the_readme_and_docs_quote_their_reports_exactly():
 KEPT = sorted((ROOT / 'docs' / 'results').glob('*/benchmark/benchmark.json'))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('manifest', KEPT, ids=[path.parts[-3] for path in KEPT])
 def test_a_report_with_its_data_committed_is_rebuilt_from_it_exactly(manifest, tmp_path):
     """A report committed with its runs' data beside it (`docs/results/EXPERIMENT/benchmark/`: the manifest and each
@@ -66,6 +67,8 @@ def test_quote_rewrites_a_stale_block_and_check_finds_a_changed_report(report, c
     assert f' | {", ".join(f"{value:.3f}" for value in each)} |\n' in text and len(each) == 3
     assert '[its report](../reports/diag/results.md)' in text          # relative to the quoting file
     assert '**unresolved**' in text and '**no data**' in text and 'exact Mann-Whitney: 0.10 (0.40)' in text
+    assert "| exact Mann-Whitney: 0.10 (0.40) | 3 runs a side cannot be decisive: the exact test's p is at least " \
+           '0.10 |' in text                                      # a verdict not decisive says why, in its row
     assert main(['benchmark', 'quote', '--root', str(root), '--check', str(page)]) == 0
     # the report changes (a re-run): the quoted table is stale again
     summary['tasks']['MATE-4v8-0 targets']['settings']['own credit']['absolute']['IQM']['point'] = 0.5
@@ -115,5 +118,7 @@ def test_a_verdicts_block_lists_every_claim_with_data_of_the_reports_it_names(tm
     assert any(row.startswith('| [fig7-psro, 100k per best response](docs/results/fig7-psro/results.md)') for row in rows)
     for row, claim in zip(rows, [c for c in claims if 'p' in c]):
         assert f'| {claim["text"]} | **{claim["verdict"]}** |' in row
+        assert row.endswith(f' | {claim.get("reason", "-")} |')          # why a verdict is not decisive
+    assert any('reason' in claim for claim in claims) and any('reason' not in claim for claim in claims)
     with pytest.raises(ValueError, match='does not exist'):
         quote_blocks(f'<!-- mate benchmark quote: verdicts docs/results/none/results.json -->\n{END}\n', ROOT, ROOT)

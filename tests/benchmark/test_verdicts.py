@@ -210,3 +210,35 @@ def test_no_committed_report_has_a_decisive_verdict_its_runs_do_not_support():
                     p = verdicts.mann_whitney_p(_runs_of(task, claim['better']), _runs_of(task, claim['worse']))
                     assert p == pytest.approx(claim['p']) and p < verdicts.ALPHA, (path, claim['text'])
     assert decisive > 10
+
+
+def test_every_verdict_that_is_not_decisive_says_why_and_a_decisive_one_needs_no_reason():
+    """`decide`'s `reason`, in the report's claims table: 3 runs a side can never reach 5 %; an interval on one side
+    whose test is not significant after Holm's correction (raw p named when it alone was); an interval across 1/2;
+    an agreement not shown within its margin. A confirmed claim has none."""
+    from mate.benchmark.experiments import Claim
+
+    def decided(claims, scores):
+        return verdicts.decide([verdicts.weigh(claim, 'task', scores, {}, {}, {}, reps=500) for claim in claims])
+
+    apart = {'A': np.array([0.6, 0.7, 0.8]), 'B': np.array([0.1, 0.2, 0.3])}
+    row, = decided([Claim('A beats B', 'A', 'B')], apart)
+    assert row['verdict'] == 'unresolved' and row['runs'] == {'A': 3, 'B': 3}
+    assert row['reason'] == "3 runs a side cannot be decisive: the exact test's p is at least 0.10"
+    assert verdicts.smallest_mann_whitney_p(3, 3) == pytest.approx(0.1)
+    assert verdicts.smallest_mann_whitney_p(3, 4) == pytest.approx(2 / 35) and 2 / 35 > verdicts.ALPHA
+    row, = decided([Claim('A beats B', 'A', 'B')], {'A': apart['A'], 'B': np.r_[apart['B'], 0.0]})
+    assert row['reason'].startswith('3 and 4 runs cannot be decisive')
+
+    five = {'A': np.arange(5) + 10.0, 'B': np.arange(5) + 0.0, 'C': np.r_[0.5, 1.5, 2.5, 12.0, 13.0]}
+    alone, = decided([Claim('A beats B', 'A', 'B')], five)
+    assert alone['verdict'] == 'confirmed' and 'reason' not in alone
+    crowded = decided([Claim('A beats B', 'A', 'B')] * 7, five)       # 7 x 0.0079 = 0.056 after Holm
+    assert {row['verdict'] for row in crowded} == {'unresolved'}
+    assert crowded[0]['reason'] == ("the interval is above 1/2 but the test's p, 0.0079, is 0.056 after Holm's "
+                                    'correction over 7 claims, not below 0.05')
+    across, = decided([Claim('C beats B', 'C', 'B')], five)
+    assert across['low'] < 0.5 < across['high'] and across['verdict'] == 'unresolved'
+    assert across['reason'].startswith('the interval includes 1/2 and the test\'s p after Holm, ')
+    agree, = decided([Claim('A and B agree', 'A', 'B', kind='agree', margin=0.5)], five)
+    assert agree['verdict'] == 'not shown equivalent' and agree['reason'].startswith("the equivalence test's p")
