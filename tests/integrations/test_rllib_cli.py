@@ -75,8 +75,7 @@ def error_of(capsys, *argv: str) -> str:
     (['--eval-every', '100', '--seed', '999990', '--num-envs', '64'],
      'seed + num_envs must be at most 1,000,000'),
     (['--seed', '999990', '--num-envs', '64'], 'seed + num_envs must be at most 1,000,000'),   # evaluated or not
-    (['--eval-episodes', '100001'], '--eval-episodes must be a whole number in 1..100,000 (the absolute metric plays '
-                                    '10 x as many, on seeds 2,000,000-2,999,999), got 100001'),
+    (['--eval-episodes', '100001'], "argument --eval-episodes: expected an integer >= 1 and <= 100000, got '100001'"),
     (['--team', 'cameras'], "invalid choice: 'cameras' (choose from 'camera', 'target')"),
     (['--activation', 'gelu'], "invalid choice: 'gelu'"),
     (['--iterations', '0'], "--iterations: expected an integer >= 1, got '0'"),
