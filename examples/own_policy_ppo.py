@@ -1,7 +1,17 @@
 """PPO for one MATE team in one file, scored with the benchmark's protocol: the way to bring your own algorithm.
 
-    python examples/own_policy_ppo.py --steps 20000                 # cameras vs the greedy targets, ~2 min
+    python examples/own_policy_ppo.py --steps 20000                 # cameras vs the greedy targets
+    python examples/own_policy_ppo.py --steps 20000 --eval-episodes 4       # a quick score while iterating
     python examples/own_policy_ppo.py --team target --config MATE-2v4-0 --steps 200000
+
+The score costs more than the training at this budget: on two cores shared with other jobs, 20,000 decisions
+trained in 6-10 s and the score took 85-125 s the first time, nearly all of it the three references, each playing the
+same 32 + 320 games of 2,500 env steps as the policy. They are the same games every run, so their episodes are kept
+in `--reference-cache` (default ~/.cache/mate/references, `$MATE_CACHE_DIR/references` when set; 'none' to play
+them every time) and the next runs scored in 7 s; `--eval-episodes 4` scores on 4 + 40 of those games (13.5 s
+without the cache; noisier: the benchmark's protocol is 32). The output says what the run spent.
+`train_for_benchmark` is a setting of `examples/custom_experiment.py`: the benchmark hands it the experiment's
+protocol, and it logs an evaluation whenever one falls due (the curve of the report).
 
 Read top to bottom (CleanRL style): the settings, the network, the PPO loop, the score. It uses mate's public API
 only: `mate.make_team_vec` (B games of one team, the other team played inside by the greedy rules) and
@@ -47,6 +57,7 @@ class Args:
     threads: int = 1                # torch threads (1 is fastest on a shared 2-core machine)
     eval_episodes: int = 32         # the protocol's evaluation (the absolute metric plays ten times as many)
     run_dir: str = ''               # where to keep evaluations.jsonl and absolute.json ('' : nowhere)
+    reference_cache: str = 'default'  # the references' episodes kept between runs: 'default', a folder, or 'none'
 
 
 def parse_args() -> Args:
@@ -98,8 +109,10 @@ class Agent(nn.Module):
         return action, distribution.log_prob(action).sum(-1), distribution.entropy().sum(-1), self.value(x)
 
 
-def train(args: Args, say=print):
-    """Train with PPO; returns (the agent, the observation scaler, the action bounds (N, 2))."""
+def train(args: Args, say=print, protocol=None):
+    """Train with PPO; returns (the agent, the observation scaler, the action bounds (N, 2)). With `protocol` (the
+    benchmark's, `mate.benchmark.user.RunProtocol`), the policy is evaluated whenever `protocol.due` says: the
+    points of the learning curve in the benchmark's report."""
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.threads)
     reward = 'coverage' if args.team == 'camera' else 'own'
@@ -160,6 +173,9 @@ def train(args: Args, say=print):
                 loss.backward()
                 nn.utils.clip_grad_norm_(agent.parameters(), args.max_grad_norm)
                 optimizer.step()
+        done = iteration * T * B
+        if protocol is not None and protocol.due(done - T * B, done):
+            protocol.evaluate(as_policy(agent, scale, high), env_steps=done)   # on the benchmark's evaluation games
         recent = (f'coverage of the last {len(finished[-25:])} training episodes {np.mean(finished[-25:]):.3f}'
                   if finished else 'no training episode finished yet')
         say(f'iteration {iteration}/{iterations}: {iteration * T * B:,} decisions, {recent}, '
@@ -175,17 +191,22 @@ def as_policy(agent: Agent, scale: Scaler, high: np.ndarray):
     return policy
 
 
-def train_for_benchmark(team: str, config: str, steps: int, seed: int, run_dir: str):
-    """A setting of `mate benchmark run examples/custom_experiment.py`: train, return the policy to be scored."""
-    agent, scale, high = train(Args(steps=steps, team=team, config=config, seed=seed, run_dir=run_dir))
-    return as_policy(agent, scale, high)
+def train_for_benchmark(team: str, config: str, steps: int, seed: int, run_dir: str, protocol):
+    """A setting of `mate benchmark run examples/custom_experiment.py`: train, logging the evaluations the
+    experiment's `protocol` asks for, and return the policy the benchmark scores."""
+    args = Args(steps=steps, team=team, config=config, seed=seed, run_dir=run_dir)   # 1 thread (<= protocol.threads)
+    return as_policy(*train(args, protocol=protocol))
 
 
 if __name__ == '__main__':
     args = parse_args()
+    start = time.perf_counter()
     agent, scale, high = train(args)
+    trained = time.perf_counter() - start
+    cache = {'default': True, 'none': None}.get(args.reference_cache, args.reference_cache)
     score = mate.score_policy(as_policy(agent, scale, high), args.team, args.config, episodes=args.eval_episodes,
-                              run_dir=args.run_dir or None, env_steps=args.steps)
+                              run_dir=args.run_dir or None, env_steps=args.steps, reference_cache=cache)
+    print(f'trained in {trained:.1f} s, scored in {time.perf_counter() - start - trained:.1f} s')
     print(f'held-out score ({score.metric}, {len(score.absolute)} episodes on seeds never trained on):')
     print(f'  PPO {score.absolute_mean:.3f}   ' + '   '.join(f'{name} {value:.3f}'
                                                           for name, value in score.reference_means.items()))

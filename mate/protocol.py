@@ -38,12 +38,23 @@ A policy is one of:
 `run_dir`: the run files `mate benchmark report` reads: `evaluations.jsonl` (one line per evaluation, at
 `env_steps` decisions) and `absolute.json` (the absolute metric's episodes), in the format of `mate train`'s runs,
 and `references.json` (the references' episodes, for the user; a benchmark directory plays its own reference jobs).
+
+**The cost, and scoring cheaply while iterating.** Nearly all of a default score of cameras is the references: each
+of the three plays the same 32 + 320 games of 2,500 env steps as the policy (measured on two cores shared with other
+jobs: 77-117 s of a score of 85-125 s; docs/own-algorithm.md). They are the same games every time, so
+`reference_cache=True` keeps their episodes between runs in `reference_cache_dir()` (or a folder of yours), as JSON
+files keyed by everything that decides a rule team's score (`reference_cache_key`), and plays a reference only when
+no file matches; `episodes=4` scores on the first 4 + 40 of the games, for quick comparisons (the benchmark's
+default stays 32).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import json
+import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -52,9 +63,10 @@ import numpy as np
 from .teams.protocol import as_team
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EPISODE_INFO', 'EVALUATION_SEEDS', 'FRESH_SEEDS',
-           'PAPER_SETTINGS', 'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'RESET_SEED_STRIDE', 'SEED_RANGES',
-           'TEAM_METRIC', 'REWARDS', 'MAX_EVAL_EPISODES', 'SEED_BLOCK', 'agent_team_factory', 'check_eval_episodes',
-           'checked_reward', 'evaluate', 'horizon', 'paper_config', 'score_policy', 'training_reset_seed']
+           'PAPER_SETTINGS', 'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'REFERENCE_CACHE_FORMAT', 'RESET_SEED_STRIDE',
+           'SEED_RANGES', 'TEAM_METRIC', 'REWARDS', 'MAX_EVAL_EPISODES', 'SEED_BLOCK', 'agent_team_factory',
+           'check_eval_episodes', 'checked_reward', 'evaluate', 'horizon', 'paper_config', 'reference_cache_dir',
+           'reference_cache_key', 'score_policy', 'training_reset_seed']
 
 EVALUATION_SEEDS = 1_000_000
 """First env seed of the periodic evaluation episodes (and the end of the training seeds)."""
@@ -308,15 +320,89 @@ def evaluate(policy=None, team='camera', config: str | None = None, *, team_fact
     return played
 
 
+REFERENCE_CACHE_FORMAT = 'mate.reference-cache/1'
+"""The format of a file of `score_policy`'s reference cache."""
+
+
+def reference_cache_dir() -> Path:
+    """The folder `score_policy(reference_cache=True)` keeps the references' episodes in: `$MATE_CACHE_DIR/references`
+    when that variable is set, else `$XDG_CACHE_HOME/mate/references`, else `~/.cache/mate/references`."""
+    if os.environ.get('MATE_CACHE_DIR'):
+        return Path(os.environ['MATE_CACHE_DIR']).expanduser() / 'references'
+    return Path(os.environ.get('XDG_CACHE_HOME') or Path.home() / '.cache').expanduser() / 'mate' / 'references'
+
+
+NOT_IN_A_RULE_GAME = ('learn', 'benchmark', 'integrations')
+"""The subpackages of mate that no game between rule teams runs (trainers, the benchmark, other libraries'
+adapters): left out of the code hash of `reference_cache_key`, so that editing them keeps the cache."""
+
+
+@functools.cache
+def _code_hash() -> str:
+    """sha256 of the code and presets that play a game between rule teams (every .py and .yaml file of mate but those
+    of `NOT_IN_A_RULE_GAME`, in path order): a changed game, rule team or preset is another game, whatever the
+    version says."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(p for p in root.rglob('*') if p.suffix in ('.py', '.yaml') and '__pycache__' not in p.parts
+                       and p.relative_to(root).parts[0] not in NOT_IN_A_RULE_GAME):
+        digest.update(str(path.relative_to(root)).encode() + b'\0' + path.read_bytes() + b'\0')
+    return digest.hexdigest()
+
+
+def reference_cache_key(reference: str, team: str, config: str, episodes: int, first_seed: int,
+                        max_episode_steps: int, opponent: str) -> dict:
+    """Everything that decides the episodes of the rule team `reference` (one of `mate.teams.RULE_TEAMS`) on
+    `episodes` games from `first_seed` cut at `max_episode_steps` env steps against the rule team `opponent`: those
+    values, the game (a preset's name, or a YAML file's name and the sha256 of its text), the code of this mate that
+    plays such a game (the sha256 of its files: `_code_hash`, which a new version changes too) and numpy's version
+    (the rules' random draws)."""
+    game = dict(config=str(config))
+    if Path(config).is_file():
+        game['sha256'] = hashlib.sha256(Path(config).read_bytes()).hexdigest()
+    return dict(format=REFERENCE_CACHE_FORMAT, reference=reference, team=team, **game, episodes=int(episodes),
+                first_seed=int(first_seed), max_episode_steps=int(max_episode_steps), opponent=opponent,
+                code=_code_hash(), numpy=np.__version__)
+
+
+def _reference_episodes(name: str, team: str, config: str, episodes: int, first_seed: int, steps: int, opponent,
+                        device: str, cache: Path | None) -> list[dict]:
+    """The reference `name`'s episodes (`_play`), read from the file of `cache` whose key matches when there is one
+    (a rule team against a rule team only; a file that does not parse or whose key differs is played again and
+    replaced), else played and, with `cache`, written there (JSON, replaced whole)."""
+    from .teams import RULE_TEAMS
+
+    if cache is None or name not in RULE_TEAMS or not isinstance(opponent, str) or opponent not in RULE_TEAMS:
+        return _play(name, None, team, config, episodes, first_seed, steps, opponent, device)
+    key = reference_cache_key(name, team, config, episodes, first_seed, steps, opponent)
+    text = json.dumps(key, sort_keys=True)
+    path = cache / f'{name}-{team}-{hashlib.sha256(text.encode()).hexdigest()[:24]}.json'
+    try:
+        kept = json.loads(path.read_text())
+        if kept['key'] == key and isinstance(kept['episodes'], list) and len(kept['episodes']) == episodes:
+            return kept['episodes']
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    played = _play(name, None, team, config, episodes, first_seed, steps, opponent, device)
+    cache.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f'{path.name}.{os.getpid()}.tmp')
+    tmp.write_text(json.dumps(dict(key=key, episodes=played)))
+    os.replace(tmp, path)
+    return played
+
+
 def score_policy(policy=None, team='camera', config: str | None = None, *, team_factory: Callable | None = None,
                  episodes: int = DEFAULT_EPISODES, max_episode_steps: int | None = None, opponent: str = 'greedy',
                  references: Sequence[str] | None = None, run_dir=None, env_steps: int = 0,
-                 device: str = 'cpu') -> PolicyScore:
+                 device: str = 'cpu', reference_cache=None) -> PolicyScore:
     """Score a policy as the benchmark scores its learners (module docstring): an evaluation on `episodes` games, the
     absolute metric on `ABSOLUTE_FACTOR` x `episodes` other held-out games, and the `references` (default
     `REFERENCES[team]`; () for none) on the same games. With `run_dir`, writes the run files `mate benchmark report`
     reads (an evaluation line at `env_steps` unless `evaluations.jsonl` has one there already, `absolute.json`,
-    `references.json`). ValueError for a bad team, count or name; the policy's own errors pass through."""
+    `references.json`). `reference_cache`: None or False, every reference is played; True, the rule teams'
+    episodes are kept in `reference_cache_dir()` and read back on the next call with the same key
+    (`reference_cache_key`); a folder, kept there. ValueError for a bad team, count or name; the policy's own errors
+    pass through."""
     team, config, episodes, steps = _settings(team, config, episodes, max_episode_steps)
     references = REFERENCES[team] if references is None else tuple(references)
     folder = None if run_dir is None else Path(run_dir)
@@ -330,7 +416,9 @@ def score_policy(policy=None, team='camera', config: str | None = None, *, team_
                               device=device)
     count = ABSOLUTE_FACTOR * episodes
     absolute = _play(policy, team_factory, team, config, count, ABSOLUTE_SEEDS, steps, opponent, device)
-    played = {name: {part: _play(name, None, team, config, n, first, steps, opponent, device)
+    cache = None if reference_cache in (None, False) else \
+        reference_cache_dir() if reference_cache is True else Path(reference_cache).expanduser()
+    played = {name: {part: _reference_episodes(name, team, config, n, first, steps, opponent, device, cache)
                      for part, n, first in (('evaluation', episodes, EVALUATION_SEEDS),
                                             ('absolute', count, ABSOLUTE_SEEDS))}
               for name in references}

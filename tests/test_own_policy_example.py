@@ -14,6 +14,21 @@ import pytest
 EXAMPLE = Path(__file__).resolve().parents[1] / 'examples' / 'own_policy_ppo.py'
 
 
+def test_the_custom_experiment_can_decide_its_claims():
+    """Built, `examples/custom_experiment.py` warns of no claim its seeds cannot decide (5 runs a side: Holm's
+    correction over its three claims)."""
+    pytest.importorskip('torch', reason='needs the train extra')
+    import warnings
+
+    from mate.benchmark.user import load_experiment
+
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        experiment = load_experiment(EXAMPLE.parent / 'custom_experiment.py')
+    assert experiment.seeds == 5 and [r if isinstance(r, str) else r.label for r in experiment.references][-1] == \
+        'sweeping cameras'
+
+
 def test_the_example_imports_only_the_public_api():
     tree = ast.parse(EXAMPLE.read_text())
     modules = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
@@ -28,11 +43,14 @@ def test_the_example_imports_only_the_public_api():
 @pytest.mark.slow
 def test_the_example_trains_and_scores_at_a_tiny_budget(tmp_path):
     pytest.importorskip('torch', reason='needs the train extra')
-    run = tmp_path / 'run'
+    run, cache = tmp_path / 'run', tmp_path / 'cache'
     result = subprocess.run([sys.executable, str(EXAMPLE), '--steps', '128', '--num-envs', '2', '--rollout', '16',
-                             '--horizon', '20', '--eval-episodes', '1', '--run-dir', str(run)],
+                             '--horizon', '20', '--eval-episodes', '1', '--run-dir', str(run),
+                             '--reference-cache', str(cache)],
                             cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr
+    assert len(list(cache.glob('*.json'))) == 6      # 3 references x (evaluation, absolute), for the next run
+    assert any(line.startswith('trained in ') and ' s, scored in ' in line for line in result.stdout.splitlines())
     assert 'not writable' not in result.stderr, result.stderr     # torch's warning about a read-only array
     assert 'iterations of 16 x 2 decisions (128 decision steps)' in result.stdout
     score_line = result.stdout.splitlines()[-2]
@@ -60,4 +78,9 @@ def test_the_custom_experiment_runs_from_another_folder_and_reports(tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     summary = json.loads((tmp_path / 'report' / 'results.json').read_text())['custom-ppo-vs-mappo']
     assert set(summary['tasks']['MATE-4v8-9 cameras']['settings']) == {'my PPO', 'MAPPO'}
+    assert list(summary['tasks']['MATE-4v8-9 cameras']['references']) == ['random', 'greedy', 'upper-bound',
+                                                                          'sweeping cameras']
+    claims = {claim['text']: claim for claim in summary['claims']}
+    against = claims['my PPO cameras cover more than the sweeping cameras']      # one seed: weighed, no verdict yet
+    assert against['worse'] == 'sweeping cameras' and against['verdict'].startswith('too few runs (1;')
     assert (tmp_path / 'report' / 'marl_eval.json').exists() and (tmp_path / 'report' / 'results.md').exists()

@@ -69,3 +69,51 @@ def test_evaluate_appends_a_curve(tmp_path):
         protocol.evaluate(still, 'camera', episodes=1, max_episode_steps=10, run_dir=tmp_path, env_steps=steps)
     records = [json.loads(line) for line in (tmp_path / 'evaluations.jsonl').read_text().splitlines()]
     assert [r['env_steps'] for r in records] == [100, 200] and records[0]['episodes'] == records[1]['episodes']
+
+
+def test_the_references_are_cached_by_what_decides_their_score(tmp_path, monkeypatch):
+    """`reference_cache`: a rule team's episodes are played once per key and read back (JSON) on the next call;
+    another horizon is another key; a file that does not parse or holds another key is played again."""
+    arguments = dict(team='camera', config='MATE-2v4-0', episodes=1, max_episode_steps=20, references=('random',),
+                     reference_cache=tmp_path)
+    first = mate.score_policy(still, **arguments)
+    files = sorted(tmp_path.glob('random-camera-*.json'))
+    assert len(files) == 2                               # the evaluation and the absolute episodes
+    assert json.loads(files[0].read_text())['key']['max_episode_steps'] == 20
+    played = []
+    real = protocol._play
+
+    def counted(policy, *args, **kwargs):
+        played.append(policy)
+        return real(policy, *args, **kwargs)
+
+    monkeypatch.setattr(protocol, '_play', counted)
+    second = mate.score_policy(still, **arguments)
+    assert 'random' not in played and second.references == first.references       # read back, the same episodes
+    mate.score_policy(still, **dict(arguments, max_episode_steps=21))
+    assert played.count('random') == 2 and len(list(tmp_path.glob('random-camera-*.json'))) == 4
+    files[0].write_text('{not json')
+    played.clear()
+    third = mate.score_policy(still, **arguments)
+    assert played.count('random') == 1 and third.references == first.references
+    keys = [json.loads(path.read_text())['key'] for path in files]       # the bad file replaced
+    assert sorted(keys, key=lambda key: key['first_seed']) == [
+        protocol.reference_cache_key('random', 'camera', 'MATE-2v4-0', 1, protocol.EVALUATION_SEEDS, 20, 'greedy'),
+        protocol.reference_cache_key('random', 'camera', 'MATE-2v4-0', 10, protocol.ABSOLUTE_SEEDS, 20, 'greedy')]
+
+
+def test_the_reference_cache_folder_is_documented(monkeypatch, tmp_path):
+    monkeypatch.setenv('MATE_CACHE_DIR', str(tmp_path / 'mine'))
+    assert protocol.reference_cache_dir() == tmp_path / 'mine' / 'references'
+    monkeypatch.delenv('MATE_CACHE_DIR')
+    monkeypatch.setenv('XDG_CACHE_HOME', str(tmp_path / 'xdg'))
+    assert protocol.reference_cache_dir() == tmp_path / 'xdg' / 'mate' / 'references'
+    key = protocol.reference_cache_key('greedy', 'camera', 'MATE-4v8-9', 32, protocol.EVALUATION_SEEDS, 2500, 'greedy')
+    assert {'reference', 'team', 'config', 'episodes', 'first_seed', 'max_episode_steps', 'opponent', 'code',
+            'numpy'} <= set(key)
+    config = tmp_path / 'game.yaml'
+    config.write_text('a: 1\n')
+    first = protocol.reference_cache_key('greedy', 'camera', str(config), 1, 0, 10, 'greedy')
+    config.write_text('a: 2\n')
+    assert protocol.reference_cache_key('greedy', 'camera', str(config), 1, 0, 10, 'greedy')['sha256'] != \
+        first['sha256']                                  # a YAML game is keyed by its text, not its name

@@ -1,7 +1,8 @@
 """The paper's experiments, and yours, as a benchmark (`mate benchmark`).
 
-- `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `Claim`, `EXPERIMENTS`; the
-  first three also here, for an experiment file of yours: `EXPERIMENT = mate.benchmark.Experiment(...)`);
+- `mate.benchmark.experiments`: the paper's figures as data (`Experiment`, `Setting`, `Claim`, `Reference`,
+  `EXPERIMENTS`; the first four also here, for an experiment file of yours: `EXPERIMENT =
+  mate.benchmark.Experiment(...)`);
 - `mate.benchmark.user`: experiments of the user's files (.py, .yaml, .json) and the jobs of their command-line and
   function settings;
 - `mate.benchmark.jobs`: an experiment's jobs (references, training runs, PSRO runs) for run seeds and a budget;
@@ -18,11 +19,11 @@ None imports torch (the training runs are `mate train` or `mate benchmark job` p
 reads a `mate train` command line with the trainer's own parser when a job starts or is compared.
 """
 
-from .experiments import Claim, Experiment, Setting
+from .experiments import Claim, Experiment, Reference, Setting
 from .marl_eval import AbsoluteRecord, StepRecord, marl_eval_json, write_marl_eval
 from .stats import (Interval, curve_intervals, improvement_intervals, interval_estimates, iqm, mean, normalised,
                     probability_of_improvement, stratified_bootstrap)
 
-__all__ = ['Experiment', 'Setting', 'Claim', 'iqm', 'mean', 'stratified_bootstrap', 'interval_estimates',
+__all__ = ['Experiment', 'Setting', 'Claim', 'Reference', 'iqm', 'mean', 'stratified_bootstrap', 'interval_estimates',
            'probability_of_improvement', 'improvement_intervals', 'curve_intervals', 'normalised', 'Interval',
            'StepRecord', 'AbsoluteRecord', 'marl_eval_json', 'write_marl_eval']

@@ -26,16 +26,43 @@ run may use a smaller one (`mate benchmark run --steps`), which the report state
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 from ..protocol import check_eval_episodes
+from .verdicts import ALPHA, runs_for_a_decisive_verdict
 
-__all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'REFERENCE_NAMES', 'Setting', 'experiment', 'experiment_of']
+__all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'REFERENCE_NAMES', 'Reference', 'Setting', 'UndecidableClaimWarning',
+           'experiment', 'experiment_of', 'reference_label']
 
 REFERENCE_NAMES = ('random', 'greedy', 'upper-bound')
-"""The rule teams an experiment may play as references (and name in its claims)."""
+"""The rule teams an experiment may play as references (and name in its claims); a team of the user's is a
+`Reference`."""
+
+
+_BUILDING_THE_PACKAGES = False
+"""True while the package's own experiments (`EXPERIMENTS`) are built."""
+
+
+class UndecidableClaimWarning(UserWarning):
+    """An experiment's claim between two settings that its `seeds` runs a side cannot make decisive (`Experiment`
+    warns when it is built)."""
+
+
+def _slug(label: str) -> str:
+    """A label in file names: lower case, every run of other characters than letters and digits as one '-'."""
+    return re.sub(r'[^a-z0-9]+', '-', label.lower()).strip('-')
+
+
+def _resolved_call(call: str | None, folder: Path) -> str | None:
+    """A call of 'file.py:name' relative to `folder` made absolute; any other as it is."""
+    where, _, name = (call or '').rpartition(':')
+    if where.endswith('.py') and not Path(where).is_absolute():
+        return f'{(folder / where).resolve()}:{name}'
+    return call
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,18 +129,78 @@ class Setting:
         """This setting as the experiment file in `folder` means it: a `call` of 'file.py:name' relative to the
         folder made absolute, and `{here}` in `argv` replaced by the folder (absolute)."""
         folder = Path(folder).resolve()
-        call = self.call
-        where, _, name = (call or '').rpartition(':')
-        if where.endswith('.py') and not Path(where).is_absolute():
-            call = f'{(folder / where).resolve()}:{name}'
         argv = tuple(part.replace('{here}', str(folder)) for part in self.argv)
-        return dataclasses.replace(self, call=call, argv=argv)
+        return dataclasses.replace(self, call=_resolved_call(self.call, folder), argv=argv)
 
     @property
     def slug(self) -> str:
         """The setting's name in file names: its label in lower case, every run of other characters than letters and
         digits as one '-' ('MAPPO+TarMAC': 'mappo-tarmac', 'MAPPO full obs.': 'mappo-full-obs')."""
-        return re.sub(r'[^a-z0-9]+', '-', self.label.lower()).strip('-')
+        return _slug(self.label)
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """A team of yours played as a reference, as random and greedy are: once per game, on the experiment's
+    evaluation and absolute games against the same opponent, with no budget and no curve; the report shows it beside
+    the rule teams, and a claim may name it (`Claim('my PPO beats my rules', 'my PPO', 'my rules')`). A scripted or
+    rule-based team enters a comparison this way instead of as a setting run `seeds` times to the same score.
+
+    Args:
+        label: its name in the report and in claims (neither a setting's label nor 'random', 'greedy',
+            'upper-bound').
+        call: the team: a function defined at the top level of a file, or 'path/to/file.py:name' (relative to the
+            experiment file) or 'module:name'; either a policy `f(observations (B, N, D)) -> actions (B, N, 2)` or
+            a factory `f(num_envs, counts, seed)` of a batched team (three arguments without defaults), told apart
+            and scored as the policy a training function returns (`mate.benchmark.user`). Stored as the file and
+            name it is defined by.
+    """
+
+    label: str
+    call: str | Callable
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.label, str) or not self.label.strip():
+            raise ValueError(f'a reference of yours needs a label (its name in the report and in claims), got '
+                             f'{self.label!r}')
+        if self.label in REFERENCE_NAMES or _slug(self.label) in REFERENCE_NAMES:
+            raise ValueError(f'reference {self.label!r}: the labels {", ".join(REFERENCE_NAMES)} (in any case) are '
+                             "the rule teams'; give yours another")
+        if callable(self.call):
+            object.__setattr__(self, 'call', _reference_of(self.call, 'a reference'))
+        if not isinstance(self.call, str) or not self.call.rpartition(':')[0]:
+            raise ValueError(f"reference {self.label!r}: call is a function or 'path/to/file.py:name', got "
+                             f'{self.call!r}')
+
+    @property
+    def slug(self) -> str:
+        """Its name in file names (`Setting.slug`)."""
+        return _slug(self.label)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Reference:
+        """A reference from its mapping (`to_dict`'s, or an entry of a YAML file's `references`); ValueError naming
+        a bad key."""
+        if not isinstance(data, dict):
+            raise ValueError(f"a reference is {', '.join(REFERENCE_NAMES)} or a mapping (label, call), got {data!r}")
+        known = {field.name for field in dataclasses.fields(cls)}
+        unknown, missing = sorted(set(data) - known), sorted(known - set(data))
+        if unknown or missing:
+            what = f'unknown key(s) {", ".join(unknown)}' if unknown else f'missing {", ".join(missing)}'
+            raise ValueError(f'reference {data.get("label", "?")!r}: {what}; the keys are {", ".join(sorted(known))}')
+        return cls(**data)
+
+    def resolved_from(self, folder: Path) -> Reference:
+        """This reference as the experiment file in `folder` means it (`Setting.resolved_from`)."""
+        return dataclasses.replace(self, call=_resolved_call(self.call, Path(folder).resolve()))
+
+
+def reference_label(reference: str | Reference) -> str:
+    """The name a reference goes by in jobs, the report and claims: a rule team's name, or a `Reference`'s label."""
+    return reference if isinstance(reference, str) else reference.label
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,13 +257,19 @@ class Experiment:
         eval_every: decision steps between evaluations at the experiment's budget (`eval_interval`: at a smaller one);
             eval_episodes: episodes per evaluation.
         horizon: env steps per training and evaluation episode (None: the trainer's, 500 decisions).
-        references: rule-based teams played on the evaluation seeds ('random', 'greedy', 'upper-bound').
+        references: teams played on the evaluation seeds, once per game: the rule teams 'random', 'greedy',
+            'upper-bound', and teams of yours as `Reference(label, call=...)` (in a YAML file, a mapping `{label,
+            call}`).
         iterations: PSRO iterations (population experiments only).
         seeds: runs per (setting, preset) unless `mate benchmark run --seeds` says otherwise.
         claim: the paper's claim the experiment tests, in a sentence.
         claims: that claim as comparisons the report judges.
         source: 'paper' for the package's experiments (their claims are the paper's, or mate's diagnostics of
             them), 'user' for an experiment of the user's file (`mate.benchmark.user`).
+
+    Built, it warns (`UndecidableClaimWarning`) for each claim between two settings that `seeds` runs a side can never
+    make decisive: the exact Mann-Whitney test needs 4 runs a side to reach 5 % at all, and more under Holm's
+    correction over the experiment's claims (`mate.benchmark.verdicts.runs_for_a_decisive_verdict`).
     """
 
     name: str
@@ -188,7 +281,7 @@ class Experiment:
     eval_every: int = 500_000
     eval_episodes: int = 32
     horizon: int | None = None
-    references: tuple[str, ...] = ('random', 'greedy')
+    references: tuple[str | Reference, ...] = ('random', 'greedy')
     iterations: int = 0
     seeds: int = 5
     claim: str = ''
@@ -203,21 +296,32 @@ class Experiment:
         object.__setattr__(self, 'settings', tuple(self.settings))
         for key in ('presets', 'references'):        # a single name (a YAML file's `presets: MATE-2v4-0`) is one
             value = getattr(self, key)
-            object.__setattr__(self, key, (value,) if isinstance(value, str) else tuple(value))
+            object.__setattr__(self, key, (value,) if isinstance(value, (str, Reference, dict)) else tuple(value))
+        try:
+            object.__setattr__(self, 'references', tuple(Reference.from_dict(r) if isinstance(r, dict) else r
+                                                         for r in self.references))
+        except ValueError as exc:
+            raise ValueError(f'experiment {self.name!r}: {exc}') from None
         object.__setattr__(self, 'claims', tuple(self.claims))
         self._check_counts()
         labels = [setting.label for setting in self.settings]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
             raise ValueError(f'experiment {self.name!r}: setting labels must differ; {twice[0]!r} is used twice')
-        bad = [name for name in self.references if name not in REFERENCE_NAMES]
+        bad = [r for r in self.references if not isinstance(r, Reference) and r not in REFERENCE_NAMES]
         if bad:
             raise ValueError(f'experiment {self.name!r}: unknown reference {bad[0]!r}; references are '
-                             f'{", ".join(REFERENCE_NAMES)}')
+                             f'{", ".join(REFERENCE_NAMES)}, or a team of yours as Reference(label, call=...)')
         if self.team == 'target' and 'upper-bound' in self.references:
             raise ValueError(f"experiment {self.name!r}: 'upper-bound' is a camera controller; a target experiment's "
                              "references are random and greedy")
-        played = () if self.population else self.references       # a population experiment plays no references
+        names = [reference_label(r) for r in self.references]
+        slugs = [_slug(name) for name in names]
+        clash = next((name for name, slug in zip(names, slugs) if name in labels or slugs.count(slug) > 1), None)
+        if clash is not None:
+            raise ValueError(f'experiment {self.name!r}: reference {clash!r} is named twice (as a setting or another '
+                             'reference, in file names lower case); every reference and setting needs its own label')
+        played = () if self.population else tuple(names)         # a population experiment plays no references
         for claim in self.claims:
             for side in (claim.better, claim.worse):
                 if side not in (*labels, *played):
@@ -226,6 +330,34 @@ class Experiment:
             if claim.preset is not None and claim.preset not in self.presets:
                 raise ValueError(f'experiment {self.name!r}, claim {claim.text!r}: preset {claim.preset!r} is not one '
                                  f'of its games ({", ".join(self.presets)})')
+        self._warn_undecidable(labels)
+
+    def _warn_undecidable(self, labels: list[str]) -> None:
+        """An `UndecidableClaimWarning` for each claim that one setting beats another which `seeds` runs a side can
+        never make decisive: the exact Mann-Whitney test's smallest two-sided p-value, 2 / C(2 n, n), must be below
+        `ALPHA` (n >= 4), and Holm's correction multiplies the smallest of the experiment's k tests by k (n such that
+        2 k / C(2 n, n) < ALPHA, whatever the other claims' tests give)."""
+        if self.source == 'paper' or _BUILDING_THE_PACKAGES:
+            return
+        tests = sum(len(self.presets) if claim.preset is None else 1 for claim in self.claims)
+        alone, anyway = runs_for_a_decisive_verdict(ALPHA), runs_for_a_decisive_verdict(ALPHA / max(tests, 1))
+        for claim in self.claims:
+            if claim.kind != 'better' or claim.better not in labels or claim.worse not in labels:
+                continue
+            if self.seeds >= anyway:
+                continue
+            smallest = 2 / math.comb(2 * self.seeds, self.seeds)
+            if self.seeds < alone:
+                why = (f'at seeds={self.seeds} a claim between two settings can never be decisive (the exact '
+                       f'Mann-Whitney test\'s smallest p at {self.seeds} vs {self.seeds} runs is {smallest:.2g}, not '
+                       f'below {ALPHA:g})')
+            else:
+                why = (f'at seeds={self.seeds} it is decisive only if the other claims\' tests are significant first '
+                       f'(Holm\'s correction over the experiment\'s {tests} tests multiplies the smallest p-value, '
+                       f'{smallest:.2g} at {self.seeds} vs {self.seeds} runs, by {tests})')
+            warnings.warn(f'experiment {self.name!r}, claim {claim.text!r}: {why}; {anyway} seeds or more can '
+                          f'decide it (the experiment\'s seeds={anyway}, or mate benchmark run --seeds 0-{anyway - 1})',
+                          UndecidableClaimWarning, stacklevel=4)
 
     def _check_counts(self) -> None:
         """ValueError unless the budget and counts are positive integers (`horizon` and, for a population
@@ -247,7 +379,8 @@ class Experiment:
         data = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)}
         data['settings'] = [setting.to_dict() for setting in self.settings]
         data['claims'] = [dataclasses.asdict(claim) for claim in self.claims]
-        data['presets'], data['references'] = list(self.presets), list(self.references)
+        data['presets'] = list(self.presets)
+        data['references'] = [r if isinstance(r, str) else r.to_dict() for r in self.references]
         return data
 
     @classmethod
@@ -268,7 +401,16 @@ class Experiment:
     def resolved_from(self, path: Path) -> Experiment:
         """This experiment as its file `path` means it (`Setting.resolved_from` the file's folder)."""
         folder = Path(path).resolve().parent
-        return dataclasses.replace(self, settings=tuple(s.resolved_from(folder) for s in self.settings))
+        with warnings.catch_warnings():         # the same claims and seeds: said when it was built
+            warnings.simplefilter('ignore', UndecidableClaimWarning)
+            return dataclasses.replace(self, settings=tuple(s.resolved_from(folder) for s in self.settings),
+                                       references=tuple(r if isinstance(r, str) else r.resolved_from(folder)
+                                                        for r in self.references))
+
+    @property
+    def own_references(self) -> tuple[Reference, ...]:
+        """The references that are teams of the user's (`Reference`), in order."""
+        return tuple(r for r in self.references if isinstance(r, Reference))
 
     @property
     def population(self) -> bool:
@@ -326,6 +468,7 @@ def _witness(team: str, preset: str, task: str, references: tuple[str, ...]) -> 
         claims=(Claim("RLlib PPO with IPPO's settings scores as IPPO", 'RLlib PPO', 'IPPO', kind='agree'),))
 
 
+_BUILDING_THE_PACKAGES = True       # no UndecidableClaimWarning for them: their docs say what their seeds decide
 EXPERIMENTS = {experiment.name: dataclasses.replace(experiment, source='paper') for experiment in (
     Experiment(
         'smoke', 'the whole pipeline in seconds (CI)', 'camera', ('MATE-2v4-0',),
@@ -445,6 +588,7 @@ EXPERIMENTS = {experiment.name: dataclasses.replace(experiment, source='paper') 
         claim='both teams adapt; the Nash meta-strategies spread over several policies'),
 )}
 """Every experiment, by name."""
+_BUILDING_THE_PACKAGES = False
 
 
 def experiment(name: str) -> Experiment:
@@ -460,14 +604,16 @@ def experiment_of(manifest: dict) -> Experiment:
     it keeps (format 'mate.benchmark/2'), or for a directory written before manifests kept it ('mate.benchmark/1')
     the package's experiment of its name; ValueError otherwise."""
     if manifest.get('definition'):
-        return Experiment.from_dict(manifest['definition'])
+        with warnings.catch_warnings():         # said when the experiment was built; the report's verdicts say more
+            warnings.simplefilter('ignore', UndecidableClaimWarning)
+            return Experiment.from_dict(manifest['definition'])
     if manifest['experiment'] not in EXPERIMENTS:
         raise ValueError(f"the manifest names the experiment {manifest['experiment']!r} without its definition (an old "
                          f"manifest, format {manifest.get('format')!r}) and the package has none of that name")
     return EXPERIMENTS[manifest['experiment']]
 
 
-def _reference_of(function: Callable) -> str:
+def _reference_of(function: Callable, what: str = 'a call setting') -> str:
     """'path/to/file.py:name' of a function defined at the top level of a file."""
     import inspect
 
@@ -477,6 +623,6 @@ def _reference_of(function: Callable) -> str:
         file = None
     name = getattr(function, '__name__', '')
     if not file or not name or name == '<lambda>' or getattr(function, '__qualname__', name) != name:
-        raise ValueError(f'a call setting needs a function defined at the top level of a file (def name(...)), got '
+        raise ValueError(f'{what} needs a function defined at the top level of a file (def name(...)), got '
                          f'{function!r}')
     return f'{Path(file).resolve()}:{name}'

@@ -17,6 +17,8 @@ A job is one command line of the package (`python -m mate ...`) whose output goe
 * a reference (`mate evaluate` of a rule team against the greedy rules) per (preset, reference): the evaluation
   episodes (seeds `EVALUATION_SEEDS`, ..., E episodes) and the absolute ones (seeds `ABSOLUTE_SEEDS`, ..., 10 E),
   each cut at the training horizon, the same episodes the learners are scored on; done when both JSON files exist.
+  A team of the user's (`mate.benchmark.experiments.Reference`) is played the same way by `mate benchmark job DIR
+  LABEL PRESET` (no seed), which writes the same two files.
 
 Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
 of a run are seeded `seed + row`, at most SEED_STRIDE of them: `plan` refuses a setting with more; a session resumed
@@ -38,7 +40,7 @@ from ..arguments import positive_int
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
 from ..protocol import SEED_BLOCK
-from .experiments import Experiment, Setting
+from .experiments import Experiment, Reference, Setting
 
 __all__ = ['MAX_SEED', 'PSRO_ENVS', 'SEED_STRIDE', 'Job', 'add_job_arguments', 'by_setting', 'check_run_seeds',
            'horizon_of', 'job_name', 'job_values', 'parse_presets', 'parse_seeds', 'parse_settings', 'plan']
@@ -199,7 +201,12 @@ def _population(experiment: Experiment, setting: Setting, preset: str, seed: int
     return Job('psro', setting.label, preset, seed, folder, (command,), (folder / 'state.json',))
 
 
-def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Job:
+def _reference(experiment: Experiment, agent: str | Reference, preset: str, out: Path, threads: int = 1) -> Job:
+    if isinstance(agent, Reference):            # a team of the user's: `mate benchmark job` plays it
+        folder = out / 'references' / f'{agent.slug}-{preset}'
+        command = ('benchmark', 'job', str(out), agent.label, preset, '--threads', str(threads))
+        return Job('reference', agent.label, preset, None, folder, (command,),
+                   tuple(folder / f'{name}.json' for name in ('evaluation', 'absolute')), TEAM_METRIC[experiment.team])
     folder = out / 'references' / f'{agent}-{preset}'
     own, other = ('--camera-agent', '--target-agent') if experiment.team == 'camera' else \
         ('--target-agent', '--camera-agent')
@@ -215,12 +222,14 @@ def _reference(experiment: Experiment, agent: str, preset: str, out: Path) -> Jo
 
 
 def add_job_arguments(parser: argparse.ArgumentParser) -> None:
-    """The arguments of `mate benchmark job DIR LABEL PRESET SEED [--threads N]`, the command line of a job of a
-    user's command-line or function setting (`_training`)."""
+    """The arguments of `mate benchmark job DIR LABEL PRESET [SEED] [--threads N]`, the command line of a job of a
+    user's command-line or function setting (`_training`), or without SEED of a user's reference team
+    (`_reference`)."""
     parser.add_argument('dir', metavar='DIR', help='the benchmark directory (its manifest defines the experiment)')
-    parser.add_argument('label', metavar='LABEL', help='the setting')
+    parser.add_argument('label', metavar='LABEL', help='the setting, or a reference of yours')
     parser.add_argument('preset', metavar='PRESET', help='the game')
-    parser.add_argument('seed', type=int, metavar='SEED', help='the run seed')
+    parser.add_argument('seed', type=int, nargs='?', default=None, metavar='SEED',
+                        help='the run seed (none for a reference)')
     parser.add_argument('--threads', type=positive_int, default=1, help='torch threads (default 1)')
 
 
@@ -238,7 +247,7 @@ def plan(experiment: Experiment, seeds: Iterable[int], out, steps: int | None = 
     labels = {setting.label for setting in experiment.settings} if settings is None else set(settings)
     chosen = [setting for setting in experiment.settings if setting.label in labels]
     jobs = [] if experiment.population else [
-        _reference(experiment, agent, preset, out) for preset in games for agent in experiment.references]
+        _reference(experiment, agent, preset, out, threads) for preset in games for agent in experiment.references]
     for seed in seeds:
         for preset in games:
             for setting in chosen:
@@ -284,11 +293,17 @@ def check_run_seeds(experiment: Experiment) -> None:
                              f'run\'s; 2 x iterations + 1 + num_envs must be at most {SEED_STRIDE:,}')
 
 
-def job_values(experiment: Experiment, preset: str, seed: int, steps: int, out, threads: int,
-               setting: Setting) -> dict:
+def job_values(experiment: Experiment, preset: str, seed: int | None, steps: int, out, threads: int,
+               setting: Setting | Reference) -> dict:
     """What a user's command-line or function setting is given for the run (`mate.benchmark.user.PLACEHOLDERS`): its
     run directory (absolute, from the current one), training seed (`seed x SEED_STRIDE`, as a mate trainer's),
-    budget, team, game, episode cut, evaluation episodes and interval, and torch threads."""
+    budget, team, game, episode cut, evaluation episodes and interval, and torch threads. For a user's reference
+    team (`Reference`, seed None): its directory under `references/`, the team, game, episode cut, evaluation
+    episodes and threads."""
+    if isinstance(setting, Reference):
+        return dict(run_dir=str(Path(out).resolve() / 'references' / f'{setting.slug}-{preset}'),
+                    team=experiment.team, config=preset, horizon=horizon_of(experiment),
+                    eval_episodes=experiment.eval_episodes, threads=int(threads))
     run_dir = Path(out).resolve() / 'runs' / f'{setting.slug}-{preset}-seed{seed}'
     return dict(run_dir=str(run_dir), seed=seed * SEED_STRIDE, steps=int(steps), team=experiment.team, config=preset,
                 horizon=horizon_of(experiment), eval_episodes=experiment.eval_episodes,

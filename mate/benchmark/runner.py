@@ -103,8 +103,8 @@ def run_job(job: Job) -> dict:
         if (configs := wanted_config(job)) is not None:     # a refused command line says why in the log
             write_job_config(job, configs)
         try:
-            return run_command(job.commands, str(job.dir / 'job.log'),
-                               [str(p) for p in job.outputs] if job.kind == 'reference' else [])
+            each = job.kind == 'reference' and len(job.outputs) == len(job.commands)   # a command per output file
+            return run_command(job.commands, str(job.dir / 'job.log'), [str(p) for p in job.outputs] if each else [])
         finally:
             runner.unlink(missing_ok=True)
 

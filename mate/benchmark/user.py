@@ -21,8 +21,19 @@ of three kinds:
   `train(team=..., config=..., steps=..., seed=..., run_dir=...)` in a job of its own and scores what it returns
   with `mate.score_policy` (a callable from observations (B, N, D) to actions (B, N, 2), a batched agent name, or
   a factory `f(num_envs, counts, seed)` of a batched team), on the experiment's evaluation episodes, writing the run
-  files. During training the function may call `mate.protocol.evaluate(policy, team, config, run_dir=run_dir,
-  env_steps=k, episodes=..., max_episode_steps=...)` to draw a learning curve.
+  files. A function with a `protocol` parameter also gets the experiment's protocol (`RunProtocol`: the horizon,
+  the evaluation schedule and episodes, and `protocol.evaluate(policy, env_steps)`, one point of the learning
+  curve on the benchmark's evaluation games); `train(team, config, steps, seed, run_dir, protocol)`:
+
+      def train(team, config, steps, seed, run_dir, protocol):
+          for before, after in ...:                      # decision steps before and after an update
+              ...
+              if protocol.due(before, after):
+                  protocol.evaluate(policy, env_steps=after)
+          return policy                                  # evaluated at `steps` and scored by the benchmark
+
+A reference of the user's (`mate.benchmark.experiments.Reference`: a policy or team factory, no training) is played
+by a job of its own too (`run_user_reference`), once per game, on the evaluation and absolute games.
 
 The seed a run gets is what a mate trainer gets (`seed x SEED_STRIDE`, rows below the evaluation seeds); its
 training games must stay in seed .. seed + SEED_STRIDE - 1 (its run seed's block: the next run seed trains from
@@ -38,13 +49,14 @@ import json
 import os
 import subprocess
 import sys
+import warnings
 from importlib import import_module
 from pathlib import Path
 
-from .experiments import Experiment, Setting
+from .experiments import Experiment, Reference, Setting, UndecidableClaimWarning
 
-__all__ = ['ENVIRONMENT_PREFIX', 'EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'environment', 'is_experiment_file',
-           'load_experiment', 'run_user_job', 'user_job']
+__all__ = ['ENVIRONMENT_PREFIX', 'EXPERIMENT_SUFFIXES', 'PLACEHOLDERS', 'RunProtocol', 'environment',
+           'is_experiment_file', 'load_experiment', 'run_user_job', 'run_user_reference', 'user_job']
 
 EXPERIMENT_SUFFIXES = ('.py', '.yaml', '.yml', '.json')
 """The files `mate benchmark run FILE` reads as an experiment."""
@@ -80,7 +92,9 @@ def load_experiment(path) -> Experiment:
         experiment = Experiment.from_dict(data)
     else:
         raise ValueError(f'{path}: an experiment file ends with {", ".join(EXPERIMENT_SUFFIXES)}')
-    return dataclasses.replace(experiment.resolved_from(path), source='user')
+    with warnings.catch_warnings():             # said when the file built it
+        warnings.simplefilter('ignore', UndecidableClaimWarning)
+        return dataclasses.replace(experiment.resolved_from(path), source='user')
 
 
 def _module_of(path: Path, name: str, keep_path: bool = False):
@@ -127,26 +141,89 @@ def _function(reference: str):
     return function
 
 
-def user_job(manifest: dict, folder, label: str, preset: str, seed: int, threads: int) -> tuple[Setting, dict]:
+@dataclasses.dataclass(frozen=True)
+class RunProtocol:
+    """What the benchmark gives a training function with a `protocol` parameter: the experiment's protocol for this
+    run, and `evaluate` to log the points of its learning curve as a mate trainer does.
+
+    Attributes:
+        team, config: the trained team ('camera', 'target') and the game (a preset's name).
+        steps: the run's budget in decision steps (summed over the games played at once).
+        seed: the training seed (run seed k: k x 1,000; the training games stay in seed .. seed + 999).
+        run_dir: the run's directory (absolute), where `evaluations.jsonl` goes.
+        horizon: env steps per episode of the experiment, evaluation and (if the function wants) training.
+        eval_every: decision steps between evaluations (the experiment's `eval_interval` at this budget).
+        eval_episodes: episodes per evaluation (the absolute metric plays ten times as many).
+        threads: the torch threads the run may use (already set for torch).
+    """
+
+    team: str
+    config: str
+    steps: int
+    seed: int
+    run_dir: str
+    horizon: int
+    eval_every: int
+    eval_episodes: int
+    threads: int = 1
+
+    @classmethod
+    def of(cls, values: dict) -> RunProtocol:
+        """The protocol of a job's `values` (`jobs.job_values`)."""
+        return cls(team=str(values['team']), config=str(values['config']), steps=int(values['steps']),
+                   seed=int(values['seed']), run_dir=str(values['run_dir']), horizon=int(values['horizon']),
+                   eval_every=int(values['eval_every']), eval_episodes=int(values['eval_episodes']),
+                   threads=int(values['threads']))
+
+    def due(self, before: int, after: int) -> bool:
+        """Whether an evaluation falls due between `before` and `after` decision steps (the steps done before and
+        after an update): a multiple of `eval_every` passed in (before, after], as `mate train` evaluates; False once
+        `after` reaches `steps`, where the benchmark evaluates the returned policy itself (the curve's last point)."""
+        return after < self.steps and after // self.eval_every > before // self.eval_every
+
+    def evaluate(self, policy=None, env_steps: int = 0, *, team_factory=None) -> list[dict]:
+        """One periodic evaluation at `env_steps` decision steps, appended to the run's `evaluations.jsonl`: the
+        policy (observations (B, N, D) -> actions (B, N, 2), or a team factory `f(num_envs, counts, seed)` as
+        `team_factory`) on the benchmark's `eval_episodes` evaluation games cut at `horizon` env steps, against the
+        greedy opponent (`mate.protocol.evaluate`). Returns one dict per episode."""
+        from ..protocol import evaluate
+
+        return evaluate(policy, self.team, self.config, team_factory=team_factory, episodes=self.eval_episodes,
+                        max_episode_steps=self.horizon, run_dir=self.run_dir, env_steps=int(env_steps))
+
+
+def user_job(manifest: dict, folder, label: str, preset: str, seed: int | None,
+             threads: int) -> tuple[Setting | Reference, dict]:
     """(setting, values) of a user's setting's job (`mate benchmark job FOLDER LABEL PRESET SEED`) in the benchmark
     directory `folder` of `manifest`: the command-line or function setting `label` of its experiment and what the
-    benchmark gives it (`jobs.job_values`); ValueError when `label` is no such setting."""
+    benchmark gives it (`jobs.job_values`); without a seed, (reference, values) of the user's reference team `label`.
+    ValueError when `label` is no such setting or reference."""
     from .experiments import experiment_of
     from .jobs import job_values
 
     experiment = experiment_of(manifest)
+    if seed is None:
+        reference = next((r for r in experiment.own_references if r.label == label), None)
+        if reference is None:
+            raise ValueError(f'{label!r} is no reference team of yours in {experiment.name} (its own: '
+                             f'{", ".join(r.label for r in experiment.own_references) or "none"}); a setting\'s job '
+                             'names a run seed')
+        return reference, job_values(experiment, preset, None, manifest['steps'], folder, threads, reference)
     setting = next((s for s in experiment.settings if s.label == label), None)
     if setting is None or setting.kind not in ('argv', 'call'):
         raise ValueError(f'{label!r} is no command-line or function setting of {experiment.name}')
     return setting, job_values(experiment, preset, seed, manifest['steps'], folder, threads, setting)
 
 
-def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> int:
+def run_user_job(setting: Setting | Reference, values: dict, episodes: int, say=print) -> int:
     """Run one job of a command-line or function setting with the job's `values` (the `PLACEHOLDERS`), then check
-    (command line) or write (function: `mate.score_policy`) the run files; returns the exit status."""
+    (command line) or write (function: `mate.score_policy`) the run files; a reference team's job
+    (`run_user_reference`). Returns the exit status."""
     run_dir = Path(values['run_dir'])
     run_dir.mkdir(parents=True, exist_ok=True)
     _limit_threads(int(values['threads']))      # the job's share of the cores (a command line inherits it)
+    if isinstance(setting, Reference):
+        return run_user_reference(setting, values, episodes, say)
     if setting.argv:
         values = dict(values, python=sys.executable)
         try:
@@ -173,8 +250,11 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
     except (ValueError, ImportError) as exc:
         say(f'the function of {setting.label} could not be imported: {exc}')
         return 2
-    policy = train(team=values['team'], config=values['config'], steps=int(values['steps']),
-                   seed=int(values['seed']), run_dir=str(run_dir))
+    given = dict(team=values['team'], config=values['config'], steps=int(values['steps']), seed=int(values['seed']),
+                 run_dir=str(run_dir))
+    if _takes(train, 'protocol'):               # the experiment's protocol, for a function that asks for it
+        given['protocol'] = RunProtocol.of(values)
+    policy = train(**given)
     arguments = dict(team=values['team'], config=values['config'], episodes=episodes,
                      max_episode_steps=int(values['horizon']), references=(), run_dir=run_dir,
                      env_steps=int(values['steps']))
@@ -185,6 +265,35 @@ def run_user_job(setting: Setting, values: dict, episodes: int, say=print) -> in
     say(f'{setting.label}: absolute {score.metric} {score.absolute_mean:.3f} ({len(score.absolute)} episodes) '
         f'-> {run_dir / "absolute.json"}')
     (run_dir / 'job.json').write_text(json.dumps(dict(setting=setting.to_dict(), values=values), indent=1))
+    return 0
+
+
+def run_user_reference(reference: Reference, values: dict, episodes: int, say=print) -> int:
+    """Play a user's reference team (`values`: `jobs.job_values` of it) as the benchmark plays a rule team: the
+    evaluation games (`episodes` from `EVALUATION_SEEDS`) and the absolute ones (10 x as many from
+    `ABSOLUTE_SEEDS`), cut at the horizon, against the greedy opponent; writes `evaluation.json` and
+    `absolute.json` (`{'metric', 'mean', 'seeds', 'episodes'}`: the episodes as `mate evaluate --json` writes those
+    of a rule team), each replaced whole. Returns the exit status."""
+    from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC, _play
+
+    try:
+        team = _function(reference.call)
+    except (ValueError, ImportError) as exc:
+        say(f'the team of the reference {reference.label} could not be imported: {exc}')
+        return 2
+    factory = team if _is_factory(team) else None
+    policy = None if factory is not None else team
+    run_dir, metric = Path(values['run_dir']), TEAM_METRIC[values['team']]
+    for part, count, first in (('evaluation', episodes, EVALUATION_SEEDS),
+                               ('absolute', ABSOLUTE_FACTOR * episodes, ABSOLUTE_SEEDS)):
+        played = _play(policy, factory, values['team'], values['config'], count, first, int(values['horizon']),
+                       'greedy', 'cpu')
+        record = dict(metric=metric, mean=sum(e[metric] for e in played) / count, seeds=[first, first + count - 1],
+                      episodes=played)
+        tmp = run_dir / f'{part}.json.tmp'          # a job killed while writing leaves no half file that looks done
+        tmp.write_text(json.dumps(record, indent=1))
+        os.replace(tmp, run_dir / f'{part}.json')
+        say(f'{reference.label} ({part}): {metric} {record["mean"]:.3f} ({count} episodes) -> {run_dir}/{part}.json')
     return 0
 
 
@@ -200,6 +309,18 @@ def _limit_threads(threads: int) -> None:
     os.environ.setdefault('OMP_NUM_THREADS', str(threads))
     if 'torch' in sys.modules:
         sys.modules['torch'].set_num_threads(threads)
+
+
+def _takes(function, name: str) -> bool:
+    """Whether `function` has a parameter `name` (one it can be given by keyword)."""
+    import inspect
+
+    try:
+        parameter = inspect.signature(function).parameters.get(name)
+    except (TypeError, ValueError):
+        return False
+    return parameter is not None and parameter.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                                        inspect.Parameter.KEYWORD_ONLY)
 
 
 def _is_factory(function) -> bool:

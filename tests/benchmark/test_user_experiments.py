@@ -55,6 +55,7 @@ def mine(tmp_path_factory):
     return elsewhere
 
 
+@pytest.mark.slow
 def test_a_python_experiment_runs_and_reports_from_any_directory(mine):
     results = json.loads((mine / 'report' / 'results.json').read_text())['mine']
     settings = results['tasks']['MATE-2v4-0 cameras']['settings']
@@ -77,6 +78,7 @@ def test_status_reads_the_manifest_alone(mine, capsys):
     assert 'mine: ' in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_a_yaml_experiment_with_a_command_line_and_a_function_setting(tmp_path, monkeypatch):
     """A YAML file beside its script and its training function, run from another folder: `{here}`, `{python}`, the
     placeholders and the environment variables of a command line, and a 'file.py:function' call."""
@@ -128,6 +130,7 @@ def test_a_yaml_experiment_with_a_command_line_and_a_function_setting(tmp_path, 
     assert set(marl['mine-yaml']['MATE-2v4-0 targets']) == {'script', 'rules'}
 
 
+@pytest.mark.slow
 def test_a_command_line_must_leave_the_run_files(tmp_path, capsys):
     (tmp_path / 'lazy.yaml').write_text(textwrap.dedent('''
         name: lazy
@@ -226,6 +229,7 @@ def test_the_jobs_recipe_works_as_written(capsys):
     assert '# ' + printed in recipe               # what it prints is what its comment says
 
 
+@pytest.mark.slow
 def test_the_runner_recipe_works_as_written(tmp_path, monkeypatch):
     """The recipe of mate/benchmark/runner.py's docstring, run as written (in a temporary directory)."""
     import mate.benchmark.runner as runner
@@ -234,3 +238,181 @@ def test_the_runner_recipe_works_as_written(tmp_path, monkeypatch):
     exec(_recipe(runner), {})
     assert (tmp_path / 'bench' / 'smoke' / 'benchmark.json').exists()
     assert main(['benchmark', 'report', 'bench/smoke', '--out', 'report', '--reps', '200']) == 0
+
+
+REFERENCE_EXPERIMENT = '''
+import numpy as np
+
+from mate.benchmark.experiments import Claim, Experiment, Reference, Setting
+from mate.teams import make_team
+
+
+def still(observations):
+    """A scripted team: no camera moves."""
+    return np.zeros((*observations.shape[:2], 2))
+
+
+def greedy_by_factory(num_envs, counts, seed):
+    """The greedy cameras as a team factory of mine."""
+    return make_team('greedy', 'camera', num_envs, counts, seed=seed)
+
+
+def stand_still(team, config, steps, seed, run_dir):
+    return still
+
+
+def greedy(team, config, steps, seed, run_dir):
+    return 'greedy'
+
+
+def curve(team, config, steps, seed, run_dir, protocol):
+    """A 'training' of 40 decisions a step that logs the evaluations its protocol asks for."""
+    assert (protocol.team, protocol.config, protocol.steps) == (team, config, steps) == ('camera', 'MATE-2v4-0', 100)
+    assert (protocol.horizon, protocol.eval_every, protocol.eval_episodes, protocol.seed) == (30, 25, 2, seed)
+    for done in range(40, steps + 40, 40):
+        if protocol.due(done - 40, done):
+            protocol.evaluate(still, env_steps=done)
+    return still
+
+
+EXPERIMENT = Experiment(
+    'with-mine', 'rules of mine as references', 'camera', ('MATE-2v4-0',),
+    (Setting('stand still', call=stand_still), Setting('greedy again', call=greedy), Setting('curve', call=curve)),
+    steps=100, eval_every=25, eval_episodes=2, horizon=30, seeds=3,
+    references=('random', 'greedy', Reference('still cameras', call=still),
+                {'label': 'my greedy', 'call': 'with_mine.py:greedy_by_factory'}),
+    claim='the greedy rules beat standing still',
+    claims=(Claim('greedy again beats the still cameras', 'greedy again', 'still cameras'),
+            Claim('my greedy beats standing still', 'my greedy', 'stand still')))
+'''
+
+
+@pytest.fixture(scope='module')
+def with_mine(tmp_path_factory):
+    """An experiment with two reference teams of the user's (a policy and a factory, the second given as a YAML
+    file would give it) and a training function that takes the protocol, run and reported."""
+    home = tmp_path_factory.mktemp('with-mine')
+    (home / 'with_mine.py').write_text(REFERENCE_EXPERIMENT)
+    monkey = pytest.MonkeyPatch()
+    monkey.chdir(home)
+    try:
+        assert main(['benchmark', 'run', 'with_mine.py', '--out', 'out', '--jobs', '2', '--threads', '1']) == 0
+        assert main(['benchmark', 'report', 'out', '--out', 'report', '--reps', '500']) == 0
+    finally:
+        monkey.undo()
+    return home
+
+
+@pytest.mark.slow
+def test_a_reference_team_of_yours_is_played_once_on_the_same_games(with_mine):
+    summary = json.loads((with_mine / 'report' / 'results.json').read_text())['with-mine']
+    task = summary['tasks']['MATE-2v4-0 cameras']
+    references, settings = task['references'], task['settings']
+    assert list(references) == ['random', 'greedy', 'still cameras', 'my greedy']
+    assert all(reference['episodes'] == 20 for reference in references.values())
+    # the same games: a factory of the greedy cameras scores as the greedy reference, episode for episode, and a
+    # setting that returns the reference's policy as the reference
+    folder = with_mine / 'out' / 'references'
+    episodes = {name: json.loads((folder / f'{name}-MATE-2v4-0' / 'absolute.json').read_text())['episodes']
+                for name in ('greedy', 'my-greedy', 'still-cameras')}
+    assert [e['coverage_rate'] for e in episodes['greedy']] == [e['coverage_rate'] for e in episodes['my-greedy']]
+    assert settings['stand still']['absolute']['IQM']['point'] == pytest.approx(references['still cameras']['absolute'])
+    assert references['greedy']['absolute'] > references['still cameras']['absolute']
+    jobs = json.loads((with_mine / 'out' / 'benchmark.json').read_text())['jobs']
+    assert sum(job['label'] == 'still cameras' for job in jobs) == 1      # once per game: no seeds, no budget
+    markdown = (with_mine / 'report' / 'results.md').read_text()
+    assert '| *still cameras* (reference) |' in markdown and '| *my greedy* (reference) |' in markdown
+
+
+@pytest.mark.slow
+def test_a_claim_against_a_reference_team_of_yours(with_mine):
+    summary = json.loads((with_mine / 'report' / 'results.json').read_text())['with-mine']
+    claims = {claim['text']: claim for claim in summary['claims']}
+    against = claims['greedy again beats the still cameras']
+    assert against['statistic'].startswith('IQM of greedy again - still cameras')
+    assert against['test'] == 'paired t, runs x episodes' and against['verdict'] == 'confirmed'
+    assert against['low'] > 0
+    reverse = claims['my greedy beats standing still']             # the reference on the better side
+    assert reverse['statistic'].startswith('IQM of stand still - my greedy') and reverse['verdict'] == 'confirmed'
+
+
+@pytest.mark.slow
+def test_a_training_function_gets_the_protocol_and_draws_a_curve(with_mine):
+    from mate.learn.evaluation import read_evaluations
+
+    for seed in range(3):
+        logged = read_evaluations(with_mine / 'out' / 'runs' / f'curve-MATE-2v4-0-seed{seed}')
+        assert [e['env_steps'] for e in logged] == [40, 80, 100]     # due at 25, 50 and 75; the benchmark's at 100
+        assert all(len(e['episodes']) == 2 for e in logged)
+    still = read_evaluations(with_mine / 'out' / 'runs' / 'stand-still-MATE-2v4-0-seed0')
+    assert [e['env_steps'] for e in still] == [100]                  # a function without `protocol`: as before
+    summary = json.loads((with_mine / 'report' / 'results.json').read_text())['with-mine']
+    assert summary['tasks']['MATE-2v4-0 cameras']['settings']['curve']['runs'] == 3
+
+
+def test_a_reference_team_is_checked_when_it_is_built(tmp_path):
+    from mate.benchmark.experiments import Reference
+
+    def local(observations):
+        return observations
+
+    setting = (Setting('MAPPO', 'mappo'),)
+    with pytest.raises(ValueError, match="the labels random, greedy, upper-bound .in any case. are the rule teams'"):
+        Reference('Greedy', call='rules.py:greedy')
+    with pytest.raises(ValueError, match='a reference needs a function defined at the top level'):
+        Reference('mine', call=local)
+    with pytest.raises(ValueError, match="reference 'MAPPO' is named twice"):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), setting, steps=10,
+                   references=('random', Reference('MAPPO', call='rules.py:act')))
+    with pytest.raises(ValueError, match="reference 'mine': missing call"):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), setting, steps=10, references=({'label': 'mine'},))
+    with pytest.raises(ValueError, match='unknown reference .greedyy.; references are random, greedy, upper-bound, or'):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), setting, steps=10, references=('greedyy',))
+    (tmp_path / 'mine.yaml').write_text(textwrap.dedent('''
+        name: mine
+        figure: a reference of mine
+        team: target
+        presets: MATE-2v4-0
+        settings: [{label: MAPPO, command: mappo}]
+        steps: 10
+        references: [random, {label: my rules, call: 'rules.py:act'}]
+        claims: [{text: MAPPO beats my rules, better: MAPPO, worse: my rules}]
+        '''))
+    experiment = load_experiment(tmp_path / 'mine.yaml')
+    assert experiment.references == ('random', Reference('my rules', f'{(tmp_path / "rules.py").resolve()}:act'))
+    assert Experiment.from_dict(experiment.to_dict()) == experiment            # what the manifest keeps
+
+
+def test_a_claim_between_settings_that_its_seeds_cannot_decide_warns():
+    import dataclasses
+    import warnings
+
+    from mate.benchmark.experiments import EXPERIMENTS, UndecidableClaimWarning
+
+    settings = (Setting('A', 'mappo'), Setting('B', 'ippo'))
+    one = (Claim('A beats B', 'A', 'B'),)
+    with pytest.warns(UndecidableClaimWarning, match=r"claim 'A beats B': at seeds=3 a claim between two settings can "
+                                                      r"never be decisive .* is 0\.1, .*4 seeds or more"):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=3, claims=one)
+    three = (*one, Claim('A beats random', 'A', 'random'), Claim('B beats random', 'B', 'random'))
+    with pytest.warns(UndecidableClaimWarning, match=r"at seeds=4 it is decisive only if the other claims' tests are "
+                                                      r"significant first .*3 tests.* by 3\); 5 seeds or more"):
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=4, claims=three)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=4, claims=one)
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=5, claims=three)
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=2, claims=three[1:])  # references
+        Experiment('x', 'x', 'camera', ('MATE-2v4-0',), settings, steps=10, seeds=3,
+                   claims=(Claim('A and B agree', 'A', 'B', kind='agree', margin=0.1),))       # TOST: a t-test
+        dataclasses.replace(EXPERIMENTS['smoke'], seeds=2)       # the package's experiments: their docs say so
+        experiment_of(dict(definition=dict(EXPERIMENTS['smoke'].to_dict(), source='user')))   # said when built
+
+
+def test_the_protocol_says_when_an_evaluation_is_due():
+    from mate.benchmark.user import RunProtocol
+
+    protocol = RunProtocol('camera', 'MATE-4v8-9', steps=10, seed=0, run_dir='run', horizon=30, eval_every=4,
+                           eval_episodes=2)
+    assert [protocol.due(before, after) for before, after in ((0, 3), (3, 5), (5, 8), (8, 9), (8, 10), (9, 12))] == \
+        [False, True, True, False, False, False]          # 4 and 8 passed; at 10 (the budget) the benchmark's own
