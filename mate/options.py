@@ -10,7 +10,8 @@ annotation:
 * `Literal['a', 'b']`: one of the choices;
 * `tuple[int, ...]` / `tuple[float, ...]`: one or more numbers (`--hidden 64 64`);
 * `X | None`: as X, default None (the help says what None means);
-* schedules, `tuple[tuple[float, float], ...]`: JSON `[[step, value], ...]`.
+* schedules, `tuple[tuple[float, float], ...]`: JSON `[[step, value], ...]` (a step may be a string, `"40%"`: a
+  share of the budget, `mate.learn.schedules`).
 
 `add_options(parser, Config)` adds them; `config_from(parser, Config, args)` builds the dataclass from the parsed
 namespace (its `__post_init__` checks the values; a ValueError becomes the parser's two-line error). An option
@@ -77,14 +78,16 @@ def _unwrap_optional(annotation):
 
 
 def _schedule(text: str):
+    """A schedule's JSON [[step, value], ...]: numbers, or a step as a string ('40%': a share of the budget, which
+    the config checks)."""
     try:
         value = json.loads(text)
-        points = tuple((float(step), float(v)) for step, v in value)
+        points = tuple((step.strip() if isinstance(step, str) else float(step), float(v)) for step, v in value)
     except (ValueError, TypeError) as exc:
         raise argparse.ArgumentTypeError(f'expected JSON [[step, value], ...], got {text!r} ({exc})') from None
     if not points:
         raise argparse.ArgumentTypeError('a schedule needs at least one [step, value] point')
-    return tuple((int(s) if s == int(s) else s, v) for s, v in points)
+    return tuple((s if isinstance(s, str) else int(s) if s == int(s) else s, v) for s, v in points)
 
 
 def _help(field: dataclasses.Field, default_text: str) -> str:

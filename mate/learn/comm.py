@@ -301,9 +301,11 @@ class I2CActor(nn.Module):
     def forward(self, obs: torch.Tensor, state, starts: torch.Tensor,
                 delivered: torch.Tensor | None = None) -> torch.Tensor:
         features = self.features(obs, delivered=delivered)   # no recurrence before the LSTM: all decisions at once
-        gates, hidden = self.cell.input_gates(features), []
-        for t in range(obs.shape[0]):
-            state = self.cell.recur(gates[t], restarted(state, starts[t]))
+        hidden = []
+        # unbind: one view per decision, whose backward stacks the T gradients once (indexing gates[t] T times
+        # made each step's backward fill and add a zero gradient of the whole sequence: T^2 memory traffic)
+        for t, gates in enumerate(self.cell.input_gates(features).unbind(0)):
+            state = self.cell.recur(gates, restarted(state, starts[t]))
             hidden.append(state[0])
         return self.head(torch.cat([features, torch.stack(hidden)], dim=-1))
 
@@ -352,7 +354,7 @@ class JointActionValue(nn.Module):
         base, _, _, own = self._first_layer(state, actions)
         lead, (n, a, h) = base.shape[:-2], own.shape
         pre = base.reshape(-1, n, 1, h).transpose(0, 1) + own[:, None]                   # (N, R, A own, H)
-        values = self.net.agent_major(self.net.activation(pre.reshape(n, -1, h)), start=1)   # (N, R A, 1)
+        values = self.net.agent_major(self.net.activate_(pre.reshape(n, -1, h)), start=1)   # (N, R A, 1)
         return values.reshape(n, -1, a).transpose(0, 1).reshape(*lead, n, a)
 
     def paired_action_values(self, state: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -362,7 +364,7 @@ class JointActionValue(nn.Module):
         lead, (n, k, a, h) = base.shape[:-2], mates.shape
         others = (base.unsqueeze(-2) - taken).reshape(-1, n, k, 1, 1, h).transpose(0, 1)  # (N, R, K, 1, 1, H)
         pre = others + own[:, None, None, :, None, :] + mates[:, None, :, None, :, :]    # (N, R, K, A, A, H)
-        values = self.net.agent_major(self.net.activation(pre.reshape(n, -1, h)), start=1)   # (N, R K A A, 1)
+        values = self.net.agent_major(self.net.activate_(pre.reshape(n, -1, h)), start=1)   # (N, R K A A, 1)
         return values.reshape(n, -1, k, a, a).transpose(0, 1).reshape(*lead, n, k, a, a)
 
 

@@ -47,7 +47,7 @@ from .policy import make_actor
 from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_targets, epsilon_greedy
 from .replay import ReplayBuffer
 from .run import Run, mean_or_nan
-from .schedules import piecewise
+from .schedules import piecewise, resolve_schedule
 from .spec import PolicySpec
 
 __all__ = ['IQLConfig', 'iql_loss', 'policy_spec', 'train']
@@ -63,7 +63,7 @@ class IQLConfig(QLearningConfig):
     activation: Literal['tanh', 'relu'] = option('tanh', "the trunk's activation")
     lr_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 5e-4), (4_000_000, 1e-4), (8_000_000, 5e-5)), 'learning rate (Adam), a step function of decision '
-        'steps [[step, lr], ...]')
+        'steps [[step, lr], ...] (a step "P%%": P %% of --steps)')
 
     SCHEDULES = ('epsilon_schedule', 'lr_schedule')
 
@@ -153,12 +153,14 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
         return algorithm
 
     learn_threads = update_threads(config)
+    epsilon_schedule, lr_schedule = (resolve_schedule(points, config.steps)    # shares of the budget: steps
+                                     for points in (config.epsilon_schedule, config.lr_schedule))
     coverage, episodes, losses, q_means = [], [], [], []
     with run:
         while run.running():
             while True:   # one iteration: decisions until the next log row
                 # ---- act: epsilon-greedy for every agent of every env, one forward pass
-                epsilon = piecewise(config.epsilon_schedule, steps, interpolate=True)
+                epsilon = piecewise(epsilon_schedule, steps, interpolate=True)
                 with torch.no_grad():
                     q = q_net(torch.from_numpy(obs).to(device)).cpu()
                 action = epsilon_greedy(q.unflatten(-1, (H, C)), epsilon, rng, allowed_choices(spec, obs))  # (B, N, H)
@@ -180,7 +182,7 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
                     torch.set_num_threads(learn_threads)
                     while steps >= next_update and replay.size:
                         next_update += config.update_every
-                        lr = piecewise(config.lr_schedule, steps, interpolate=False)
+                        lr = piecewise(lr_schedule, steps, interpolate=False)
                         for group in optimizer.param_groups:
                             group['lr'] = lr
                         batch = replay.sample(config.batch_size, rng)
@@ -202,7 +204,7 @@ def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, cons
             # ---- log, keep the best policy, checkpoint
             next_report += config.report_every
             run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
-                epsilon=epsilon, lr=piecewise(config.lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
+                epsilon=epsilon, lr=piecewise(lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
                 q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
                 actor=q_net.state_dict,
                 save=run_state)

@@ -33,6 +33,9 @@ __all__ = ['ACTIVATIONS', 'Actor', 'AgentwiseLSTMCell', 'AgentwiseMLP', 'agentwi
 
 
 ACTIVATIONS = {'tanh': (nn.Tanh, 5.0 / 3.0), 'relu': (nn.ReLU, math.sqrt(2.0))}
+IN_PLACE = {'tanh': torch.tanh_, 'relu': torch.relu_}
+"""The activations applied in place (the same kernels as `ACTIVATIONS`' modules: the same values), for the
+agentwise layers' fresh outputs: no second tensor of the layer's size per layer."""
 
 
 def linear(inputs: int, outputs: int, scale: float, gain: float, bias: bool = True) -> nn.Linear:
@@ -388,6 +391,7 @@ class AgentwiseMLP(nn.Module):
         super().__init__()
         act, gain = ACTIVATIONS[activation]
         self.activation = act()
+        self.activate_ = IN_PLACE[activation]
         sizes = [inputs, *hidden] + ([] if outputs is None else [outputs])
         self.width, self.activated = sizes[-1], outputs is None        # (no layers at all: the identity)
         self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
@@ -412,9 +416,9 @@ class AgentwiseMLP(nn.Module):
             weight, bias = self.weights[layer], self.biases[layer]
             if agents is not None:
                 weight, bias = weight[agents], bias[agents]
-            x = torch.bmm(x, weight) + bias.unsqueeze(1)
+            x = torch.bmm(x, weight).add_(bias.unsqueeze(1))      # in place on the product: the values of `+`
             if layer < layers - 1 or self.activated:
-                x = self.activation(x)
+                x = self.activate_(x)
         return x
 
 

@@ -25,7 +25,7 @@ from ..options import option
 from .checkpoint import CheckpointError, load_checkpoint, read_spec
 from .envs import TeamEnvConfig
 from .run import RunConfig
-from .schedules import check_network_options, piecewise
+from .schedules import check_network_options, piecewise, resolve_schedule
 
 __all__ = ['PAPER_HYPERPARAMETERS', 'PPOConfig', 'Schedules', 'UpdateStats', 'ValueNormalizer', 'action_distribution',
            'adapt_kl_coeff', 'bootstrapped', 'compute_gae', 'learning_targets', 'minibatch_rows', 'ppo_policy_loss',
@@ -71,10 +71,10 @@ class PPOConfig(RunConfig, TeamEnvConfig):
     activation: str = option('tanh', "hidden activation: 'tanh' or 'relu'")
     lr_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 5e-4), (1_500_000, 2e-4), (3_000_000, 1e-4)), 'learning rate, a step function of decision steps '
-        '[[step, lr], ...]')
+        '[[step, lr], ...] (a step "P%%": P %% of --steps)')
     entropy_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 0.01), (1_000_000, 0.001), (3_000_000, 0.0)), 'entropy coefficient, piecewise linear in decision steps '
-        '[[step, coefficient], ...]')
+        '[[step, coefficient], ...] (a step "P%%": P %% of --steps, for a schedule that scales with the budget)')
     mask_invisible: bool = option(True, 'HRL: never select a target the camera cannot see (the executor would ignore '
                                         'it; masking removes its random bits from the gradient)')
     init_from: str | None = option(None, 'warm start from the networks of a checkpoint or policy file of the same '
@@ -87,7 +87,7 @@ class PPOConfig(RunConfig, TeamEnvConfig):
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
-        check_network_options(self, ('lr_schedule', 'entropy_schedule'))
+        check_network_options(self, ('lr_schedule', 'entropy_schedule'), shares=True)
         self.hidden = tuple(self.hidden)
         if self.game_device not in ('auto', 'cpu', 'cuda'):
             raise ValueError(f"--game-device must be auto, cpu or cuda, got {self.game_device!r}")
@@ -246,11 +246,13 @@ class ValueNormalizer(nn.Module):
 
 
 class Schedules:
-    """The learning rate (a step function) and entropy coefficient (piecewise linear) of `config` at a step count;
-    `apply(optimizer, steps)` sets the learning rate and returns (lr, entropy coefficient)."""
+    """The learning rate (a step function) and entropy coefficient (piecewise linear) of `config` at a step count,
+    their shares of the budget ('40%') read against `config.steps`; `apply(optimizer, steps)` sets the learning rate
+    and returns (lr, entropy coefficient)."""
 
     def __init__(self, config: PPOConfig) -> None:
-        self.lr, self.entropy = config.lr_schedule, config.entropy_schedule
+        self.lr, self.entropy = (resolve_schedule(points, config.steps)
+                                 for points in (config.lr_schedule, config.entropy_schedule))
 
     def apply(self, optimizer: torch.optim.Optimizer, steps: int) -> tuple[float, float]:
         lr = piecewise(self.lr, steps, interpolate=False)

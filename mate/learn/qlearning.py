@@ -49,7 +49,8 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
     target_update: int = option(500, 'decision steps between hard copies to the target networks', minimum=1)
     gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     epsilon_schedule: tuple[tuple[float, float], ...] = option(
-        ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...]')
+        ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...] '
+        '(a step "P%%": P %% of --steps)')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
 
     SCHEDULES: ClassVar[tuple[str, ...]] = ('epsilon_schedule',)
@@ -66,7 +67,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
             raise ValueError(f'selection must be one of {", ".join(SELECTIONS)} (HRL cameras), got {self.selection!r}')
         if self.selection != 'joint' and not self.hrl:
             raise ValueError(f'--selection {self.selection} is how HRL cameras select targets; it needs --hrl')
-        check_network_options(self, self.SCHEDULES)
+        check_network_options(self, self.SCHEDULES, shares=True)
 
 
 def action_kind(config: QLearningConfig) -> str:

@@ -51,7 +51,7 @@ from .policy import make_actor
 from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_values, epsilon_greedy
 from .replay import SequenceReplay
 from .run import Run, mean_or_nan
-from .schedules import piecewise
+from .schedules import piecewise, resolve_schedule
 from .spec import PolicySpec
 
 __all__ = ['QMIXConfig', 'QMixer', 'policy_spec', 'qmix_loss', 'train']
@@ -68,7 +68,8 @@ class QMIXConfig(QLearningConfig):
     hidden: tuple[int, ...] = option((256,), "width of the agent network's embedding and GRU (one number)", minimum=1)
     mixer_embed: int = option(128, "the mixer's width", minimum=1)
     lr_schedule: tuple[tuple[float, float], ...] = option(
-        ((0, 1e-4),), 'learning rate (RMSprop), a step function of decision steps [[step, lr], ...]')
+        ((0, 1e-4),), 'learning rate (RMSprop), a step function of decision steps [[step, lr], ...] '
+        '(a step "P%%": P %% of --steps)')
 
     SCHEDULES = ('epsilon_schedule', 'lr_schedule')
 
@@ -199,13 +200,15 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
         return algorithm
 
     learn_threads = update_threads(config)
+    epsilon_schedule, lr_schedule = (resolve_schedule(points, config.steps)    # shares of the budget: steps
+                                     for points in (config.epsilon_schedule, config.lr_schedule))
     chunks = math.ceil(config.batch_size / config.sequence_length)    # per update
     coverage, episodes, losses, q_means = [], [], [], []
     with run:
         while run.running():
             while True:   # one iteration: decisions until the next log row
                 # ---- act: epsilon-greedy for every agent of every env from its GRU state, one forward pass
-                epsilon = piecewise(config.epsilon_schedule, steps, interpolate=True)
+                epsilon = piecewise(epsilon_schedule, steps, interpolate=True)
                 with torch.no_grad():
                     q, (next_hidden,) = q_net.step(torch.from_numpy(obs).to(device), (hidden,))
                 action = epsilon_greedy(q.cpu().unflatten(-1, (H, C)), epsilon, rng, allowed_choices(spec, obs))
@@ -227,7 +230,7 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
                     torch.set_num_threads(learn_threads)
                     while steps >= next_update and replay.size:
                         next_update += config.update_every
-                        lr = piecewise(config.lr_schedule, steps, interpolate=False)
+                        lr = piecewise(lr_schedule, steps, interpolate=False)
                         for group in optimizer.param_groups:
                             group['lr'] = lr
                         batch = replay.sample(chunks, rng)
@@ -252,7 +255,7 @@ def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, con
             # ---- log, keep the best policy, checkpoint
             next_report += config.report_every
             run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
-                epsilon=epsilon, lr=piecewise(config.lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
+                epsilon=epsilon, lr=piecewise(lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
                 q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
                 actor=q_net.state_dict,
                 save=run_state)

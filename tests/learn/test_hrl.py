@@ -112,3 +112,18 @@ def test_joint_selections_never_keep_an_unseen_target():
             held = joint.choose(logits, features, deterministic, rng)        # (Nc, 1)
             assert held.shape == (4, 1) and not outside[np.arange(4), held[:, 0]].any()
     np.testing.assert_array_equal(joint.decode(held, camera_obs), per_target.decode(bits[held[:, 0]], camera_obs))
+
+
+@pytest.mark.parametrize('shape', [(25, 41, 4, 8), (16, 8), (3, 5), (1,), (0, 8)])
+def test_joint_allowed_is_the_bit_by_bit_subset_test(shape):
+    """`joint_allowed` (one integer test per choice against the visibility word) gives what testing every choice's
+    Nt bits against the flags one by one gives: the selections whose kept targets are all visible."""
+    from mate.learn.hrl import joint_allowed, selection_bits
+
+    visible = np.random.default_rng(len(shape)).random(shape) < 0.4
+    bits = selection_bits(shape[-1]).astype(bool)                              # (2^Nt, Nt)
+    by_bits = ~(bits & ~visible[..., None, :]).any(-1)
+    allowed = joint_allowed(visible)
+    assert allowed.dtype == bool and allowed.shape == (*shape[:-1], 2 ** shape[-1])
+    np.testing.assert_array_equal(allowed, by_bits)
+    assert allowed[..., 0].all()                                               # keeping nothing is always allowed

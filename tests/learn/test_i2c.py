@@ -151,6 +151,38 @@ def test_sequences_equal_steps_with_episode_starts_inside():
     torch.testing.assert_close(logits, torch.stack(stepped))
 
 
+def test_the_unrolled_lstm_computes_what_indexing_each_decision_computes_forward_and_backward():
+    """`I2CActor.forward` takes the sequence's input gates apart with `unbind` (one gradient stacked at the end);
+    its logits and every parameter's gradient are bitwise those of the unroll that indexed `gates[t]` at each
+    decision (whose backward added T zero-padded gradients of the whole sequence)."""
+    from mate.learn.networks import restarted
+
+    actor = _actor(seed=2)
+    obs = torch.randn(6, 3, 3, 5)
+    starts = torch.zeros(6, 3, dtype=torch.bool)
+    starts[3, 0] = True
+    state = tuple(torch.randn_like(part) for part in actor.initial_state(3, 3))
+
+    def indexed():
+        features = actor.features(obs)
+        gates, hidden, memory = actor.cell.input_gates(features), [], state
+        for t in range(obs.shape[0]):
+            memory = actor.cell.recur(gates[t], restarted(memory, starts[t]))
+            hidden.append(memory[0])
+        return actor.head(torch.cat([features, torch.stack(hidden)], dim=-1))
+
+    results = []
+    for run in (lambda: actor(obs, state, starts), indexed):
+        actor.zero_grad()
+        logits = run()
+        (logits * torch.linspace(-1, 1, logits.numel()).reshape(logits.shape)).sum().backward()
+        results.append((logits.detach(), [p.grad for p in actor.parameters()]))   # (the prior's: None, no path)
+    (logits, grads), (expected, expected_grads) = results
+    assert torch.equal(logits, expected)
+    assert actor.cell.input_weight.grad is not None and sum(g is not None for g in grads) > 10
+    assert all((g is None and e is None) or torch.equal(g, e) for g, e in zip(grads, expected_grads))
+
+
 # ---------------------------------------------------------------------------- the regulariser
 
 def test_the_regulariser_is_a_kl_over_the_actions():

@@ -57,6 +57,31 @@ def test_twin_critics_are_two_networks_and_agents_have_their_own_weights():
     torch.testing.assert_close(mlp(y)[1], by_hand)
 
 
+@pytest.mark.parametrize('activation', ['tanh', 'relu'])
+def test_agentwise_layers_in_place_give_the_values_and_gradients_of_fresh_tensors(activation):
+    """`AgentwiseMLP` adds its biases and activates in place on each product: bitwise the outputs and gradients of
+    `bmm(x, W) + b` and the activation module on fresh tensors (the formula it replaced)."""
+    torch.manual_seed(0)
+    mlp = AgentwiseMLP(3, 6, (8, 5), 2, activation)
+    x = torch.randn(7, 3, 6, requires_grad=True)
+
+    def fresh():
+        h = x.transpose(0, 1)
+        for layer, (w, b) in enumerate(zip(mlp.weights, mlp.biases)):
+            h = torch.bmm(h, w) + b.unsqueeze(1)
+            h = mlp.activation(h) if layer < len(mlp.weights) - 1 else h
+        return h.transpose(0, 1)
+
+    results = []
+    for run in (lambda: mlp(x), fresh):
+        mlp.zero_grad()
+        x.grad = None
+        out = run()
+        (out * torch.arange(out.numel()).reshape(out.shape)).sum().backward()
+        results.append([out.detach(), x.grad.clone(), *(p.grad.clone() for p in mlp.parameters())])
+    assert all(torch.equal(a, b) for a, b in zip(*results))
+
+
 def test_critic_and_actor_inputs():
     state = torch.tensor([[1.0, 2.0]])                                        # (K=1, S=2)
     joint = torch.tensor([[[0.1, 0.2], [0.3, 0.4]]])                          # (K, N=2, A=2)
@@ -71,6 +96,7 @@ def test_critic_and_actor_inputs():
     assert own.grad[0, 0].tolist() == [1, 1] and own.grad[0, 1].tolist() == [0, 0]   # ... reaches only agent 0
 
 
+@pytest.mark.slow
 def test_maddpg_learns_a_continuous_cue_task(tmp_path):
     # a one-step task (gamma 0): the critics learn the reward of a joint action, the actors its argmax; with the
     # exploration noise (0.1 of the bounds) the best expected team reward is ~0.94, uniform actions earn ~0.6
