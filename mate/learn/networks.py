@@ -410,7 +410,8 @@ class AgentwiseMLP(nn.Module):
     def agent_major(self, x: torch.Tensor, start: int = 0, agents: torch.Tensor | None = None) -> torch.Tensor:
         """`forward` on rows already grouped by agent, from layer `start` on: x (n, R, inputs of that layer; for
         `start` k > 0 the activated output of layer k - 1, computed by the caller, e.g. from a factorised first
-        layer) -> (n, R, outputs), every agent's layers as one `bmm` each (I2C's A x A pairs come this way)."""
+        layer) -> (n, R, outputs), every agent's layers as one `bmm` each, the bias added and the activation
+        applied in place on its product (I2C's A x A pairs come this way)."""
         layers = len(self.weights)
         for layer in range(start, layers):
             weight, bias = self.weights[layer], self.biases[layer]
