@@ -338,10 +338,11 @@ adapters): left out of the code hash of `reference_cache_key`, so that editing t
 
 
 @functools.cache
+@functools.cache
 def _code_hash() -> str:
     """sha256 of the code and presets that play a game between rule teams (every .py and .yaml file of mate but those
     of `NOT_IN_A_RULE_GAME`, in path order): a changed game, rule team or preset is another game, whatever the
-    version says."""
+    version says. Read once per process (the code this process plays with), not at every cache key."""
     root = Path(__file__).resolve().parent
     digest = hashlib.sha256()
     for path in sorted(p for p in root.rglob('*') if p.suffix in ('.py', '.yaml') and '__pycache__' not in p.parts

@@ -39,20 +39,24 @@ EXPERIMENT = Experiment(
 '''
 
 
+def run_and_report(experiment, folder):
+    """`mate benchmark run EXPERIMENT --out out` then `report out --out report`, both from `folder`; returns it."""
+    monkey = pytest.MonkeyPatch()
+    monkey.chdir(folder)
+    try:
+        assert main(['benchmark', 'run', str(experiment), '--out', 'out', '--jobs', '2', '--threads', '1']) == 0
+        assert main(['benchmark', 'report', 'out', '--out', 'report', '--reps', '500']) == 0
+    finally:
+        monkey.undo()
+    return folder
+
+
 @pytest.fixture(scope='module')
 def mine(tmp_path_factory):
     """A Python experiment run from another directory, and its report."""
     home = tmp_path_factory.mktemp('home')
     (home / 'mine.py').write_text(PYTHON_EXPERIMENT)
-    elsewhere = tmp_path_factory.mktemp('elsewhere')
-    monkey = pytest.MonkeyPatch()
-    monkey.chdir(elsewhere)
-    try:
-        assert main(['benchmark', 'run', str(home / 'mine.py'), '--out', 'out', '--jobs', '2', '--threads', '1']) == 0
-        assert main(['benchmark', 'report', 'out', '--out', 'report', '--reps', '500']) == 0
-    finally:
-        monkey.undo()
-    return elsewhere
+    return run_and_report(home / 'mine.py', tmp_path_factory.mktemp('elsewhere'))
 
 
 @pytest.mark.slow
@@ -293,14 +297,7 @@ def with_mine(tmp_path_factory):
     file would give it) and a training function that takes the protocol, run and reported."""
     home = tmp_path_factory.mktemp('with-mine')
     (home / 'with_mine.py').write_text(REFERENCE_EXPERIMENT)
-    monkey = pytest.MonkeyPatch()
-    monkey.chdir(home)
-    try:
-        assert main(['benchmark', 'run', 'with_mine.py', '--out', 'out', '--jobs', '2', '--threads', '1']) == 0
-        assert main(['benchmark', 'report', 'out', '--out', 'report', '--reps', '500']) == 0
-    finally:
-        monkey.undo()
-    return home
+    return run_and_report('with_mine.py', home)
 
 
 @pytest.mark.slow

@@ -200,6 +200,16 @@ def test_every_forking_or_bookkeeping_name_exists():
 
 # ---------------------------------------------------------------- a deliberate mistake fails under any kernels
 
+def _golden_spread():
+    """tests/tools/golden_spread.py as a module (its mutations and kernel settings)."""
+    import sys
+
+    sys.path.insert(0, str(golden.ROOT / 'tests' / 'tools'))
+    import golden_spread
+
+    return golden_spread
+
+
 def _mutated_run(mutation: str, folder, variables: dict | None = None) -> dict:
     """mappo-target rerun with `mutation` (tests/tools/golden_spread.py), in this process or, with kernel
     `variables`, in a child process that runs the kernels they choose."""
@@ -208,10 +218,7 @@ def _mutated_run(mutation: str, folder, variables: dict | None = None) -> dict:
     import sys
 
     if variables is None:
-        sys.path.insert(0, str(golden.ROOT / 'tests' / 'tools'))
-        import golden_spread
-
-        with golden_spread.mutated(mutation):
+        with _golden_spread().mutated(mutation):
             return golden.run_variant('mappo-target', folder)
     out = folder / 'recording'
     result = subprocess.run([sys.executable, str(golden.ROOT / 'tests' / 'tools' / 'golden_spread.py'), 'inner',
@@ -237,15 +244,11 @@ def test_other_kernels_pass_across_machines_and_a_mutation_under_them_fails(pin,
     """One machine as another CPU: ATen's portable kernels, or MKL's AVX2 branch without its reproducibility mode.
     The rerun differs in its last bits (not bitwise equal) yet passes across machines; the same kernels with a
     mutated advantage fail."""
-    import sys
-
-    sys.path.insert(0, str(golden.ROOT / 'tests' / 'tools'))
-    import golden_spread
-
+    pins = _golden_spread().PINS
     expected = golden.load_record('mappo-target')
     here = golden.run_variant('mappo-target', tmp_path / 'here')                  # the suite's kernels
-    other = _mutated_run('none', tmp_path / 'other', golden_spread.PINS[pin])
+    other = _mutated_run('none', tmp_path / 'other', pins[pin])
     assert not golden.Comparison('mappo-target', here, other, golden.BITWISE).exact, f'{pin}: the same kernels'
     assert not golden.Comparison('mappo-target', expected, other, golden.ACROSS_MACHINES).problems
-    mutated = _mutated_run('gae-lambda', tmp_path / 'mutated', golden_spread.PINS[pin])
+    mutated = _mutated_run('gae-lambda', tmp_path / 'mutated', pins[pin])
     assert golden.Comparison('mappo-target', expected, mutated, golden.ACROSS_MACHINES).problems
