@@ -66,7 +66,7 @@ def _bench(args: argparse.Namespace) -> int:
     console.print(f"machine: {facts['cpus']} cores, {facts['processor']}, numba {facts['numba']}. The ratios hold "
                   "across machines; the absolute numbers differ between CPU families by 2x and more", soft_wrap=True)
     if args.json:
-        console.print(f'results written to {bench.write_json(results, args.json)}')
+        console.print(f'results written to {bench.write_json(results, args.json)}', soft_wrap=True)
     return 0
 
 
@@ -95,7 +95,7 @@ def _generate_config(args: argparse.Namespace) -> int:
                       f"radius {config['camera']['radius']:.1f}")
     if args.plot:
         try:
-            console.print(f'plot written to {plot_config(config, args.plot)}')
+            console.print(f'plot written to {plot_config(config, args.plot)}', soft_wrap=True)
         except ImportError as exc:   # matplotlib missing
             raise CommandError(str(exc)) from exc
     return 0

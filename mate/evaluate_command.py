@@ -225,7 +225,8 @@ def _write_results(args: argparse.Namespace, results: list, summary: list[dict])
     if args.json:
         from . import evaluate as ev
         settings = {k: v for k, v in vars(args).items() if k != 'run'}
-        console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}')
+        console.print(f'episode results written to {ev.write_json(args.json, settings, results, summary)}',
+                      soft_wrap=True)
 
 
 def _evaluate_batched(args: argparse.Namespace) -> int:
@@ -325,6 +326,7 @@ def _save_frames(frames: list, args: argparse.Namespace) -> None:
     from .video import save_gif, save_video
     fps = max(1, round(30 / args.frame_every))
     if args.save_gif:
-        console.print(f'first episode ({len(frames)} frames) saved to {save_gif(frames, args.save_gif, fps=fps)}')
+        console.print(f'first episode ({len(frames)} frames) saved to {save_gif(frames, args.save_gif, fps=fps)}',
+                      soft_wrap=True)
     if args.save_video:
-        console.print(f'first episode video saved to {save_video(frames, args.save_video, fps=fps)}')
+        console.print(f'first episode video saved to {save_video(frames, args.save_video, fps=fps)}', soft_wrap=True)

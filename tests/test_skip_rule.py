@@ -22,12 +22,13 @@ def test_runs():
 '''
 
 
+@pytest.mark.parametrize('workers', [(), ('-n', '2')], ids=['one-process', 'xdist'])  # the README's command: -n auto
 @pytest.mark.parametrize('ci, status', [('', 0), ('true', 1)])
-def test_a_skip_fails_only_in_ci(pytester, monkeypatch, ci, status):
+def test_a_skip_fails_only_in_ci(pytester, monkeypatch, ci, status, workers):
     pytester.makeconftest((Path(__file__).parent / 'conftest.py').read_text())
     pytester.makepyfile(test_example=SKIPPING)
     monkeypatch.setenv('CI', ci)
-    result = pytester.runpytest('-ra')
+    result = pytester.runpytest_subprocess('-ra', *workers) if workers else pytester.runpytest('-ra')
     assert result.ret == status
     result.assert_outcomes(passed=1, skipped=1)
     result.stdout.fnmatch_lines(["*needs a_module_that_is_not_installed, from the test extra*"])

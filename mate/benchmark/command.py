@@ -10,7 +10,7 @@ import os
 import signal
 from pathlib import Path
 
-from ..arguments import CommandError, positive_int
+from ..arguments import CommandError, number, positive_int
 from .jobs import add_job_arguments
 
 __all__ = ['add_arguments', 'run']
@@ -52,6 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help='jobs side by side on this machine (default: cores / threads, at least 1)')
     run.add_argument('--threads', type=positive_int, default=None,
                      help='torch threads per training run (default: cores / jobs, at least 1)')
+    run.add_argument('--minutes', type=number(float, above=0), default=None,
+                     help='stop after this many minutes: every running job at its next checkpoint, as Ctrl-C does '
+                          '(exit status 75); the same command resumes them exactly (default: no limit)')
     run.add_argument('--address', default=None,
                      help="run the jobs as Ray tasks: 'local', 'auto' or 'ray://HOST:PORT' (OUT must be on storage "
                           'every node sees)')
@@ -255,6 +258,7 @@ def _run(args: argparse.Namespace, say) -> int:
     reuse_jobs(planned, out, args.reuse, say=say_and_log)
     extend_jobs(planned, out, args.extend, say=say_and_log)
     previous = signal.signal(signal.SIGTERM, _interrupt)
+    budget = _TimeBudget(args.minutes) if args.minutes else None
     runner = None
     try:
         runner = RayRunner(None if args.address == 'local' else args.address, task_cpus=threads) if args.address \
@@ -264,15 +268,20 @@ def _run(args: argparse.Namespace, say) -> int:
         raise CommandError(str(exc)) from None
     except KeyboardInterrupt:
         running = stop_children()
-        say_and_log(f'interrupted: stopping {running} running job{"s" * (running != 1)} at a checkpoint (Ctrl-C '
-                    'again: at once); run the same command again to resume')
+        jobs_now = f'{running} running job{"s" * (running != 1)}'
+        say_and_log(f'--minutes {args.minutes:g} spent: stopping {jobs_now} at a checkpoint; run the same command '
+                    'again to resume' if budget is not None and budget.spent else
+                    f'interrupted: stopping {jobs_now} at a checkpoint (Ctrl-C again: at once); run the same command '
+                    'again to resume')
         try:
             if runner is not None:
                 runner.close()
         except KeyboardInterrupt:
             stop_children(kill=True)
-        return 130
+        return TIME_BUDGET_SPENT if budget is not None and budget.spent else 130
     finally:
+        if budget is not None:
+            budget.cancel()
         signal.signal(signal.SIGTERM, previous)
         if runner is not None:
             runner.close()
@@ -288,5 +297,29 @@ def _run(args: argparse.Namespace, say) -> int:
     return 0
 
 
-def _interrupt(number, frame):
-    raise KeyboardInterrupt(signal.Signals(number).name)
+def _interrupt(signal_number, frame):
+    raise KeyboardInterrupt(signal.Signals(signal_number).name)
+
+
+TIME_BUDGET_SPENT = 75
+"""The exit status of `mate benchmark run --minutes` when the budget ran out before every job was done (75,
+EX_TEMPFAIL: run the same command again)."""
+
+
+class _TimeBudget:
+    """Stops the benchmark (as SIGTERM does: `_interrupt`) once `minutes` have passed; `spent` says whether it did."""
+
+    def __init__(self, minutes: float):
+        import threading
+
+        self.spent = False
+        self._timer = threading.Timer(60.0 * minutes, self._expire)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def _expire(self) -> None:
+        self.spent = True
+        os.kill(os.getpid(), signal.SIGTERM)     # a real signal: it also wakes a main thread blocked in a wait
+
+    def cancel(self) -> None:
+        self._timer.cancel()

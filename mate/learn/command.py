@@ -137,7 +137,7 @@ def train_and_report(train: Callable, config, console, resuming: bool) -> int:
 
     checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     if resuming:
-        console.print(f'resuming from {checkpoint_path}')
+        console.print(f'resuming from {checkpoint_path}', soft_wrap=True)
     try:
         result = train(config, console=console)
     except CheckpointError as exc:   # the run directory's checkpoint belongs to another experiment

@@ -743,6 +743,41 @@ def test_sigterm_stops_every_job_at_a_checkpoint_and_the_same_command_resumes(tm
     assert 'resuming from' in (progress.parent / 'job.log').read_text()
 
 
+@pytest.mark.slow
+def test_minutes_stops_the_benchmark_at_its_budget_and_the_same_command_resumes(tmp_path):
+    """`--minutes` stops every running job at a checkpoint once the budget is spent (exit status 75, said in the
+    output and in benchmark.log); the same command goes on from there."""
+    import subprocess
+    import sys
+
+    from mate.benchmark.command import TIME_BUDGET_SPENT
+
+    needs_extra('torch')
+    out = tmp_path / 'runs'
+    command = [sys.executable, '-m', 'mate', 'benchmark', 'run', 'smoke', '--out', str(out), '--seeds', '0',
+               '--steps', '100000', '--jobs', '1']
+    first = subprocess.run(command + ['--minutes', '0.4'], capture_output=True, text=True, timeout=600)
+    assert first.returncode == TIME_BUDGET_SPENT == 75, first.stdout + first.stderr
+    assert '--minutes 0.4 spent: stopping 1 running job at a checkpoint' in first.stdout
+    assert '--minutes 0.4 spent' in (out / 'benchmark.log').read_text()
+    started = [path.parent for path in (out / 'runs').glob('*/checkpoint.pt')]
+    assert len(started) == 1 and not (started[0] / 'absolute.json').exists()
+    rows = len((started[0] / 'progress.csv').read_text().splitlines())
+    again = subprocess.run(command + ['--minutes', '0.4'], capture_output=True, text=True, timeout=600)
+    assert again.returncode == 75 and 'resuming from' in (started[0] / 'job.log').read_text()
+    assert len((started[0] / 'progress.csv').read_text().splitlines()) > rows
+
+
+@pytest.mark.parametrize('minutes', ['0', '-1', 'nan', 'soon'])
+def test_minutes_must_be_a_positive_number(minutes, capsys):
+    from mate.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(['benchmark', 'run', 'smoke', '--minutes', minutes])
+    assert stop.value.code == 2
+    assert f"argument --minutes: expected a number > 0, got {minutes!r}" in capsys.readouterr().err
+
+
 def test_a_claim_needs_three_runs_per_setting_to_be_weighed_and_four_to_be_decisive():
     """With one or two runs a bootstrap interval has no width: no verdict then (and none without data); with three
     a side the exact test can never reach 5 % (its smallest p is 0.1); four a side that never overlap can."""

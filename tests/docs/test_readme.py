@@ -49,7 +49,7 @@ def test_the_quick_start_is_two_commands_install_and_run_then_the_tests():
     block = re.search(r'## Quick start\n\n```bash\n(.*?)```', README, re.S)[1].strip().splitlines()
     assert len(block) == 2
     assert block[0].startswith('pip install -e ') and '&& mate ' in block[0]
-    assert block[1].split('  #')[0].strip() == 'pip install -e ".[test]" && python -m pytest -q'
+    assert block[1].split('  #')[0].strip() == 'pip install -e ".[test]" && python -m pytest -q -n auto'
 
 
 @pytest.mark.parametrize('argv', mate_commands(), ids=' '.join)
