@@ -123,12 +123,12 @@ def whole_game(preset: str, batch_size: int, seconds: float, target_agent: str =
                         target_agent=target_agent, observation_dtype=np.float32)
     env.reset(seed=0)
     for _ in range(8):
-        env.step()
+        env.step((None, None))
     cuda.synchronize()
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         for _ in range(32):
-            env.step()
+            env.step((None, None))
         cuda.synchronize()
         steps += 32
     elapsed = time.perf_counter() - start
@@ -147,7 +147,7 @@ def greedy_statistics(preset: str = 'MATE-4v8-9', seeds: int = 300) -> dict:
     coverage = np.full(seeds, np.nan)
     start = time.perf_counter()
     while np.isnan(coverage).any():
-        _, _, terminated, truncated, info = env.step()
+        _, _, terminated, truncated, info = env.step((None, None))
         done = (terminated | truncated).cpu().numpy() & np.isnan(coverage)
         if done.any():
             coverage[done] = info['episode_coverage_rate'].cpu().numpy()[done]

@@ -131,7 +131,7 @@ class DeviceTeamVecEnv:
                              f'{tuple(getattr(actions, "shape", ()))}')
         restarting = self._pending
         joint = (actions, None) if self.team is Team.CAMERA else (None, actions)
-        observations, team_rewards, terminated, truncated, info = self.vec.step(*joint, restart_ended=False)
+        observations, team_rewards, terminated, truncated, info = self.vec.step_games(*joint, restart_ended=False)
         live = ~restarting
         rewards = self._rewards(team_rewards, info, live)     # (same_step: before the ended games restart)
         summed = rewards if rewards.dim() == 1 else rewards.sum(dim=1)

@@ -1,30 +1,48 @@
-"""B games on a CUDA device, rule opponents included, handing torch tensors over without a copy.
+"""B games on a CUDA device as a Gymnasium `VectorEnv`: the CPU vector env's API, torch tensors on the device.
 
-`DeviceVecEnv` is the vector env of the device core (`mate.core.device.DeviceCore`): the world, the observations,
-the rewards and the flags stay on the GPU; `reset` and `step` launch kernels (one thread a game) and return torch
-tensors that view the device buffers (`__cuda_array_interface__`: no host round trip, no copy). A team can be played
-on the device too (`camera_agent='greedy'`, `target_agent='random'`, ...: `mate.teams.device`), so that a learner
-drives one team and the rules the other without the CPU in the loop.
+`DeviceVecEnv` (`mate.make_vec(..., device='cuda')`) is the vector env of the device core
+(`mate.core.device.DeviceCore`): the world, the observations, the rewards and the flags stay on the GPU; `reset`
+and `step` launch kernels (one thread a game) and return torch tensors that view the device buffers
+(`__cuda_array_interface__`: no host round trip, no copy). Its API is the CPU env's
+(`mate.vector.MultiAgentTrackingVectorEnv`), so that a loop written on the CPU runs on the GPU by changing
+`device`:
 
-    env = mate.make_vec('MultiAgentTracking-v0', num_envs=65536, config='MATE-4v8-9', device='cuda',
-                        target_agent='greedy')
-    (camera_obs, target_obs), info = env.reset(seed=0)           # (B, Nc, D_c) torch tensors on the GPU
-    (camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, info = env.step(camera_actions)
+    envs = mate.make_vec('MultiAgentTracking-v0', num_envs=65536, config='MATE-4v8-9', device='cuda')
+    (camera_obs, target_obs), infos = envs.reset(seed=0)                # (B, Nc, D_c) torch tensors on the GPU
+    for _ in range(100):
+        (camera_obs, target_obs), (camera_rewards, target_rewards), terminated, truncated, infos = envs.step(
+            envs.sample_actions())
 
-Autoreset, as the CPU vector env's (`autoreset_mode`): 'next_step' (the default) -- the step after a game ended
-ignores its actions, starts its next episode and returns its first observations with reward 0 and no end flags --
-or 'same_step' -- a game that ends starts its next episode in the same step (without the final observation): the
-step returns that step's rewards and end flags and the new episode's first observations. Either way `info` holds
-the step's coverage rate (in same_step that of the step played, also in the games that ended: the CPU env's `info`
-shows their new episode's there and keeps the step played in `final_info`) and, where `terminated | truncated`, the
-ended episodes' length and mean coverage rate. A
-game's random stream goes on into its next episode, as on the CPU, so with the caller's actions the games are the
-CPU env's with the same autoreset mode, game for game (to the rounding of the device's math library).
+The same: the spaces (numpy `Box`es: Gymnasium's spaces describe the values, whatever array holds them); `reset(*,
+seed, options)` and `step((camera_actions, target_actions))` with the same action forms ((B, N, 2) or (B, 2N), of
+any real dtype, tensors or arrays) and the same refusals (a wrong shape, NaN or inf, naming the envs); the info keys
+(`coverage_rate`, `real_coverage_rate`, `mean_transport_rate`, `num_delivered_cargoes`, `episode_step`,
+`episode_coverage_rate`, `episode_real_coverage_rate`, `episode_target_return`, each with its `_key` mask); the
+autoreset modes NEXT_STEP (default) and SAME_STEP (then `final_obs`, `final_info` and their masks, on the steps
+where a game ended); seeding (`reset(seed=s)`: game i with s + i, a list of B seeds, or None to go on with every
+stream); `sample_actions(rng)` (the CPU env's numbers, as tensors on the device). With the same seeds and actions
+the games are the CPU env's, game for game (to the rounding of the device's math library: numba's CUDA simulator,
+which the tests use, gives the CPU's numbers exactly).
 
-The returned tensors are the env's buffers: the next call overwrites them (clone what you keep), as the CPU vector
-env's buffers are. Actions are (B, Nc, 2) / (B, Nt, 2) tensors or arrays (float64 on the device; others are
-converted) and must be finite (the kernels do not check). Without a GPU, numba's CUDA simulator
-(`NUMBA_ENABLE_CUDASIM=1`) runs the same kernels slowly, with CPU tensors: what the tests use.
+What differs, and why:
+
+- The arrays are torch tensors on the device (under the simulator, CPU tensors). `final_obs` is one pair
+  `(camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t))` of batched tensors, valid in the games of its mask
+  `_final_obs`, where the CPU env has an object array of per-game pairs (no tensor holds Python objects).
+- The returned observations, rewards and flags are the env's buffers: the next call overwrites them (clone what
+  you keep); there is no `copy=True`. The infos are fresh tensors.
+- No DISABLED autoreset (a game that ended restarts, at the next step or in the same one).
+- A team can be played on the device (`camera_agent='greedy'`, `target_agent='random'`, ...: `mate.teams.device`),
+  so that a learner drives one team and the rules the other without the CPU in the loop: its entry of the action
+  pair is then None.
+- Gymnasium's vector wrappers that only pass the arrays on (`RecordVideo` aside, which needs frames) work; those
+  that compute on them in numpy (`RecordEpisodeStatistics`, `NormalizeObservation`, `NormalizeReward`, ...) need
+  host arrays: on a device, read the episode statistics from `infos` (`episode_*`, `_key` masks) or from
+  `mate.make_team_vec(..., device='cuda')`'s `mate_episode`.
+
+SAME_STEP checks on the host whether a game ended (one scalar read per step), to put `final_obs`/`final_info` in
+exactly the steps where the CPU env does; the refusal of NaN and inf reads one more. The training env of
+`mate.learn` steps the games with `step_games`, which reads nothing back.
 """
 
 from __future__ import annotations
@@ -33,20 +51,25 @@ from typing import Any
 
 import numpy as np
 
+from gymnasium.vector import VectorEnv
+
 from . import registration
 from .core.device import BLOCK, DeviceCore, from_torch, to_torch
-from .env import MultiAgentTracking
+from .core.world import World, episode_statistics
+from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
+from .vector_contract import (FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
+                              vector_spaces)
 
-__all__ = ['DeviceVecEnv', 'INFO_KEYS']
+__all__ = ['DeviceVecEnv', 'GAME_OUTPUTS']
 
-INFO_KEYS = ('coverage_rate', 'episode_length', 'episode_coverage_rate', 'episode_real_coverage_rate',
-             'episode_target_return', 'transport_rate', 'delivered_cargoes')
-"""The (B,) tensors of a step's `info`: the step's coverage rate, and where `terminated | truncated` the ended
+GAME_OUTPUTS = ('coverage_rate', 'episode_length', 'episode_coverage_rate', 'episode_real_coverage_rate',
+                'episode_target_return', 'transport_rate', 'delivered_cargoes')
+"""The (B,) tensors of `step_games`'s info: the step's coverage rate, and where `terminated | truncated` the ended
 episodes' statistics (`mate.core.device.Outputs`)."""
 
 
-class DeviceVecEnv:
+class DeviceVecEnv(GameDescription, VectorEnv):
     """B games of one configuration on a CUDA device (see the module docstring).
 
     Args:
@@ -57,8 +80,9 @@ class DeviceVecEnv:
             'random'; `camera_options` are its options.
         target_agent: the same for the targets (`target_options`).
         seed: the teams' seeds (row b: seed + b; their random streams, not the games').
-        autoreset_mode: 'next_step' (default) or 'same_step' (module docstring).
+        autoreset_mode: `AutoresetMode.NEXT_STEP` (default) or `SAME_STEP`, or its name (module docstring).
         block: threads per CUDA block.
+        **overrides: keys deep-merged into the configuration.
     """
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
@@ -70,21 +94,22 @@ class DeviceVecEnv:
         dtype = np.dtype(observation_dtype)
         if dtype not in (np.float64, np.float32):
             raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
-        mode = str(getattr(autoreset_mode, 'value', autoreset_mode)).replace('-', '').replace('_', '').lower()
-        if mode not in ('nextstep', 'samestep'):
-            raise ValueError(f"on a device autoreset_mode is 'next_step' or 'same_step', got {autoreset_mode!r}")
-        self.autoreset_mode = 'next_step' if mode == 'nextstep' else 'same_step'
-        self.next_step = mode == 'nextstep'
+        mode = autoreset_mode_of(autoreset_mode)
+        if mode is AutoresetMode.DISABLED:
+            raise ValueError("on a device autoreset_mode is 'next_step' or 'same_step', got "
+                             f'{autoreset_mode!r} (a game that ended restarts)')
+        self.autoreset_mode, self.next_step = mode, mode is AutoresetMode.NEXT_STEP
+        self.metadata = {'render_modes': [], 'autoreset_mode': mode}
+        self.render_mode = None
         template = MultiAgentTracking(config, **overrides)
         self.config, self.params = template.config, template.params
         self.num_envs = B = int(num_envs)
+        self.observation_dtype = dtype
         p = self.params
         self.counts = (p.num_cameras, p.num_targets, p.num_obstacles)
-        dims = (template.camera_observation_space.shape[0], template.target_observation_space.shape[0])
-        self.camera_observation_space, self.target_observation_space = (template.camera_observation_space,
-                                                                        template.target_observation_space)
-        self.camera_action_space, self.target_action_space = (template.camera_action_space,
-                                                              template.target_action_space)
+        for name, space in vector_spaces(template, B, dtype).items():
+            setattr(self, name, space)
+        dims = (self.camera_observation_space.shape[0], self.target_observation_space.shape[0])
         self.core = DeviceCore(p, B, dims, dtype, block=block)
         self.every = self.core.cuda.to_device(np.ones(B, bool))
         rows = self.core.rows
@@ -96,8 +121,9 @@ class DeviceVecEnv:
         out = self.core.out
         self._rewards = (to_torch(out.camera_reward), to_torch(out.target_reward))
         self._flags = (to_torch(out.terminated), to_torch(out.truncated))
-        self._info = {name: to_torch(getattr(out, name)) for name in INFO_KEYS}
-        self._world_views = {}                    # world_tensor's views, by name
+        self._info = {name: to_torch(getattr(out, name)) for name in GAME_OUTPUTS}
+        self._world = World(*(to_torch(field) for field in self.core.world))     # views, kept: the world stays put
+        self._info_mask = self._world.episode_step.new_ones(B, dtype=bool)      # the `_key` masks: every game
         self._started = self._seeded = False
 
     def _make_teams(self, seed: int) -> dict:
@@ -118,31 +144,64 @@ class DeviceVecEnv:
             if team in self.teams:
                 self.teams[team].reset(observation, mask, self.core.block)
 
-    def reset(self, seed: int | None = None, options: dict | None = None, *, team_seed: int | None = None):
-        """Start every game; returns ((camera_obs, target_obs), {}). `seed` s: game b and the device teams' row b
-        are seeded with s + b (the teams made anew); None: every stream goes on (the first reset draws fresh
-        entropy), as the CPU vector env's. `team_seed` t (with a seed): the teams' row b is seeded t + b instead
-        (`TeamVecEnv`'s opponent keeps the seed it was made with)."""
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None,
+              team_seed: int | None = None):
+        """Start every game (or those of `options['reset_mask']`, a (B,) bool array or tensor); returns
+        ((camera_obs, target_obs), infos). `seed` s: game b and the device teams' row b are seeded with s + b (the
+        teams made anew); a list of B ints or None: game b with `seed[b]` (the teams' streams go on); None: every
+        stream goes on (the first reset draws fresh entropy), as the CPU vector env's. With a mask only its games
+        are seeded and reset (the device teams' streams go on). `team_seed` t (with an int seed): the teams' row b
+        is seeded t + b instead (`DeviceTeamVecEnv`'s opponent keeps the seed it was made with)."""
+        options = dict(options or {})
+        mask = options.pop('reset_mask', None)
         if options:
-            raise ValueError(f'DeviceVecEnv.reset takes no options, got {sorted(options)}')
+            raise ValueError(f"DeviceVecEnv.reset takes only the option 'reset_mask', got {sorted(options)}")
+        B = self.num_envs
+        mask = np.ones(B, bool) if mask is None else self._check_mask(mask)
+        whole = bool(mask.all())
+        if team_seed is not None and not isinstance(seed, (int, np.integer)):
+            raise ValueError('team_seed needs an int seed (an unseeded reset goes on with every stream)')
         for name, value in (('seed', seed), ('team_seed', team_seed)):
-            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 0):
+            if isinstance(value, (list, tuple)) and name == 'seed':
+                if len(value) != B:
+                    raise ValueError(f'reset(seed=...) got {len(value)} seeds for num_envs={B}: pass an int, None '
+                                     f'or a list of {B} seeds')
+                if any(s is not None and (not isinstance(s, (int, np.integer)) or isinstance(s, bool) or s < 0)
+                       for s in value):
+                    raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {value!r}')
+            elif value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool)
+                                        or value < 0):
                 raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')
-        if team_seed is not None and seed is None:
-            raise ValueError('team_seed needs a seed (an unseeded reset goes on with every stream)')
-        if seed is not None:
-            self.teams = self._make_teams(int(seed if team_seed is None else team_seed))
-            seeds = [int(seed) + b for b in range(self.num_envs)]
-        else:                                     # streams go on; never-seeded games draw fresh entropy
-            seeds = None if self._seeded else [None] * self.num_envs
-        self.core.reset(seeds=seeds)
+        if isinstance(seed, (int, np.integer)):
+            super().reset(seed=int(seed))                 # also seeds self.np_random (sample_actions' default)
+            if whole:
+                self.teams = self._make_teams(int(seed if team_seed is None else team_seed))
+            seeds = [int(seed) + b for b in range(B)]
+        else:
+            seeds = [None if s is None else int(s) for s in seed] if seed is not None else [None] * B
+        # the games given a seed start their streams anew; the others go on, but never-seeded ones draw entropy
+        streams = self.core.world.rng.copy_to_host()
+        never_seeded = (streams[:, 0] == 0) & (streams[:, 1] == 0)
+        to_seed = mask & (np.array([s is not None for s in seeds]) | never_seeded)
+        if to_seed.any():
+            self.core.seed(to_seed, [seeds[b] for b in np.flatnonzero(to_seed)])
+        self.core.reset(mask)
         self._seeded = True
-        self._reset_teams(self.every)
-        self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))       # no game waits for a restart
+        self._reset_teams(self.every if whole else self.core.rows.mask)
+        self.core.rows.mask.copy_to_device(np.zeros(B, bool))       # no game waits for a restart
         self._started = True
-        return self._observations, {}
+        return self._observations, self._infos()
+
+    def _check_mask(self, mask) -> np.ndarray:
+        host = np.asarray(mask.cpu() if hasattr(mask, 'cpu') else mask)
+        if host.dtype != np.bool_ or host.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), "
+                             f'got {host.dtype} {host.shape}')
+        return np.array(host, dtype=bool)
 
     def _actions(self, actions, team: Team):
+        """`step_games`' check: None exactly for a team played on the device; the actions as a device array (or a
+        host array under the simulator), float64."""
         if team in self.teams:
             if actions is not None:
                 raise ValueError(f'the {team.name.lower()}s are played on the device: pass no actions for them')
@@ -159,9 +218,96 @@ class DeviceVecEnv:
             array = np.ascontiguousarray(array, dtype=np.float64)
         return array
 
-    def step(self, camera_actions=None, target_actions=None, restart_ended: bool = True):
-        """One step of every game: the device teams act, the world advances, the games that ended restart.
-        Returns ((camera_obs, target_obs), (camera_reward, target_reward), terminated, truncated, info).
+    def _team_actions(self, value, team: Team):
+        """`step`'s check of one team's actions, as the CPU env's: (B, N, 2) or (B, 2N) of any real dtype, finite;
+        returned as a float64 tensor (B, N, 2) on the env's device, or None for a team played on the device."""
+        import torch
+
+        if value is None or team in self.teams:
+            return value
+        count = self.counts[0 if team is Team.CAMERA else 1]
+        name, box = team.name.lower(), self.camera_action_space if team is Team.CAMERA else self.target_action_space
+        expected = (self.num_envs, count, 2)
+        try:
+            tensor = torch.as_tensor(value if isinstance(value, torch.Tensor) else np.asarray(value, np.float64),
+                                     dtype=torch.float64, device=self._info_mask.device)
+        except (TypeError, ValueError, RuntimeError) as exc:
+            if 'inhomogeneous' in str(exc):
+                raise ValueError(team_shape_error(name, expected, 'a ragged sequence', batched='num_envs x ',
+                                                  alternative=(self.num_envs, 2 * count))) from None
+            raise ValueError(f'{name} actions are not numeric: {exc}') from None
+        if tuple(tensor.shape) != expected:
+            if tuple(tensor.shape) != (self.num_envs, 2 * count):
+                raise ValueError(team_shape_error(name, expected, tuple(tensor.shape), batched='num_envs x ',
+                                                  alternative=(self.num_envs, 2 * count)))
+            tensor = tensor.reshape(expected)
+        finite = torch.isfinite(tensor).flatten(1).all(dim=1)
+        if not bool(finite.all()):
+            bad = np.flatnonzero(~finite.cpu().numpy())
+            raise ValueError(f'{name} actions contain NaN or inf (envs {env_listing(bad)}); every entry must be '
+                             f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+        return tensor.contiguous()
+
+    def step(self, actions):
+        """Advance every game by one step with `actions` = (camera_actions, target_actions) (None for a team played
+        on the device); returns ((camera_obs, target_obs), (camera_rewards, target_rewards), terminations,
+        truncations, infos), as the CPU vector env's `step` (module docstring)."""
+        try:
+            camera_actions, target_actions = actions
+        except (TypeError, ValueError):
+            raise ValueError('actions must be a pair (camera_actions (B, Nc, 2), target_actions (B, Nt, 2)), '
+                             f'got {type(actions).__name__}') from None
+        if not self._started:
+            raise RuntimeError('DeviceVecEnv: call reset() before step()')
+        camera_actions = self._team_actions(camera_actions, Team.CAMERA)
+        target_actions = self._team_actions(target_actions, Team.TARGET)
+        observations, rewards, terminated, truncated, _ = self.step_games(camera_actions, target_actions,
+                                                                           restart_ended=False)
+        infos = self._infos()
+        if not self.next_step:
+            done = terminated | truncated
+            if bool(done.any()):
+                final_obs = (observations[0].clone(), observations[1].clone())
+                final_info = dict(infos)
+                for key in INFO_KEYS:
+                    final_info[f'_{key}'] = done
+                for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
+                    final_info[key] = self.world_tensor(key).clone()
+                self.restart_ended()
+                infos = self._infos()
+                infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
+        return observations, rewards, terminated, truncated, infos
+
+    def _infos(self) -> dict:
+        """The CPU env's infos of every game now: fresh (B,) tensors, each with its `_key` mask."""
+        world = self._world
+        statistics = episode_statistics(self.params, world)
+        infos = {}
+        for key in INFO_KEYS:
+            infos[key] = statistics[key] if key in statistics else getattr(world, key).clone()
+            infos[f'_{key}'] = self._info_mask
+        return infos
+
+    def sample_actions(self, rng: np.random.Generator | int | None = None):
+        """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64 tensors on the env's
+        device: the CPU env's `sample_actions` numbers for the same `rng` (a numpy Generator, an int seed, or None
+        for `self.np_random`, seeded by `reset(seed=int)`)."""
+        import torch
+
+        if rng is None:
+            rng = self.np_random
+        elif not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        B, (nc, nt, _) = self.num_envs, self.counts
+        device = self._info_mask.device
+        return (torch.as_tensor(uniform_actions(rng, self.camera_action_space, (B, nc, 2)), device=device),
+                torch.as_tensor(uniform_actions(rng, self.target_action_space, (B, nt, 2)), device=device))
+
+    def step_games(self, camera_actions=None, target_actions=None, restart_ended: bool = True):
+        """One step of every game, reading nothing back (the training envs' step): the device teams act, the world
+        advances, the games that ended restart. The actions are (B, N, 2) float64 tensors or arrays, unchecked but
+        for their shapes (NaN goes in as it is), None for a device team. Returns ((camera_obs, target_obs),
+        (camera_reward, target_reward), terminated, truncated, info), info the (B,) tensors of `GAME_OUTPUTS`.
         `restart_ended=False` (same_step): the ended games restart only at `restart_ended()`, so that the world
         arrays of their ended step can be read first (`world_tensor`)."""
         if not self._started:
@@ -184,7 +330,7 @@ class DeviceVecEnv:
         return self._observations, self._rewards, self._flags[0], self._flags[1], self._info
 
     def restart_ended(self) -> None:
-        """After `step(..., restart_ended=False)`: the games that ended in it start their next episode."""
+        """After `step_games(..., restart_ended=False)`: the games that ended in it start their next episode."""
         self.core.reset_masked()
         self._reset_teams(self.core.rows.mask)
 
@@ -233,17 +379,26 @@ class DeviceVecEnv:
         buffers, overwritten by the next step)."""
         return self._observations
 
+    @property
+    def world(self) -> World:
+        """The batched world itself, as torch tensors viewing the device's arrays (`mate.core.world.World`'s fields
+        with a leading batch axis, as the CPU env's `world`); read it, never write it (the next step overwrites it
+        in place)."""
+        return self._world
+
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
-        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt)): one view per name, made at its first
-        call and kept (the world's arrays stay in place: steps and `load_state_dict` write into them)."""
-        view = self._world_views.get(name)
-        if view is None:
-            view = self._world_views[name] = to_torch(getattr(self.core.world, name))
-        return view
+        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt)): the same view at every call (the
+        world's arrays stay in place: steps and `load_state_dict` write into them)."""
+        return getattr(self._world, name)
 
-    def close(self) -> None:
+    def close(self, **kwargs) -> None:
         """Nothing to release (the device arrays go with the object)."""
+
+    def __repr__(self) -> str:
+        teams = ', '.join(f'{team.name.lower()}s: {agent}' for team, (agent, _) in self._agents.items())
+        return (f'DeviceVecEnv({self.name}, num_envs={self.num_envs}, observation_dtype={self.observation_dtype.name}, '
+                f'autoreset_mode={self.autoreset_mode.name}{", " + teams if teams else ""})')
 
 
 def make_device_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None,

@@ -7,59 +7,26 @@ the API page and the vector env page of the docs).
 
 from __future__ import annotations
 
-from enum import Enum
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorRewardWrapper
-from gymnasium.vector.utils import batch_space
 
 from . import registration
 from .core import engine
 from .core.snapshot import get_snapshot
-from .core.world import EPISODE_STATISTICS, empty_world, episode_statistics, obstacle_states
+from .core.world import empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
-
-try:
-    from gymnasium.vector import AutoresetMode
-except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum for it
-    class AutoresetMode(Enum):
-        NEXT_STEP = 'NextStep'
-        SAME_STEP = 'SameStep'
-        DISABLED = 'Disabled'
+from .vector_contract import (FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
+                              vector_spaces)
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
 ADDED_FIELDS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
 """World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
 episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
-INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step',
-             *EPISODE_STATISTICS)
-"""The (B,) arrays of a vector step's infos: World fields of the same names, and the episode so far
-(`mate.core.world.episode_statistics`: its mean coverage rates and the target team's raw return)."""
-FINAL_WORLD_KEYS = ('target_reward_parts', 'camera_target_view_mask')
-"""World arrays of the ended step that `same_step` autoreset keeps in `final_info` (each target's part of the team
-reward (B, Nt), which camera tracks which target (B, Nc, Nt)): the reset overwrites them."""
-
-
-def _autoreset_mode(mode) -> AutoresetMode:
-    if isinstance(mode, AutoresetMode):
-        return mode
-    if isinstance(mode, Enum):  # another library's enum with the same values (gymnasium's vs ours)
-        mode = mode.value
-    key = str(mode).replace('_', '').replace('-', '').lower()
-    for member in AutoresetMode:
-        if key in (member.name.replace('_', '').lower(), member.value.lower()):
-            return member
-    names = ', '.join(repr(m.name.lower()) for m in AutoresetMode)
-    raise ValueError(f'autoreset_mode={mode!r} is not one of {names}')
-
-
-def _box(low: np.ndarray, high: np.ndarray, dtype) -> spaces.Box:
-    dtype = np.dtype(dtype)
-    return spaces.Box(low.astype(dtype), high.astype(dtype), dtype=dtype)
 
 
 class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
@@ -141,7 +108,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         self.config, self.params = template.config, template.params
         self.num_envs = B = int(num_envs)
         self.observation_dtype = dtype
-        self.autoreset_mode = _autoreset_mode(autoreset_mode)
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode)
         self.copy = bool(copy)
         self.metadata = {'render_modes': [], 'autoreset_mode': self.autoreset_mode}
         self.render_mode = None
@@ -149,25 +116,9 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         nc, nt = p.num_cameras, p.num_targets
 
         # ---- spaces
-        self.camera_action_space, self.target_action_space = template.camera_action_space, template.target_action_space
-        self.camera_observation_space = _box(template.camera_observation_space.low,
-                                             template.camera_observation_space.high, dtype)
-        self.target_observation_space = _box(template.target_observation_space.low,
-                                             template.target_observation_space.high, dtype)
-        self.single_action_space = spaces.Tuple((
-            _box(np.tile(self.camera_action_space.low, (nc, 1)), np.tile(self.camera_action_space.high, (nc, 1)),
-                 np.float64),
-            _box(np.tile(self.target_action_space.low, (nt, 1)), np.tile(self.target_action_space.high, (nt, 1)),
-                 np.float64)))
-        self.single_observation_space = spaces.Tuple((
-            _box(np.tile(self.camera_observation_space.low, (nc, 1)),
-                 np.tile(self.camera_observation_space.high, (nc, 1)), dtype),
-            _box(np.tile(self.target_observation_space.low, (nt, 1)),
-                 np.tile(self.target_observation_space.high, (nt, 1)), dtype)))
-        self.single_state_space = _box(template.state_space.low, template.state_space.high, dtype)
-        self.action_space = batch_space(self.single_action_space, B)
-        self.observation_space = batch_space(self.single_observation_space, B)
-        self.state_space = batch_space(self.single_state_space, B)
+        spaces_of = vector_spaces(template, B, dtype)
+        for name, space in spaces_of.items():
+            setattr(self, name, space)
 
         # ---- world and buffers
         self._world = empty_world(p, B)
@@ -241,7 +192,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         p, world, mode = self.params, self._world, self.autoreset_mode
         if mode is AutoresetMode.DISABLED and self._autoreset.any():
             finished = np.flatnonzero(self._autoreset)
-            raise RuntimeError(f'envs {_listing(finished)} finished their episodes and autoreset_mode is DISABLED: '
+            raise RuntimeError(f'envs {env_listing(finished)} finished their episodes and autoreset_mode is DISABLED: '
                                "reset them with reset(options={'reset_mask': mask}) before step()")
         pending = self._autoreset if mode is AutoresetMode.NEXT_STEP and self._autoreset.any() else None
         if pending is not None:
@@ -310,7 +261,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
             array = array.reshape(expected)
         if not np.isfinite(array).all():
             bad = np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))
-            raise ValueError(f'{team} actions contain NaN or inf (envs {_listing(bad)}); every entry must be '
+            raise ValueError(f'{team} actions contain NaN or inf (envs {env_listing(bad)}); every entry must be '
                              f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
         return np.ascontiguousarray(array)
 
@@ -392,8 +343,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         elif not isinstance(rng, np.random.Generator):
             rng = np.random.default_rng(rng)
         B, p = self.num_envs, self.params
-        return (_uniform(rng, self.camera_action_space, (B, p.num_cameras, 2)),
-                _uniform(rng, self.target_action_space, (B, p.num_targets, 2)))
+        return (uniform_actions(rng, self.camera_action_space, (B, p.num_cameras, 2)),
+                uniform_actions(rng, self.target_action_space, (B, p.num_targets, 2)))
 
     @property
     def obstacle_states(self) -> np.ndarray:
@@ -414,26 +365,6 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def __repr__(self) -> str:
         return (f'MultiAgentTrackingVectorEnv({self.name}, num_envs={self.num_envs}, '
                 f'observation_dtype={self.observation_dtype.name}, autoreset_mode={self.autoreset_mode.name})')
-
-
-def _uniform(rng: np.random.Generator, box: spaces.Box, shape: tuple[int, ...]) -> np.ndarray:
-    """Uniform draws over `box` (bounds of the last axes) in a fresh float64 array of `shape`.
-
-    The same numbers as `rng.uniform(box.low, box.high, shape)`, drawn and then scaled in place
-    over rows of all the agents' values (numpy's inner loops are slow over a last axis of 2):
-    0.26 against 0.66 ms for a (4096, 12, 2) joint action.
-    """
-    out = rng.random(shape)
-    rows = out.reshape(shape[0], -1)
-    repeats = rows.shape[1] // box.low.size
-    rows *= np.tile(box.high - box.low, repeats)
-    rows += np.tile(box.low, repeats)
-    return out
-
-
-def _listing(indices: np.ndarray, limit: int = 10) -> str:
-    shown = ', '.join(str(int(i)) for i in indices[:limit])
-    return f'[{shown}{", ..." if len(indices) > limit else ""}]'
 
 
 class TeamReward(VectorRewardWrapper):
@@ -470,9 +401,10 @@ def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: A
     preset and keyword overrides are deep-merged, exactly as in `mate.make`.
 
     `device='cuda'` (or 'cuda:N' where numba-cuda sees it as the current device) gives the games on the GPU:
-    `mate.device_vector.DeviceVecEnv` (the gpu extra; autoreset NEXT_STEP or SAME_STEP), whose outputs are torch
-    tensors on the device; it takes `camera_agent=` / `target_agent=` ('greedy', 'random') to play a team there.
-    None or 'cpu': this module's env (autoreset NEXT_STEP unless `autoreset_mode` says otherwise)."""
+    `mate.device_vector.DeviceVecEnv` (the gpu extra), the same Gymnasium `VectorEnv` API (spaces, `reset`,
+    `step`, infos, autoreset NEXT_STEP or SAME_STEP, seeding) with torch tensors on the device for arrays; it also
+    takes `camera_agent=` / `target_agent=` ('greedy', 'random') to play a team there. None or 'cpu': this
+    module's env. Autoreset NEXT_STEP unless `autoreset_mode` says otherwise, on either."""
     if device is not None and str(device) != 'cpu':
         if not str(device).startswith('cuda'):
             raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")

@@ -292,18 +292,32 @@ class DeviceCore:
     def reset(self, mask=None, seeds: Iterable[int | None] | None = None) -> None:
         """Start new episodes in the games where `mask` (B,) is true (None: all); with `seeds` (one int or None per
         game reset), their random streams start anew from them, as `engine.seed_rows` does on the CPU."""
-        mask = np.ones(self.batch_size, bool) if mask is None else np.asarray(mask, bool)
-        if mask.shape != (self.batch_size,):
-            raise ValueError(f'reset mask: expected shape ({self.batch_size},), got {mask.shape}')
+        mask = self._mask(mask, 'reset')
         if seeds is not None:
             seeds = list(seeds)
             if len(seeds) != mask.sum():
                 raise ValueError(f'reset: {mask.sum()} games reset, {len(seeds)} seeds given')
-            rng = self.world.rng.copy_to_host()
-            seed_streams(rng, mask, seeds)
-            self.world.rng.copy_to_device(rng)
+            self.seed(mask, seeds)
         self.rows.mask.copy_to_device(mask)
         self._launch('reset')
+
+    def seed(self, mask, seeds: Iterable[int | None]) -> None:
+        """Start the random streams of the games where `mask` (B,) is true anew from `seeds` (one int, or None for
+        fresh entropy, per game of the mask), as `engine.seed_rows` does on the CPU; nothing else changes (the
+        next reset of those games draws from the new streams)."""
+        mask = self._mask(mask, 'seed')
+        seeds = list(seeds)
+        if len(seeds) != mask.sum():
+            raise ValueError(f'seed: {mask.sum()} games seeded, {len(seeds)} seeds given')
+        rng = self.world.rng.copy_to_host()
+        seed_streams(rng, mask, seeds)
+        self.world.rng.copy_to_device(rng)
+
+    def _mask(self, mask, what: str) -> np.ndarray:
+        mask = np.ones(self.batch_size, bool) if mask is None else np.asarray(mask, bool)
+        if mask.shape != (self.batch_size,):
+            raise ValueError(f'{what} mask: expected shape ({self.batch_size},), got {mask.shape}')
+        return mask
 
     def step(self, camera_actions=None, target_actions=None, restart_masked: bool = False) -> None:
         """Advance every game one step with the actions (B, Nc, 2) in degrees (rotation, zoom) and (B, Nt, 2)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from array_api_compat import array_namespace
 
 from ..constants import NUM_WAREHOUSES
 from .params import Params
@@ -100,7 +101,8 @@ EPISODE_STATISTICS = ('episode_coverage_rate', 'episode_real_coverage_rate', 'ep
 
 
 def episode_statistics(params: Params, world: World, row: int | None = None) -> dict:
-    """Every row's episode so far, as the core counted it, (B,) float64 arrays (or, for one `row`, Python floats:
+    """Every row's episode so far, as the core counted it, (B,) float64 arrays (numpy, or torch tensors where
+    `world`'s fields are tensors: a device's world, `mate.device_vector`; or, for one `row`, Python floats:
     the single env's infos at every step, without numpy's per-call cost): the coverage and real coverage rates
     averaged over its steps (the reset not counted; 0 before the first step) and the target team's raw return
     (dense or sparse, as the config pays; the cameras' is its negative). Every consumer (the envs' infos,
@@ -112,10 +114,11 @@ def episode_statistics(params: Params, world: World, row: int | None = None) -> 
         return dict(episode_coverage_rate=float(world.coverage_rate_sum[row]) / steps,
                     episode_real_coverage_rate=float(world.real_coverage_rate_sum[row]) / steps,
                     episode_target_return=float(target_return[row]))
-    steps = np.maximum(world.episode_step, 1)
+    xp = array_namespace(world.episode_step)      # numpy arrays, or torch tensors viewing a device's world
+    steps = xp.maximum(world.episode_step, 1)
     return dict(episode_coverage_rate=world.coverage_rate_sum / steps,
                 episode_real_coverage_rate=world.real_coverage_rate_sum / steps,
-                episode_target_return=target_return.copy())
+                episode_target_return=xp.asarray(target_return, copy=True))
 
 
 def obstacle_states(world: World, b: int | slice = slice(None)) -> np.ndarray:

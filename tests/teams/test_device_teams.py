@@ -39,6 +39,7 @@ SIMULATED = """
 import json, sys
 import numpy as np
 import mate
+from mate.vector import FINAL_WORLD_KEYS, INFO_KEYS
 from mate.learn.hrl import executor_actions
 from mate.spaces import observation_indices_of
 from mate.messages import Team
@@ -69,7 +70,7 @@ for preset in sys.argv[1:]:
             ca, ta = rng.uniform(-30, 30, (B, counts[0], 2)), rng.uniform(-3, 3, (B, counts[1], 2))
             ca = ca if teams[0] is None else host_act(teams[0], cc).copy()
             ta = ta if teams[1] is None else host_act(teams[1], ct).copy()
-            (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step(None if agents[0] else ca, None if agents[1] else ta)
+            (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step((None if agents[0] else ca, None if agents[1] else ta))
             (cc, ct), (ccr, ctr), cterm, ctrunc, cinfo = cpu.step((ca, ta))
             done = cterm | ctrunc
             ends += int(done.sum())
@@ -78,17 +79,24 @@ for preset in sys.argv[1:]:
                 if team is not None:
                     host_reset(team, obs, restarted)
             pending = done
-            step_info = cinfo['final_info'] if 'final_info' in cinfo else cinfo
             pairs = dict(camera_obs=(dc, cc), target_obs=(dt, ct), camera_reward=(dcr, ccr),
                          target_reward=(dtr, ctr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
-                         coverage_rate=(dinfo['coverage_rate'], step_info['coverage_rate']),
                          state=(dev.state(), cpu.state()))
+            if sorted(dinfo) != sorted(cinfo):
+                differing.append(f'{step}: info keys {sorted(dinfo)} {sorted(cinfo)}')
+            for key in INFO_KEYS:                       # the CPU env's infos, every key, and its masks
+                pairs[key], pairs[f'_{key}'] = (dinfo[key], cinfo[key]), (dinfo[f'_{key}'], cinfo[f'_{key}'])
+            if 'final_info' in cinfo and 'final_info' in dinfo:     # same_step: the ended step's, where it ended
+                pairs['_final_info'] = (dinfo['_final_info'], cinfo['_final_info'])
+                pairs['_final_obs'] = (dinfo['_final_obs'], cinfo['_final_obs'])
+                for key in (*INFO_KEYS, *FINAL_WORLD_KEYS):
+                    pairs[f'final {key}'] = (np.asarray(dinfo['final_info'][key])[done], cinfo['final_info'][key][done])
+                for i in np.flatnonzero(done):
+                    for team in (0, 1):
+                        pairs[f'final_obs {i} {team}'] = (dinfo['final_obs'][team][i], cinfo['final_obs'][i][team])
             for name, (a, b) in pairs.items():
                 if not np.array_equal(np.asarray(a), b):
                     differing.append(f'{step}: {name}')
-            if done.any() and not np.array_equal(np.asarray(dinfo['episode_coverage_rate'])[done],
-                                                 step_info['episode_coverage_rate'][done]):
-                differing.append(f'{step}: episode_coverage_rate')
         report[f'{preset} {mode} {agents}'] = dict(differing=differing[:5], ends=ends)
 
 dev = mate.make_vec('MultiAgentTracking-v0', 3, config='MATE-2v4-0', device='cuda', block=2)
@@ -99,10 +107,68 @@ for seed in (7, None, None):                      # an unseeded reset goes on wi
     (cc, ct), _ = cpu.reset(seed=seed)
     for _ in range(3):
         actions = (np.full((3, 2, 2), 5.0), np.full((3, 4, 2), 1.0))
-        (dc, dt), *_ = dev.step(*actions)
+        (dc, dt), *_ = dev.step(actions)
         (cc, ct), *_ = cpu.step(actions)
     differing += [] if np.array_equal(np.asarray(dc), cc) and np.array_equal(np.asarray(dt), ct) else [f'{seed}']
 report['unseeded resets'] = dict(differing=differing)
+
+differing = []                                    # seed lists and reset masks, as on the CPU
+for kwargs in (dict(seed=[4, None, 6]), dict(seed=2, options={'reset_mask': np.array([True, False, True])}),
+               dict(options={'reset_mask': np.array([False, True, False])})):
+    (dc, dt), dinfo = dev.reset(**kwargs)
+    (cc, ct), cinfo = cpu.reset(**kwargs)
+    for _ in range(3):
+        actions = (np.full((3, 2, 2), -4.0), np.full((3, 4, 2), 2.0))
+        (dc, dt), *_, dinfo = dev.step(actions)
+        (cc, ct), *_, cinfo = cpu.step(actions)
+        same = [np.array_equal(np.asarray(dinfo[key]), cinfo[key]) for key in INFO_KEYS]
+        differing += [] if np.array_equal(np.asarray(dc), cc) and np.array_equal(np.asarray(dt), ct) and all(same) \
+            else [str(kwargs)]
+messages = []                                     # bad input: the CPU env's refusals, word for word
+for actions in ((np.zeros((3, 2, 2)), np.full((3, 4, 2), np.nan)), (np.zeros((2, 2, 2)), np.zeros((3, 4, 2))),
+                (np.zeros((3, 4)), [[1, 2], [3]]), np.zeros(3), (np.zeros((3, 2, 2)), 'left')):
+    found = []
+    for env in (dev, cpu):
+        try:
+            env.step(actions)
+            found.append('accepted')
+        except ValueError as exc:
+            found.append(str(exc))
+    differing += [] if found[0] == found[1] and found[0] != 'accepted' else [f'refusal {found}']
+    messages.append(found[0])
+for call in (lambda: dev.reset(options={'reset_mask': np.ones(2, bool)}), lambda: dev.reset(seed=[1, 2]),
+             lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda', autoreset_mode='disabled'),
+             lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda', target_agent='greedy').step(
+                 (np.zeros((2, 4, 2)), np.zeros((2, 8, 2))))):
+    try:
+        call()
+        messages.append('accepted')
+    except (ValueError, RuntimeError) as exc:
+        messages.append(str(exc))
+report['resets and refusals'] = dict(differing=differing, messages=messages)
+
+
+def user_loop(envs, steps=40):                  # a researcher's loop, written once: nothing in it knows the device
+    (camera_obs, target_obs), infos = envs.reset(seed=3)
+    trace, finished = [sorted(infos)], []
+    for _ in range(steps):
+        (camera_obs, target_obs), (camera_rewards, _), terminated, truncated, infos = envs.step(envs.sample_actions())
+        ended = terminated | truncated
+        trace.append([camera_obs.tolist(), target_obs.tolist(), camera_rewards.tolist(), ended.tolist(),
+                      infos['coverage_rate'].tolist(), infos['episode_step'].tolist(), sorted(infos)])
+        if 'final_info' in infos:
+            finished.append(infos['final_info']['episode_coverage_rate'][infos['_final_info']].tolist())
+    envs.close()
+    return trace, finished
+
+
+for mode in ('next_step', 'same_step'):
+    runs = {where: user_loop(mate.make_vec('MultiAgentTracking-v0', 4, config='MATE-4v8-9', device=where,
+                                           autoreset_mode=mode, max_episode_steps=15))
+            for where in ('cpu', 'cuda')}
+    report[f'user loop {mode}'] = dict(differing=[] if runs['cpu'] == runs['cuda'] else ['the loop'],
+                                       ends=sum(sum(row[3]) for row in runs['cpu'][0][1:]),
+                                       finished=len(runs['cpu'][1]))
 
 from mate.teams.device import HostTeam
 for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_step'),
@@ -186,7 +252,14 @@ def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     report = json.loads(done.stdout.strip().splitlines()[-1])
     hrl = report.pop('hrl')
     assert hrl['equal'] and hrl['aimed'] > 0, hrl
-    assert len(report) == 2 * 6 + 1 + 4 + 2
+    assert len(report) == 2 * 6 + 2 + 2 + 4 + 2
+    messages = report['resets and refusals']['messages']
+    assert 'target actions contain NaN or inf (envs [0, 1, 2])' in messages[0]
+    assert 'camera actions must have shape (3, 2, 2)' in messages[1] and 'ragged' in messages[2]
+    assert 'actions must be a pair' in messages[3] and 'not numeric' in messages[4]
+    assert "reset_mask'] must be a bool array of shape (3,)" in messages[5] and 'got 2 seeds' in messages[6]
+    assert "'next_step' or 'same_step'" in messages[7] and 'call reset() before step()' in messages[8]
+    assert report['user loop same_step']['finished'] >= 2, report['user loop same_step']   # final_info seen
     for pairing, found in report.items():
         assert found['differing'] == [], (pairing, found['differing'])
         if 'ends' in found:                         # every game restarted at least once (short episodes)
