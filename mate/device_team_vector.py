@@ -110,12 +110,8 @@ class DeviceTeamVecEnv:
         if self.reward_kind in ('team', 'coverage'):    # a game restarting at this step (next_step) is rewarded 0
             step = team_rewards[self._own] if self.reward_kind == 'team' else info['coverage_rate']
             return torch.where(live, step, zero)
-        if self.reward_kind == 'own':
-            parts = self.vec.world_tensor('target_reward_parts')
-        else:                                         # 'difference': the share of the targets each camera alone sees
-            sees = self.vec.world_tensor('camera_target_view_mask')
-            alone = sees & (sees.sum(dim=-2, keepdim=True) == 1)
-            parts = alone.sum(dim=-1).to(torch.float64) / sees.shape[-1]
+        # each target's part of the team reward, or each camera's difference credit, as the core's step computed it
+        parts = self.vec.world_tensor('target_reward_parts' if self.reward_kind == 'own' else 'camera_reward_parts')
         return torch.where(live[:, None], parts, zero)
 
     def step(self, actions):

@@ -58,7 +58,7 @@ from .core.device import BLOCK, DeviceCore, from_torch, to_torch
 from .core.world import World, episode_statistics
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
-from .vector_contract import (FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
                               vector_spaces)
 
 __all__ = ['DeviceVecEnv', 'GAME_OUTPUTS']
@@ -362,6 +362,8 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         core = self.core
         for group, arrays in ((core.world, state['world']), (core.rows, state['rows'])):
             for name, array in zip(group._fields, group):
+                if name in ADDED_FIELDS and name not in arrays:   # a state of an earlier version: recomputed
+                    continue                                     # by the next step, as on the CPU
                 array.copy_to_device(np.ascontiguousarray(arrays[name]))
         if sorted(state['teams']) != sorted(team.name.lower() for team in self.teams):
             raise ValueError(f"the state's device teams ({', '.join(sorted(state['teams'])) or 'none'}) are not this "

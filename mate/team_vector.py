@@ -73,24 +73,12 @@ from .protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward,
 from .teams.protocol import as_team
 from .vector import AutoresetMode, make_vec
 
-__all__ = ['EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'difference_rewards', 'make_team_vec',
+__all__ = ['EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'make_team_vec',
            'opponent_factory', 'step_rewards']
 
 EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
                 'normalized_target_return', 'delivered_cargoes')
 """The statistics of `infos['mate_episode']`."""
-
-
-def difference_rewards(sees: np.ndarray) -> np.ndarray:
-    """Each camera's marginal contribution to the coverage rate (the *difference reward*).
-
-    `sees` (..., Nc, Nt) bool: camera c tracks target t. Returns (..., Nc) float64: the coverage rate minus the
-    coverage rate the other cameras would give without camera c, i.e. the share of the Nt targets that camera c
-    alone tracks.
-    """
-    sees = np.asarray(sees, dtype=bool)
-    watchers = sees.sum(axis=-2, keepdims=True)                       # (..., 1, Nt) cameras tracking each target
-    return (sees & (watchers == 1)).sum(axis=-1) / sees.shape[-1]
 
 
 def opponent_factory(opponent, team: Team):
@@ -107,13 +95,14 @@ def step_rewards(reward: str, world, team_reward, coverage_rate) -> np.ndarray:
     """The rewards of kind `reward` (`REWARDS`) of the step just played in the batched world (B, ...): 'team' the
     own team's reward (B,), 'coverage' the coverage rate (B,), 'difference' (B, Nc) and 'own' (B, Nt) per agent:
     each target's part of the team's dense reward as the core's step computed it (`World.target_reward_parts`: its
-    tracking penalty and its delivery's pay; they sum to the team reward)."""
+    tracking penalty and its delivery's pay; they sum to the team reward), and each camera's difference credit
+    (`World.camera_reward_parts`: the share of the targets it alone tracks)."""
     if reward == 'team':
         return np.array(team_reward, dtype=np.float64)
     if reward == 'coverage':
         return np.array(coverage_rate, dtype=np.float64)
     if reward == 'difference':
-        return difference_rewards(world.camera_target_view_mask)
+        return world.camera_reward_parts.copy()
     return world.target_reward_parts.copy()
 
 
@@ -244,7 +233,7 @@ class SingleTeamVecEnv(VectorEnv):
         if self.reward_kind == 'own':
             rewards[done] = final['target_reward_parts'][done]
         elif self.reward_kind == 'difference':
-            rewards[done] = difference_rewards(final['camera_target_view_mask'][done])
+            rewards[done] = final['camera_reward_parts'][done]
         return rewards
 
     def _episode_statistics(self, ended, infos) -> dict:

@@ -19,14 +19,10 @@ from .core.snapshot import get_snapshot
 from .core.world import empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
-from .vector_contract import (FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
                               vector_spaces)
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
-
-ADDED_FIELDS = frozenset({'target_reward_parts', 'coverage_rate_sum', 'real_coverage_rate_sum'})
-"""World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
-episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
 
 
 class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):

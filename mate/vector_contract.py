@@ -12,7 +12,7 @@ from gymnasium.vector.utils import batch_space
 from .core.world import EPISODE_STATISTICS
 from .env import MultiAgentTracking
 
-__all__ = ['AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing', 'uniform_actions',
+__all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing', 'uniform_actions',
            'vector_spaces']
 
 try:
@@ -23,13 +23,18 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
         SAME_STEP = 'SameStep'
         DISABLED = 'Disabled'
 
+ADDED_FIELDS = frozenset({'target_reward_parts', 'camera_reward_parts', 'coverage_rate_sum',
+                          'real_coverage_rate_sum'})
+"""World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
+episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
 INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step',
              *EPISODE_STATISTICS)
 """The (B,) arrays of a vector step's infos: World fields of the same names, and the episode so far
 (`mate.core.world.episode_statistics`: its mean coverage rates and the target team's raw return)."""
-FINAL_WORLD_KEYS = ('target_reward_parts', 'camera_target_view_mask')
+FINAL_WORLD_KEYS = ('target_reward_parts', 'camera_reward_parts', 'camera_target_view_mask')
 """World arrays of the ended step that `same_step` autoreset keeps in `final_info` (each target's part of the team
-reward (B, Nt), which camera tracks which target (B, Nc, Nt)): the reset overwrites them."""
+reward (B, Nt), each camera's difference credit (B, Nc), which camera tracks which target (B, Nc, Nt)): the reset
+overwrites them."""
 
 
 def autoreset_mode_of(mode) -> AutoresetMode:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from ..constants import NUM_WAREHOUSES, WAREHOUSE_RADIUS, WAREHOUSES
 from .jit import inline_kernel, ir_inline_kernel, kernel
-from .perception import is_tracked
 
 
 @ir_inline_kernel
@@ -154,15 +153,28 @@ def global_state(p, w, b, out):
 
 @inline_kernel
 def update_coverage(p, w, b):
-    """coverage_rate, real_coverage_rate (tracked among targets with bounty left) and
-    mean_transport_rate (sparse episode reward per delivered unit, over reward_scale)."""
+    """coverage_rate, real_coverage_rate (tracked among targets with bounty left),
+    mean_transport_rate (sparse episode reward per delivered unit, over reward_scale) and each camera's
+    difference credit, `camera_reward_parts` (the share of the targets that it alone tracks: the coverage rate
+    minus what the other cameras cover without it)."""
     tracked = tracked_with_bounty = with_bounty = 0
+    for c in range(p.num_cameras):
+        w.camera_reward_parts[b, c] = 0.0
     for t in range(p.num_targets):
-        seen = is_tracked(p, w, b, t)
+        watchers, watcher = 0, 0
+        for c in range(p.num_cameras):
+            if w.camera_target_view_mask[b, c, t]:
+                watchers += 1
+                watcher = c
+        if watchers == 1:
+            w.camera_reward_parts[b, watcher] += 1.0
+        seen = watchers > 0
         tracked += seen
         if w.target_bounty[b, t] > 0:
             with_bounty += 1
             tracked_with_bounty += seen
+    for c in range(p.num_cameras):
+        w.camera_reward_parts[b, c] /= p.num_targets
     w.coverage_rate[b] = tracked / p.num_targets
     w.real_coverage_rate[b] = tracked_with_bounty / with_bounty if with_bounty > 0 else 0.0
     delivered = w.num_delivered_cargoes[b]

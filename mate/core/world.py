@@ -42,6 +42,8 @@ class World(NamedTuple):
     target_facing: np.ndarray          # (B, Nt, 2) direction the target faces (last move), for rendering
     target_done: np.ndarray            # (B, Nt) bool: delivered cargo this step
     target_reward_parts: np.ndarray    # (B, Nt) each target's part of this step's target team reward
+    camera_reward_parts: np.ndarray    # (B, Nc) each camera's difference credit: the share of the Nt targets it
+    #                                    alone tracks (the coverage rate minus the coverage without it)
     remaining_cargoes: np.ndarray      # (B, W, W) int64: units waiting at [src] for [dst]
     awaiting_cargo_counts: np.ndarray  # (B, W) int64: units still to be delivered to each warehouse
     num_delivered_cargoes: np.ndarray  # (B,) int64
@@ -79,6 +81,7 @@ def empty_world(params: Params, batch_size: int) -> World:
         'target_freight': ((B, nt), i), 'target_bounty': ((B, nt), i), 'target_steps': ((B, nt), i),
         'target_tracked_steps': ((B, nt), i), 'target_is_colliding': ((B, nt), z),
         'target_facing': ((B, nt, 2), f), 'target_done': ((B, nt), z), 'target_reward_parts': ((B, nt), f),
+        'camera_reward_parts': ((B, nc), f),
         'remaining_cargoes': ((B, nw, nw), i), 'awaiting_cargo_counts': ((B, nw), i),
         'num_delivered_cargoes': ((B,), i), 'episode_step': ((B,), i),
         'camera_target_view_mask': ((B, nc, nt), z), 'camera_obstacle_view_mask': ((B, nc, no), z),

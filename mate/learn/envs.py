@@ -19,7 +19,7 @@ What a learner sees per decision (the paper's wrapper stack, done on arrays):
   `EnhancedObservation` wrapper's arrays: every entity seen, targets know which warehouses are empty), the
   paper's Fig. 6 ablation; the opponent keeps its partial view;
 * `credit='difference'` (cameras): each camera is rewarded with its own marginal contribution to the coverage
-  rate (`difference_rewards`) instead of the team's; rewards are then (B, N);
+  rate (the core's `World.camera_reward_parts`) instead of the team's; rewards are then (B, N);
 * `credit='own'` (targets): each target is rewarded with its own part of the team's raw reward (the core's
   `World.target_reward_parts`: its tracking penalty and its deliveries), which sum to the team reward; rewards are
   then (B, N);
@@ -50,14 +50,14 @@ from ..messages import Team
 from ..options import option
 from ..protocol import PAPER_SETTINGS
 from ..registration import resolve_config
-from ..team_vector import SingleTeamVecEnv, difference_rewards  # noqa: F401  (difference_rewards: re-exported)
+from ..team_vector import SingleTeamVecEnv
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
-from .memory import SightingMemory, camera_sightings
+from .memory import SightingMemory
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv',
-           'compress', 'difference_rewards', 'game_of', 'mixed_camera_reward', 'team_positions']
+           'compress', 'game_of', 'mixed_camera_reward', 'team_positions']
 
 CREDITS = ('team', 'difference', 'own')
 """How an agent's reward is assigned: the team's (both teams); a camera's own marginal contribution to the coverage
@@ -229,7 +229,7 @@ class TeamVecEnv:
         self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
-        self._sees = None          # difference credit: which camera tracks which target at the last env step
+        self._credit = None        # difference credit of the last env step (B, Nc): the core's camera_reward_parts
         self._raw = self._own_raw = self._before = None
         self._return = np.zeros(self.num_envs)   # the learner's reward summed (the game's statistics: the core's)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
@@ -265,8 +265,8 @@ class TeamVecEnv:
         observations = self.vec.observations
         if self.credit == 'own':          # the single-team env's own parts of the team reward (B, Nt)
             self._own_rewards = reward
-        if self.credit == 'difference':   # before full observability fills in every flag
-            self._sees = camera_sightings(observations[0], *self.counts)[1]
+        if self.credit == 'difference':   # each camera's share of the targets it alone tracks (the core's)
+            self._credit = self.vec.world.camera_reward_parts.copy()
         observations = self._enhanced(observations)
         if self.spec.velocity:
             own = self._own(observations)
@@ -352,7 +352,7 @@ class TeamVecEnv:
                 r = infos['coverage_rate'] if self.camera_reward == 'coverage' else \
                     mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
             if self.credit == 'difference':
-                reward += np.where(live[:, None], difference_rewards(self._sees), 0.0)
+                reward += np.where(live[:, None], self._credit, 0.0)
             elif self.credit == 'own':
                 reward += np.where(live[:, None], self._own_rewards, 0.0)
             else:

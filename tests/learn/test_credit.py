@@ -1,11 +1,12 @@
-"""Difference rewards for cameras (`credit='difference'`): the formula, the training env's per-camera
-rewards, and the learner's per-agent critic."""
+"""Difference rewards for cameras (`credit='difference'`): the formula, the core's per-camera credit
+(`World.camera_reward_parts`), the training env's per-camera rewards, and the learner's per-agent critic."""
 
 import numpy as np
 import pytest
 
 from mate.learn import CheckpointError, load_checkpoint
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv, difference_rewards
+import mate
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv
 from mate.learn.mappo import MAPPOConfig, train
 from mate.messages import Team
 from mate.spaces import observation_indices_of
@@ -17,6 +18,25 @@ def _env(num_envs, **options):
     """Training envs of grid-move cameras on MATE-4v8-9 (the camera preset), `options` of `TeamEnvConfig`."""
     config = TeamEnvConfig(team='camera', num_envs=num_envs, **options)
     return config.make_env(config.policy_spec())
+
+
+def difference_rewards(sees: np.ndarray) -> np.ndarray:
+    """The formula, written here apart from the core: `sees` (..., Nc, Nt) bool -> (..., Nc), the share of the
+    targets each camera alone tracks."""
+    return (sees & (sees.sum(axis=-2, keepdims=True) == 1)).sum(axis=-1) / sees.shape[-1]
+
+
+@pytest.mark.parametrize('preset', ['MATE-4v8-9', 'MATE-8v8-9', 'MATE-2v4-0'])
+def test_the_core_credits_each_camera_the_targets_it_alone_tracks(preset):
+    """`World.camera_reward_parts`, written by the core's step and reset, is the formula on the step's view masks."""
+    envs = mate.make_vec('MultiAgentTracking-v0', 16, config=preset, max_episode_steps=30)
+    envs.reset(seed=1)
+    credited = 0
+    for step in range(60):
+        assert np.array_equal(envs.world.camera_reward_parts, difference_rewards(envs.world.camera_target_view_mask))
+        credited += int((envs.world.camera_reward_parts > 0).sum())
+        envs.step(envs.sample_actions(step))
+    assert credited > 0
 
 
 def test_difference_rewards_by_hand():
