@@ -239,8 +239,8 @@ class PolicyScore:
         return '\n'.join(lines)
 
 
-def _play(policy, team_factory, team: str, config: str, episodes: int, first_seed: int, max_episode_steps: int,
-          opponent: str, device: str) -> list[dict]:
+def play_policy_episodes(policy, team_factory, team: str, config: str, episodes: int, first_seed: int,
+                         max_episode_steps: int, opponent: str, device: str) -> list[dict]:
     """`episodes` games on seeds first_seed, ... of the policy (or of `team_factory`) against `opponent`."""
     from .teams import play_batch
 
@@ -307,7 +307,7 @@ def evaluate(policy=None, team='camera', config: str | None = None, *, team_fact
     the line `mate train` writes, so that `mate benchmark report` draws the curve. `config` None: the paper's preset
     of the team (`paper_config`)."""
     team, config, episodes, steps = _settings(team, config, episodes, max_episode_steps)
-    played = _play(policy, team_factory, team, config, episodes, EVALUATION_SEEDS, steps, opponent, device)
+    played = play_policy_episodes(policy, team_factory, team, config, episodes, EVALUATION_SEEDS, steps, opponent, device)
     if run_dir is not None:
         metric = TEAM_METRIC[team]
         record = dict(iteration=int(env_steps if iteration is None else iteration), env_steps=int(env_steps),
@@ -368,13 +368,13 @@ def reference_cache_key(reference: str, team: str, config: str, episodes: int, f
 
 def _reference_episodes(name: str, team: str, config: str, episodes: int, first_seed: int, steps: int, opponent,
                         device: str, cache: Path | None) -> list[dict]:
-    """The reference `name`'s episodes (`_play`), read from the file of `cache` whose key matches when there is one
+    """The reference `name`'s episodes (`play_policy_episodes`), read from the file of `cache` whose key matches when there is one
     (a rule team against a rule team only; a file that does not parse or whose key differs is played again and
     replaced), else played and, with `cache`, written there (JSON, replaced whole)."""
     from .teams import RULE_TEAMS
 
     if cache is None or name not in RULE_TEAMS or not isinstance(opponent, str) or opponent not in RULE_TEAMS:
-        return _play(name, None, team, config, episodes, first_seed, steps, opponent, device)
+        return play_policy_episodes(name, None, team, config, episodes, first_seed, steps, opponent, device)
     key = reference_cache_key(name, team, config, episodes, first_seed, steps, opponent)
     text = json.dumps(key, sort_keys=True)
     path = cache / f'{name}-{team}-{hashlib.sha256(text.encode()).hexdigest()[:24]}.json'
@@ -384,7 +384,7 @@ def _reference_episodes(name: str, team: str, config: str, episodes: int, first_
             return kept['episodes']
     except (OSError, ValueError, KeyError, TypeError):
         pass
-    played = _play(name, None, team, config, episodes, first_seed, steps, opponent, device)
+    played = play_policy_episodes(name, None, team, config, episodes, first_seed, steps, opponent, device)
     cache.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f'{path.name}.{os.getpid()}.tmp')
     tmp.write_text(json.dumps(dict(key=key, episodes=played)))
@@ -416,7 +416,7 @@ def score_policy(policy=None, team='camera', config: str | None = None, *, team_
                               max_episode_steps=steps, opponent=opponent, run_dir=folder, env_steps=env_steps,
                               device=device)
     count = ABSOLUTE_FACTOR * episodes
-    absolute = _play(policy, team_factory, team, config, count, ABSOLUTE_SEEDS, steps, opponent, device)
+    absolute = play_policy_episodes(policy, team_factory, team, config, count, ABSOLUTE_SEEDS, steps, opponent, device)
     cache = None if reference_cache in (None, False) else \
         reference_cache_dir() if reference_cache is True else Path(reference_cache).expanduser()
     played = {name: {part: _reference_episodes(name, team, config, n, first, steps, opponent, device, cache)

@@ -131,3 +131,36 @@ def test_no_module_cites_a_document_outside_the_repository():
         assert not re.search(r'(?<!paper\'s )(?<!paper )§', text), f'{name} cites a section of no document'
         for page in re.findall(r'docs/[\w/-]+\.md', text):
             assert (ROOT.parent / page).exists(), f'{name} names {page}, which does not exist'
+
+
+def private_imports(name: str) -> list[str]:
+    """The private names (`_x`, not dunders) that module `name` imports from another module of the package."""
+    path = MODULES[name]
+    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = package.split('.')
+            origin = '.'.join(base[:len(base) - node.level + 1] + ([node.module] if node.module else []))
+        else:
+            origin = node.module or ''
+        if origin == name or not (origin == 'mate' or origin.startswith('mate.')):
+            continue
+        found += [f'{origin}.{alias.name}' for alias in node.names
+                  if alias.name.startswith('_') and not alias.name.startswith('__')]
+    return found
+
+
+def test_no_module_imports_another_modules_private_names():
+    """What a module shares is public; a private name is its own (docs/contributors/architecture.md)."""
+    found = {name: private_imports(name) for name in MODULES}
+    assert not {name: names for name, names in found.items() if names}
+
+
+def test_the_private_name_check_sees_relative_and_lazy_imports(tmp_path, monkeypatch):
+    module = tmp_path / 'probe.py'
+    module.write_text('def f():\n    from .core.device import _secret, BLOCK\n    from ..x import __version__\n')
+    monkeypatch.setitem(MODULES, 'mate.probe', module)
+    assert private_imports('mate.probe') == ['mate.core.device._secret']

@@ -81,13 +81,13 @@ def test_the_references_are_cached_by_what_decides_their_score(tmp_path, monkeyp
     assert len(files) == 2                               # the evaluation and the absolute episodes
     assert json.loads(files[0].read_text())['key']['max_episode_steps'] == 20
     played = []
-    real = protocol._play
+    real = protocol.play_policy_episodes
 
     def counted(policy, *args, **kwargs):
         played.append(policy)
         return real(policy, *args, **kwargs)
 
-    monkeypatch.setattr(protocol, '_play', counted)
+    monkeypatch.setattr(protocol, 'play_policy_episodes', counted)
     second = mate.score_policy(still, **arguments)
     assert 'random' not in played and second.references == first.references       # read back, the same episodes
     mate.score_policy(still, **dict(arguments, max_episode_steps=21))

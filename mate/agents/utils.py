@@ -47,7 +47,7 @@ _OWN_LOCATION = slice(PRESERVED_DIM, PRESERVED_DIM + 2)
 # ---------------------------------------------------------------------------- observation helpers
 
 @functools.cache
-def _relative_layout(team: Team, num_cameras: int, num_targets: int, num_obstacles: int):
+def relative_layout(team: Team, num_cameras: int, num_targets: int, num_obstacles: int):
     """Positions of the x entries of every coordinate pair (y = x + 1) and of the flag that gates each
     pair (-1 for the warehouse centres, which are always converted). Two read-only int64 arrays."""
     mask = coordinate_mask_of(team, num_cameras, num_targets, num_obstacles)
@@ -76,7 +76,7 @@ def convert_coordinates(observation, team, num_cameras: int, num_targets: int, n
     """
     team = Team(team)
     out = np.array(observation, dtype=np.float64, copy=True)
-    xs, flags = _relative_layout(team, num_cameras, num_targets, num_obstacles)
+    xs, flags = relative_layout(team, num_cameras, num_targets, num_obstacles)
     origin = out[..., _OWN_LOCATION].copy()
     gate = np.where(flags >= 0, out[..., np.maximum(flags, 0)] == 1.0, True)
     out[..., xs] -= gate * origin[..., 0:1]

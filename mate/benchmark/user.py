@@ -274,7 +274,7 @@ def run_user_reference(reference: Reference, values: dict, episodes: int, say=pr
     `ABSOLUTE_SEEDS`), cut at the horizon, against the greedy opponent; writes `evaluation.json` and
     `absolute.json` (`{'metric', 'mean', 'seeds', 'episodes'}`: the episodes as `mate evaluate --json` writes those
     of a rule team), each replaced whole. Returns the exit status."""
-    from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC, _play
+    from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC, play_policy_episodes
 
     try:
         team = _function(reference.call)
@@ -286,7 +286,7 @@ def run_user_reference(reference: Reference, values: dict, episodes: int, say=pr
     run_dir, metric = Path(values['run_dir']), TEAM_METRIC[values['team']]
     for part, count, first in (('evaluation', episodes, EVALUATION_SEEDS),
                                ('absolute', ABSOLUTE_FACTOR * episodes, ABSOLUTE_SEEDS)):
-        played = _play(policy, factory, values['team'], values['config'], count, first, int(values['horizon']),
+        played = play_policy_episodes(policy, factory, values['team'], values['config'], count, first, int(values['horizon']),
                        'greedy', 'cpu')
         record = dict(metric=metric, mean=sum(e[metric] for e in played) / count, seeds=[first, first + count - 1],
                       episodes=played)

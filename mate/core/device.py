@@ -179,7 +179,7 @@ def compile_ptx(name: str, params: Params, batch_size: int = 2, dtype=np.float64
              'state': (States(np.zeros((batch_size, 1), dtype)),)}
     arguments = (params, world, rows) + extra.get(name, ())
     signature = tuple(typeof(argument) for argument in arguments)
-    with _compute_capability(cc):
+    with assumed_compute_capability(cc):
         ptx, _ = cuda.compile_ptx(functions[name], signature, cc=cc)
     return ptx
 
@@ -200,7 +200,7 @@ def _simulated() -> bool:
 
 
 @contextlib.contextmanager
-def _compute_capability(cc: tuple[int, int]):
+def assumed_compute_capability(cc: tuple[int, int]):
     """numba-cuda asks the current device for its compute capability when it compiles a function called from a
     kernel; without a GPU, answer `cc`."""
     import sys

@@ -83,7 +83,7 @@ class TorchPipeline:
     def __init__(self, spec: PolicySpec, device) -> None:
         import torch
 
-        from ..agents.utils import _relative_layout
+        from ..agents.utils import relative_layout
         from ..wrappers.discrete_camera import square_grid
         from ..wrappers.discrete_target import disk_grid
         from .hrl import selection_bits
@@ -91,7 +91,7 @@ class TorchPipeline:
         self.spec, self.team = spec, as_team(spec.team)
         counts = spec.counts
         like = torch.empty(0, device=device)
-        xs, flags = _relative_layout(self.team, *counts)
+        xs, flags = relative_layout(self.team, *counts)
         self._xs, self._ys = _tensor(xs, like), _tensor(xs + 1, like)
         self._flags, self._gated = _tensor(np.maximum(flags, 0), like), _tensor(flags >= 0, like)
         self._observation = self._scaling(observation_space_of(self.team, *counts), like)

@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..constants import PRESERVED_DIM
-from ..core.device import BLOCK, _compute_capability, cuda_module, launch_arguments
+from ..core.device import BLOCK, assumed_compute_capability, cuda_module, launch_arguments
 from ..core.rng import mix64, uniform
 from ..messages import Team
 from ..spaces import observation_indices_of
@@ -474,7 +474,7 @@ def compile_ptx(kind: str, which: str, counts=(4, 8, 9), observation_dtype=np.fl
     row = ROW_FUNCTIONS[kind][('reset', 'act').index(which)]
     kernel = row_kernel(row)
     signature = tuple(typeof(argument) for argument in (team.settings, team.state, inputs))
-    with _compute_capability(cc):
+    with assumed_compute_capability(cc):
         ptx, _ = cuda.compile_ptx(kernel.py_func, signature, cc=cc)
     return ptx
 
@@ -507,7 +507,7 @@ def compile_hrl_ptx(observation_dtype=np.float64, cc: tuple[int, int] = (9, 0)) 
 
     kernel = _hrl_kernel()
     arrays = HRLArrays(np.zeros((2, 1), observation_dtype), np.zeros((2, 8), bool), np.zeros((2, 2)))
-    with _compute_capability(cc):
+    with assumed_compute_capability(cc):
         ptx, _ = cuda.compile_ptx(kernel.py_func, (typeof(arrays), typeof(0)), cc=cc)
     return ptx
 

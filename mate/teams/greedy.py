@@ -29,7 +29,8 @@ GREEDY_OPTIONS = {
 """The keyword options of each team's greedy agents (and of `GreedyTeam`)."""
 
 
-def _counts(counts) -> tuple[int, int, int]:
+def checked_counts(counts) -> tuple[int, int, int]:
+    """`counts` as (Nc, Nt, No) ints; ValueError unless three integers, at least one camera and one target."""
     try:
         nc, nt, no = (int(n) for n in counts)
     except (TypeError, ValueError):
@@ -40,7 +41,7 @@ def _counts(counts) -> tuple[int, int, int]:
     return nc, nt, no
 
 
-class _RuleTeam:
+class RuleTeam:
     """What both greedy teams share: sizes, streams, the rows in play, input checks and the refill loop."""
 
     TEAM: Team
@@ -50,7 +51,7 @@ class _RuleTeam:
         self.num_envs = int(num_envs)
         if self.num_envs < 1:
             raise ValueError(f'num_envs must be at least 1, got {num_envs!r}')
-        self.counts = _counts(counts)
+        self.counts = checked_counts(counts)
         self.num_agents = self.counts[0] if self.team is Team.CAMERA else self.counts[1]
         self.indices = observation_indices_of(self.team, *self.counts)
         self.seeds = row_seeds(seed, self.num_envs)
@@ -116,7 +117,7 @@ class _RuleTeam:
         self.streams.load_state_dict(state['streams'])
 
 
-class GreedyCameraTeam(_RuleTeam):
+class GreedyCameraTeam(RuleTeam):
     """`GreedyCameraAgent` for every camera of B games (see the module docstring).
 
     Args:
@@ -183,7 +184,7 @@ class GreedyCameraTeam(_RuleTeam):
         return self._actions()
 
 
-class GreedyTargetTeam(_RuleTeam):
+class GreedyTargetTeam(RuleTeam):
     """`GreedyTargetAgent` for every target of B games (see the module docstring).
 
     Args:

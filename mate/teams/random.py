@@ -7,13 +7,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from . import rules
-from .greedy import _RuleTeam
+from .greedy import RuleTeam
 from .protocol import as_team
 
 __all__ = ['RandomTeam']
 
 
-class RandomTeam(_RuleTeam):
+class RandomTeam(RuleTeam):
     """A uniform action in each agent's action box, drawn at steps 0, frame_skip, 2 frame_skip, ... of the
     row's episode and held in between, from the agent's action-space stream: row b of a team seeded with
     s plays draw for draw as `RandomCameraAgent(seed=s + b, frame_skip=...).spawn(N)` (or the targets').

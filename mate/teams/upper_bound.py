@@ -54,7 +54,7 @@ from ..constants import (
 from ..core.perception import disc_hides
 from ..messages import Team
 from ..spaces import camera_observation_indices_of
-from .greedy import _counts
+from .greedy import checked_counts
 
 __all__ = ['UpperBoundTeam', 'UPPER_BOUND_OPTIONS', 'lookahead_times', 'plan', 'camera_records', 'teammate_records',
            'target_records', 'obstacle_records', 'check_full_view']
@@ -450,7 +450,7 @@ class UpperBoundTeam:
         self.num_envs = int(num_envs)
         if self.num_envs < 1:
             raise ValueError(f'num_envs must be at least 1, got {num_envs!r}')
-        self.counts = _counts(counts)
+        self.counts = checked_counts(counts)
         nc, nt, no = self.counts
         if nt > MAX_TARGETS:
             raise ValueError(f'UpperBoundTeam plans for at most {MAX_TARGETS} targets, got {nt}')

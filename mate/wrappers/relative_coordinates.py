@@ -20,7 +20,7 @@ from .base import (
 __all__ = ['RelativeCoordinates']
 
 
-class _PerTeamObservation(ObservationMateWrapper):
+class PerTeamObservation(ObservationMateWrapper):
     """Shared plumbing: apply `self.transform(obs, team)` to each team's observation (or to the single team's)."""
 
     def __init__(self, env) -> None:
@@ -45,7 +45,7 @@ class _PerTeamObservation(ObservationMateWrapper):
 
 
 
-class RelativeCoordinates(_PerTeamObservation):
+class RelativeCoordinates(PerTeamObservation):
     """Positions relative to the observer: the warehouse centres and the (x, y) of every visible opponent,
     obstacle and teammate record have the agent's own (x, y) subtracted. Invisible (all-zero) records stay
     zero, the agent's own state block keeps absolute coordinates, and the observation spaces are unchanged

@@ -16,7 +16,7 @@ from mate.messages import Team
 from mate.spaces import observation_space_of
 
 from .base import has_wrapper
-from .relative_coordinates import _PerTeamObservation
+from .relative_coordinates import PerTeamObservation
 
 __all__ = ['RescaledObservation', 'rescaled_space']
 
@@ -30,7 +30,7 @@ def rescaled_space(team: Team, num_cameras: int, num_targets: int, num_obstacles
     return spaces.Box(low=low, high=high, dtype=np.float64)
 
 
-class RescaledObservation(_PerTeamObservation):
+class RescaledObservation(PerTeamObservation):
     """Observations rescaled to [-1, 1] field by field, with matching observation spaces.
 
     Two-team env: sets `camera_observation_space`, `target_observation_space`, the two joint spaces and
