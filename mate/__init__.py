@@ -43,4 +43,4 @@ from .wrappers import (AuxiliaryCameraRewards, AuxiliaryTargetRewards, DiscreteC
 
 from . import learn  # last: it builds on the names above (torch is imported lazily)
 
-__version__ = '0.1.0'
+from .version import __version__  # noqa: E402

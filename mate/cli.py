@@ -163,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog='mate', description='MATE: the Multi-Agent Tracking Environment', parents=[debug],
         epilog='A mistake in the arguments prints one line and exits with status 2; add --debug (mate --debug '
                'COMMAND ...) or set MATE_DEBUG=1 to see the traceback too.')
-    from . import __version__
+    from .version import __version__
     parser.add_argument('--version', action='version', version=f'mate {__version__}')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 

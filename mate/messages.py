@@ -17,7 +17,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 
-__all__ = ['Team', 'Message', 'MessageChannel', 'values_equal']
+__all__ = ['Team', 'Message', 'MessageChannel', 'as_team', 'values_equal']
 
 
 class Team(enum.IntEnum):
@@ -268,3 +268,16 @@ class MessageChannel:
             raise ValueError(f'agent index {index} is out of range: team {team.name} '
                              f'has {self._sizes[team]} agents')
         return team, index
+
+
+def as_team(team) -> Team:
+    """A `Team` from a Team, its value or its name ('camera' / 'target'); ValueError otherwise."""
+    if isinstance(team, str):
+        name = team.strip().upper()
+        if name in Team.__members__:
+            return Team[name]
+        raise ValueError(f"team must be 'camera' or 'target', got {team!r}")
+    try:
+        return Team(team)
+    except ValueError:
+        raise ValueError(f"team must be 'camera' or 'target', got {team!r}") from None

@@ -18,7 +18,7 @@ from .core import engine
 from .core.snapshot import get_snapshot
 from .core.world import empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
-from .messages import Team
+from .messages import Team, as_team
 from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
                               vector_spaces)
 
@@ -379,7 +379,6 @@ class TeamReward(VectorRewardWrapper):
     """
 
     def __init__(self, env: VectorEnv, team='camera') -> None:
-        from .teams.protocol import as_team        # (mate.teams imports this module)
 
         super().__init__(env)
         self.team = as_team(team)

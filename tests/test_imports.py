@@ -164,3 +164,65 @@ def test_the_private_name_check_sees_relative_and_lazy_imports(tmp_path, monkeyp
     module.write_text('def f():\n    from .core.device import _secret, BLOCK\n    from ..x import __version__\n')
     monkeypatch.setitem(MODULES, 'mate.probe', module)
     assert private_imports('mate.probe') == ['mate.core.device._secret']
+
+
+LAYERS = (
+    ('support', ('mate.version', 'mate.constants', 'mate.config', 'mate.messages', 'mate.spaces', 'mate.reproducible',
+                 'mate.arguments', 'mate.options', 'mate.progress', 'mate.plotting', 'mate.extras', 'mate.runners')),
+    ('core', ('mate.core',)),
+    ('game', ('mate.env', 'mate.registration', 'mate.vector_contract', 'mate.vector', 'mate.device_vector',
+              'mate.render', 'mate.video', 'mate.generator')),
+    ('players', ('mate.agents', 'mate.teams')),
+    ('wrappers', ('mate.wrappers',)),
+    ('evaluation', ('mate.team_vector', 'mate.device_team_vector', 'mate.protocol', 'mate.evaluate',
+                    'mate.evaluate_command')),
+    ('learn', ('mate.learn',)),
+    ('above', ('mate.benchmark', 'mate.integrations', 'mate.pretrained')),
+    ('commands', ('mate.cli', 'mate.bench', 'mate.__main__', 'mate')),
+)
+"""The layers of docs/contributors/architecture.md, lowest first, each by its modules' names (a package stands for
+its submodules; the longest prefix decides)."""
+
+CLIMBING = {
+    ('mate.device_vector', 'mate.teams.device'): 'the device env plays device teams inside (camera_agent=)',
+    ('mate.teams.play', 'mate.wrappers.enhanced_observation'): 'full observability is a wrapper, not a core option yet',
+    ('mate.protocol', 'mate.learn.policy'): "scoring 'checkpoint:' and 'pretrained:' agents loads a learned policy",
+    ('mate.evaluate', 'mate.learn.policy'): "mate evaluate plays 'checkpoint:' and 'pretrained:' agents",
+    ('mate.evaluate', 'mate.learn'): "mate evaluate plays 'checkpoint:' and 'pretrained:' agents",
+    ('mate.evaluate_command', 'mate.learn.device'): 'mate evaluate --device parses the device as mate train does',
+}
+"""The imports that still climb (issue 67 is removing them), each with why; any other fails the test."""
+
+
+def layer_of(name: str) -> int:
+    """The index in `LAYERS` of module `name` (KeyError for a module no layer names)."""
+    best = max(((len(prefix), index) for index, (_, prefixes) in enumerate(LAYERS) for prefix in prefixes
+                if name == prefix or name.startswith(prefix + '.')), default=None)
+    if best is None:
+        raise KeyError(f'{name} is in no layer of tests/test_imports.py LAYERS (add it where it belongs)')
+    return best[1]
+
+
+def climbing_imports() -> dict[tuple[str, str], tuple[str, str]]:
+    """Every import of a module of a higher layer: (importer, imported) -> their layers' names."""
+    return {(name, other): (LAYERS[layer_of(name)][0], LAYERS[layer_of(other)][0])
+            for name in MODULES for other in imports_of(name) if layer_of(other) > layer_of(name)}
+
+
+def test_every_module_has_a_layer():
+    assert all(layer_of(name) >= 0 for name in MODULES)
+
+
+def test_no_import_climbs_the_layers_but_the_known_ones():
+    """Data flows one way, lowest layer first; lazy imports count (a lazy import hides a dependency, it does not
+    remove it)."""
+    found = climbing_imports()
+    assert set(found) - set(CLIMBING) == set(), {edge: found[edge] for edge in set(found) - set(CLIMBING)}
+    assert set(CLIMBING) - set(found) == set(), 'a known climbing import is gone: strike it from CLIMBING'
+
+
+def test_the_layer_check_sees_a_climbing_import(tmp_path, monkeypatch):
+    module = tmp_path / 'world_probe.py'
+    module.write_text('def f():\n    from ..learn import policy\n')
+    monkeypatch.setitem(MODULES, 'mate.core.world_probe', module)
+    assert climbing_imports()[('mate.core.world_probe', 'mate.learn.policy')] == ('core', 'learn')

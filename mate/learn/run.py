@@ -89,7 +89,7 @@ def write_run_config(run_dir: Path, algo: str, config, spec: PolicySpec) -> Path
     horizon its spec resolved), the algorithm, the mate version and `config_hash`."""
     import json
 
-    from .. import __version__
+    from ..version import __version__
 
     fields = _config_dict(config)
     data = dict(algorithm=algo, mate_version=__version__, config=fields,

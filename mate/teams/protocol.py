@@ -16,7 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..constants import PRESERVED_DIM
-from ..messages import Team
+from ..messages import Team, as_team
 
 __all__ = ['BatchedTeam', 'action_high', 'as_team', 'idle']
 
@@ -38,19 +38,6 @@ def idle(team, rows: np.ndarray) -> None:
     """`team.idle(rows)` for the teams that have it (the others just go on acting there)."""
     if hasattr(team, 'idle'):
         team.idle(rows)
-
-
-def as_team(team) -> Team:
-    """A `Team` from a Team, its value or its name ('camera' / 'target'); ValueError otherwise."""
-    if isinstance(team, str):
-        name = team.strip().upper()
-        if name in Team.__members__:
-            return Team[name]
-        raise ValueError(f"team must be 'camera' or 'target', got {team!r}")
-    try:
-        return Team(team)
-    except ValueError:
-        raise ValueError(f"team must be 'camera' or 'target', got {team!r}") from None
 
 
 def action_high(observation, team) -> np.ndarray:
