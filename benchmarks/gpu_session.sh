@@ -3,12 +3,13 @@
 # issue 57's goldens on another CPU family, then issue 58's measurements (benchmarks/gpu.py), in about 10 minutes.
 #
 # That machine has python3 3.12 with torch, numba, numba-cuda, numpy, pyyaml, rich, pytest and hypothesis, but no
-# network: gymnasium and pettingzoo travel as wheels. Once, here, in the repository's root:
+# network: gymnasium, pettingzoo and array-api-compat (a core dependency since issue 67) travel as wheels. Once, here, in
+# the repository's root:
 #
 #   echo /.whl/ >> .git/info/exclude
 #   python3 -m pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
 #       --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 \
-#       -d .whl gymnasium==1.2.2 farama-notifications==0.0.6 pettingzoo==1.27.0
+#       -d .whl gymnasium==1.2.2 farama-notifications==0.0.6 pettingzoo==1.27.0 array-api-compat==1.16.0
 #
 # Then one device call: run(command='bash benchmarks/gpu_session.sh', carry=['.whl'], timeout_s=600), and commit
 # what comes back (golden.log, gpu.json, gpu.log) with the figures in docs/performance.md.

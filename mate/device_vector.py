@@ -58,8 +58,8 @@ from .core.device import BLOCK, DeviceCore, from_torch, to_torch
 from .core.world import World, episode_statistics
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
-                              vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
+                              uniform_actions, vector_spaces)
 
 __all__ = ['DeviceVecEnv', 'GAME_OUTPUTS']
 
@@ -168,7 +168,8 @@ class DeviceVecEnv(GameDescription, VectorEnv):
                                      f'or a list of {B} seeds')
                 if any(s is not None and (not isinstance(s, (int, np.integer)) or isinstance(s, bool) or s < 0)
                        for s in value):
-                    raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {value!r}')
+                    raise ValueError('reset(seed=...): each seed must be a non-negative integer or None, got '
+                                     f'{value!r}')
             elif value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool)
                                         or value < 0):
                 raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')

@@ -19,8 +19,8 @@ from .core.snapshot import get_snapshot
 from .core.world import empty_world, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team, as_team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing, uniform_actions,
-                              vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
+                              uniform_actions, vector_spaces)
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 

@@ -12,8 +12,8 @@ from gymnasium.vector.utils import batch_space
 from .core.world import EPISODE_STATISTICS
 from .env import MultiAgentTracking
 
-__all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing', 'uniform_actions',
-           'vector_spaces']
+__all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing',
+           'uniform_actions', 'vector_spaces']
 
 try:
     from gymnasium.vector import AutoresetMode

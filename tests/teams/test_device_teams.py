@@ -70,7 +70,8 @@ for preset in sys.argv[1:]:
             ca, ta = rng.uniform(-30, 30, (B, counts[0], 2)), rng.uniform(-3, 3, (B, counts[1], 2))
             ca = ca if teams[0] is None else host_act(teams[0], cc).copy()
             ta = ta if teams[1] is None else host_act(teams[1], ct).copy()
-            (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step((None if agents[0] else ca, None if agents[1] else ta))
+            own = (None if agents[0] else ca, None if agents[1] else ta)
+            (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step(own)
             (cc, ct), (ccr, ctr), cterm, ctrunc, cinfo = cpu.step((ca, ta))
             done = cterm | ctrunc
             ends += int(done.sum())
