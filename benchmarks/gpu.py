@@ -198,9 +198,9 @@ def rollout(team: str, batch_size: int, seconds: float, frame_skip: int = 5, hid
             if team == 'camera':
                 hrl_actions(from_torch(observations.reshape(B * N, D)), from_torch(decision.reshape(B * N, nt)),
                             begin, from_torch(actions.view(B * N, 2)))
-                observations, *_ = env.step(actions)
+                observations, *_ = env.step_games(actions)
             else:
-                observations, *_ = env.step(decision)
+                observations, *_ = env.step_games(decision)
         return observations
 
     for _ in range(3):

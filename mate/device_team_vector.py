@@ -1,17 +1,20 @@
 """`DeviceTeamVecEnv`: B games of one team on a CUDA device, the other team played there too by a device team.
 
-The device form of `mate.SingleTeamVecEnv` (`mate.make_team_vec(..., device='cuda')`): the same observations,
-actions, reward kinds ('team', 'coverage' and 'difference' for cameras, 'team' and 'own' for targets), autoreset
-modes and seeding (`reset(seed=s)`: game i and the opponent's row i with s + i), over `mate.device_vector.
-DeviceVecEnv`, with torch tensors on the device in and out. The opponent is a device team, 'greedy' (default) or
-'random' (`mate.teams.device`: the CPU teams' rules with their own random streams, so the games agree with the CPU
-env's in distribution; with a `HostTeam` opponent on the CPU env they agree game for game, what the tests check).
+The device form of `mate.SingleTeamVecEnv` (`mate.make_team_vec(..., device='cuda')`), a Gymnasium `VectorEnv` with
+its API: the same spaces, reward kinds ('team', 'coverage' and 'difference' for cameras, 'team' and 'own' for
+targets), autoreset modes, seeding (`reset(seed=s)`: game i and the opponent's row i with s + i) and infos (the
+vector env's keys and masks; `mate_episode` with its mask `_mate_episode` on the steps where games ended;
+`same_step`: `final_obs`, the team's last observations (B, N, D) where `_final_obs`, and `final_info`), over
+`mate.device_vector.DeviceVecEnv`, with torch tensors on the device in and out. The opponent is a device team,
+'greedy' (default) or 'random' (`mate.teams.device`: the CPU teams' rules with their own random streams, so the
+games agree with the CPU env's in distribution; with a `HostTeam` opponent on the CPU env they agree game for game,
+what the tests check).
 
-Differences from the CPU env, for speed on a GPU (no host round trip per step): `infos` always holds `mate_episode`
-and its mask `_mate_episode` (all false on a step where no game ended) beside `coverage_rate` (also under the
-earlier names `episode` / `_episode`, the same objects, which the device training env of `mate.learn` reads; no
-Gymnasium wrapper applies to torch tensors on a device); no `final_obs` (same_step); the returned tensors are the
-env's buffers, overwritten by the next step. `state_dict()` holds host arrays.
+`step` reads one scalar back per step (whether a game ended: the keys appear where the CPU env has them);
+`step_games`, what the device training env of `mate.learn` and the TorchRL adapter call, reads nothing back: its
+infos always hold `mate_episode` and `_mate_episode` (all false where no game ended) beside `coverage_rate`, and
+no `final_obs`. The returned tensors are the env's buffers, overwritten by the next step. `state_dict()` holds host
+arrays.
 """
 
 from __future__ import annotations
@@ -20,11 +23,15 @@ from typing import Any
 
 import numpy as np
 
+from gymnasium.vector import VectorEnv
+from gymnasium.vector.utils import batch_space
+
 from .core.device import BLOCK
 from .device_vector import DeviceVecEnv
 from .messages import Team
 from .protocol import EPISODE_INFO, checked_reward, paper_config
 from .teams.protocol import as_team
+from .vector_contract import FINAL_WORLD_KEYS, INFO_KEYS
 
 __all__ = ['DEVICE_OPPONENTS', 'DeviceTeamVecEnv']
 
@@ -32,7 +39,7 @@ DEVICE_OPPONENTS = ('greedy', 'random')
 """The opponents a device team plays."""
 
 
-class DeviceTeamVecEnv:
+class DeviceTeamVecEnv(VectorEnv):
     """B games of one team against a device team, on a CUDA device (module docstring).
 
     Args:
@@ -78,10 +85,15 @@ class DeviceTeamVecEnv:
                                                    np.tile(own_box.high, (N, 1)).astype(dtype), dtype=dtype)
         self.single_action_space = spaces.Box(np.tile(action_box.low, (N, 1)), np.tile(action_box.high, (N, 1)),
                                               dtype=np.float64)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {'render_modes': [], 'autoreset_mode': self.vec.autoreset_mode}
+        self.render_mode = None
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
         like = self.vec._rewards[0]
         self._sum = torch.zeros(self.num_envs, dtype=torch.float64, device=like.device)
         self._pending = torch.zeros(self.num_envs, dtype=torch.bool, device=like.device)
+        self._final = None          # same_step: (final_obs, final_info, done) of the last step, for `step`
         self._started = False
 
     def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
@@ -116,7 +128,20 @@ class DeviceTeamVecEnv:
 
     def step(self, actions):
         """One env step of every game with the team's `actions` (B, N, 2); returns (observations, rewards,
-        terminations, truncations, infos) (module docstring)."""
+        terminations, truncations, infos), infos as the CPU single-team env's (module docstring)."""
+        observations, rewards, terminated, truncated, fast = self.step_games(actions, keep_final=True)
+        infos = self.vec.infos()
+        ended = fast[f'_{EPISODE_INFO}']
+        if bool(ended.any()):
+            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = fast[EPISODE_INFO], ended
+        if self._final is not None:
+            final_obs, final_info, done = self._final
+            infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
+        return observations, rewards, terminated, truncated, infos
+
+    def step_games(self, actions, keep_final: bool = False):
+        """`step` reading nothing back (module docstring): infos hold `coverage_rate` and `mate_episode` with its
+        mask always. `keep_final` (same_step): keep the ended games' last observations and infos for `step`."""
         import torch
 
         if not self._started:
@@ -145,9 +170,18 @@ class DeviceTeamVecEnv:
                    'delivered_cargoes': torch.where(ended, info['delivered_cargoes'],
                                                     torch.zeros_like(info['delivered_cargoes']))}
         self._sum.masked_fill_(ended, 0.0)
+        self._final = None
         if self.vec.next_step:
             self._pending = ended
         else:
+            done = terminated | truncated
+            if keep_final and bool(done.any()):          # before the ended games restart
+                final_info = self.vec.infos()
+                for key in INFO_KEYS:
+                    final_info[f'_{key}'] = done
+                for key in FINAL_WORLD_KEYS:
+                    final_info[key] = self.vec.world_tensor(key).clone()
+                self._final = (observations[self._own].clone(), final_info, done)
             self.vec.restart_ended()
         infos = {'coverage_rate': info['coverage_rate'], EPISODE_INFO: episode, f'_{EPISODE_INFO}': ended}
         return observations[self._own], rewards, terminated, truncated, infos
@@ -171,7 +205,7 @@ class DeviceTeamVecEnv:
         """(B, S) tensor: every game's global state (`DeviceVecEnv.state`)."""
         return self.vec.state()
 
-    def close(self) -> None:
+    def close(self, **kwargs) -> None:
         self.vec.close()
 
     def __repr__(self) -> str:

@@ -191,7 +191,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         self._reset_teams(self.every if whole else self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(B, bool))       # no game waits for a restart
         self._started = True
-        return self._observations, self._infos()
+        return self._observations, self.infos()
 
     def _check_mask(self, mask) -> np.ndarray:
         host = np.asarray(mask.cpu() if hasattr(mask, 'cpu') else mask)
@@ -264,7 +264,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         target_actions = self._team_actions(target_actions, Team.TARGET)
         observations, rewards, terminated, truncated, _ = self.step_games(camera_actions, target_actions,
                                                                            restart_ended=False)
-        infos = self._infos()
+        infos = self.infos()
         if not self.next_step:
             done = terminated | truncated
             if bool(done.any()):
@@ -275,12 +275,12 @@ class DeviceVecEnv(GameDescription, VectorEnv):
                 for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
                     final_info[key] = self.world_tensor(key).clone()
                 self.restart_ended()
-                infos = self._infos()
+                infos = self.infos()
                 infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
         return observations, rewards, terminated, truncated, infos
 
-    def _infos(self) -> dict:
-        """The CPU env's infos of every game now: fresh (B,) tensors, each with its `_key` mask."""
+    def infos(self) -> dict:
+        """The CPU env's infos of every game now (`INFO_KEYS`): fresh (B,) tensors, each with its `_key` mask."""
         world = self._world
         statistics = episode_statistics(self.params, world)
         infos = {}

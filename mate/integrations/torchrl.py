@@ -119,7 +119,7 @@ class MateTorchRLEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict.get((self.group, 'action')).detach()
         if self.on_device:          # next_step autoreset: an ended game shows its last observation as it is
-            observations, rewards, terminated, truncated, _ = self.envs.step(actions.to(torch.float64))
+            observations, rewards, terminated, truncated, _ = self.envs.step_games(actions.to(torch.float64))
             return self._output(observations, rewards, terminated, truncated)
         observations, rewards, terminated, truncated, infos = self.envs.step(actions.to('cpu', torch.float64).numpy())
         self._current = observations

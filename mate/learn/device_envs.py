@@ -479,7 +479,7 @@ class DeviceTeamEnv:
         import torch
 
         previous = previous.clone() if self.spec.velocity else None
-        raw, rewards, terminated, truncated, info = self.envs.step(own_actions)
+        raw, rewards, terminated, truncated, info = self.envs.step_games(own_actions)
         raw = self._enhanced(raw)
         if previous is not None:
             self._before = torch.where(restarting[:, None, None], raw, previous)

@@ -189,8 +189,19 @@ for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_st
         actions = rng.uniform(-5, 5, (4, cpu.num_agents, 2))
         do, dr, dterm, dtrunc, dinfo = dev.step(torch.from_numpy(actions))
         co, cr, cterm, ctrunc, cinfo = cpu.step(actions)
-        for name, (a, b) in dict(obs=(do, co), reward=(dr, cr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
-                                 ended=(dinfo['_mate_episode'], cinfo.get('_mate_episode', np.zeros(4, bool)))).items():
+        pairs = dict(obs=(do, co), reward=(dr, cr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc))
+        if sorted(dinfo) != sorted(cinfo):               # the CPU single-team env's keys, on the same steps
+            differing.append(f'{step}: info keys {sorted(dinfo)} {sorted(cinfo)}')
+        pairs.update({key: (dinfo[key], cinfo[key]) for key in INFO_KEYS})
+        if '_mate_episode' in cinfo and '_mate_episode' in dinfo:
+            pairs['ended'] = (dinfo['_mate_episode'], cinfo['_mate_episode'])
+        if 'final_info' in cinfo and 'final_info' in dinfo:
+            done = cinfo['_final_info']
+            pairs['_final_obs'] = (dinfo['_final_obs'], cinfo['_final_obs'])
+            pairs.update({f'final {key}': (np.asarray(dinfo['final_info'][key])[done], cinfo['final_info'][key][done])
+                          for key in (*INFO_KEYS, *FINAL_WORLD_KEYS)})
+            pairs.update({f'final_obs {i}': (dinfo['final_obs'][i], cinfo['final_obs'][i]) for i in np.flatnonzero(done)})
+        for name, (a, b) in pairs.items():
             if not np.array_equal(np.asarray(a), b):
                 differing.append(f'{step}: {name}')
         if '_mate_episode' in cinfo:
@@ -212,7 +223,7 @@ for mode, opponent, options in (('next_step', 'random', {'frame_skip': 4}), ('sa
     saved = first.state_dict()
     expected, ends = [], 0
     for step in range(9, 20):
-        o, r, te, tr, info = first.step(actions[step])
+        o, r, te, tr, info = first.step_games(actions[step])
         expected.append([x.clone() for x in (o, r, te, tr, info['mate_episode']['r'], first.state())])
         ends += int((te | tr).sum())
     resumed = make()
@@ -220,7 +231,7 @@ for mode, opponent, options in (('next_step', 'random', {'frame_skip': 4}), ('sa
     resumed.load_state_dict(saved)
     differing = []
     for step in range(9, 20):
-        o, r, te, tr, info = resumed.step(actions[step])
+        o, r, te, tr, info = resumed.step_games(actions[step])
         if not all(torch.equal(x, y) for x, y in zip(expected[step - 9], (o, r, te, tr, info['mate_episode']['r'],
                                                                            resumed.state()))):
             differing.append(f'{step}: resumed')
