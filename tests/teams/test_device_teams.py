@@ -200,7 +200,8 @@ for preset, team, reward, mode in (('MATE-4v8-9', 'camera', 'coverage', 'next_st
             pairs['_final_obs'] = (dinfo['_final_obs'], cinfo['_final_obs'])
             pairs.update({f'final {key}': (np.asarray(dinfo['final_info'][key])[done], cinfo['final_info'][key][done])
                           for key in (*INFO_KEYS, *FINAL_WORLD_KEYS)})
-            pairs.update({f'final_obs {i}': (dinfo['final_obs'][i], cinfo['final_obs'][i]) for i in np.flatnonzero(done)})
+            pairs.update({f'final_obs {i}': (dinfo['final_obs'][i], cinfo['final_obs'][i])
+                          for i in np.flatnonzero(done)})
         for name, (a, b) in pairs.items():
             if not np.array_equal(np.asarray(a), b):
                 differing.append(f'{step}: {name}')
