@@ -31,12 +31,13 @@ from .device_vector import DeviceVecEnv
 from .messages import Team
 from .protocol import EPISODE_INFO, checked_reward, paper_config
 from .teams.protocol import as_team
-from .vector_contract import FINAL_WORLD_KEYS, INFO_KEYS
 
 __all__ = ['DEVICE_OPPONENTS', 'DeviceTeamVecEnv']
 
 DEVICE_OPPONENTS = ('greedy', 'random')
 """The opponents a device team plays."""
+FINAL_KEYS = ('final_obs', '_final_obs', 'final_info', '_final_info')
+"""Same-step autoreset's keys of `step_games(keep_final=True)`, which `step` passes on."""
 
 
 class DeviceTeamVecEnv(VectorEnv):
@@ -93,7 +94,6 @@ class DeviceTeamVecEnv(VectorEnv):
         like = self.vec._rewards[0]
         self._sum = torch.zeros(self.num_envs, dtype=torch.float64, device=like.device)
         self._pending = torch.zeros(self.num_envs, dtype=torch.bool, device=like.device)
-        self._final = None          # same_step: (final_obs, final_info, done) of the last step, for `step`
         self._started = False
 
     def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
@@ -134,14 +134,12 @@ class DeviceTeamVecEnv(VectorEnv):
         ended = fast[f'_{EPISODE_INFO}']
         if bool(ended.any()):
             infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = fast[EPISODE_INFO], ended
-        if self._final is not None:
-            final_obs, final_info, done = self._final
-            infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
+        infos.update({key: fast[key] for key in FINAL_KEYS if key in fast})
         return observations, rewards, terminated, truncated, infos
 
     def step_games(self, actions, keep_final: bool = False):
         """`step` reading nothing back (module docstring): infos hold `coverage_rate` and `mate_episode` with its
-        mask always. `keep_final` (same_step): keep the ended games' last observations and infos for `step`."""
+        mask always. `keep_final` (same_step): where games ended, also `final_obs`, `final_info` and their masks."""
         import torch
 
         if not self._started:
@@ -170,20 +168,15 @@ class DeviceTeamVecEnv(VectorEnv):
                    'delivered_cargoes': torch.where(ended, info['delivered_cargoes'],
                                                     torch.zeros_like(info['delivered_cargoes']))}
         self._sum.masked_fill_(ended, 0.0)
-        self._final = None
+        infos = {'coverage_rate': info['coverage_rate'], EPISODE_INFO: episode, f'_{EPISODE_INFO}': ended}
         if self.vec.next_step:
             self._pending = ended
         else:
             done = terminated | truncated
             if keep_final and bool(done.any()):          # before the ended games restart
-                final_info = self.vec.infos()
-                for key in INFO_KEYS:
-                    final_info[f'_{key}'] = done
-                for key in FINAL_WORLD_KEYS:
-                    final_info[key] = self.vec.world_tensor(key).clone()
-                self._final = (observations[self._own].clone(), final_info, done)
+                infos.update(final_obs=observations[self._own].clone(), _final_obs=done,
+                             final_info=self.vec.final_info(done), _final_info=done)
             self.vec.restart_ended()
-        infos = {'coverage_rate': info['coverage_rate'], EPISODE_INFO: episode, f'_{EPISODE_INFO}': ended}
         return observations[self._own], rewards, terminated, truncated, infos
 
     def state_dict(self) -> dict:

@@ -124,7 +124,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         self._info = {name: to_torch(getattr(out, name)) for name in GAME_OUTPUTS}
         self._world = World(*(to_torch(field) for field in self.core.world))     # views, kept: the world stays put
         self._info_mask = self._world.episode_step.new_ones(B, dtype=bool)      # the `_key` masks: every game
-        self._started = self._seeded = False
+        self._started = False
 
     def _make_teams(self, seed: int) -> dict:
         """The device teams, row b seeded with seed + b, writing their actions into the core's action buffers."""
@@ -187,7 +187,6 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         if to_seed.any():
             self.core.seed(to_seed, [seeds[b] for b in np.flatnonzero(to_seed)])
         self.core.reset(mask)
-        self._seeded = True
         self._reset_teams(self.every if whole else self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(B, bool))       # no game waits for a restart
         self._started = True
@@ -268,12 +267,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         if not self.next_step:
             done = terminated | truncated
             if bool(done.any()):
-                final_obs = (observations[0].clone(), observations[1].clone())
-                final_info = dict(infos)
-                for key in INFO_KEYS:
-                    final_info[f'_{key}'] = done
-                for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
-                    final_info[key] = self.world_tensor(key).clone()
+                final_obs, final_info = (observations[0].clone(), observations[1].clone()), self.final_info(done)
                 self.restart_ended()
                 infos = self.infos()
                 infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
@@ -288,6 +282,17 @@ class DeviceVecEnv(GameDescription, VectorEnv):
             infos[key] = statistics[key] if key in statistics else getattr(world, key).clone()
             infos[f'_{key}'] = self._info_mask
         return infos
+
+    def final_info(self, done) -> dict:
+        """Same-step autoreset's `final_info` of the step just played, before the games of `done` (B,) restart:
+        `infos()` with masks `done`, and the world arrays of `FINAL_WORLD_KEYS` (copies: the restart overwrites
+        them)."""
+        final_info = self.infos()
+        for key in INFO_KEYS:
+            final_info[f'_{key}'] = done
+        for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
+            final_info[key] = self.world_tensor(key).clone()
+        return final_info
 
     def sample_actions(self, rng: np.random.Generator | int | None = None):
         """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64 tensors on the env's
@@ -356,7 +361,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         host = lambda group: {name: array.copy_to_host() for name, array in zip(group._fields, group)}  # noqa: E731
         return dict(world=host(core.world), rows=host(core.rows),
                     teams={team.name.lower(): host(device.state) for team, device in self.teams.items()},
-                    started=self._started, seeded=self._seeded)
+                    started=self._started)
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from an env of the same game, size and device teams)."""
@@ -374,7 +379,7 @@ class DeviceVecEnv(GameDescription, VectorEnv):
             for name, array in zip(device.state._fields, device.state):
                 if name != 'action':          # the core's action buffer, loaded with the rows
                     array.copy_to_device(np.ascontiguousarray(arrays[name]))
-        self._started, self._seeded = bool(state['started']), bool(state.get('seeded', True))
+        self._started = bool(state['started'])      # (a state's 'seeded' of earlier versions: the streams tell)
 
     @property
     def observations(self):

@@ -269,8 +269,9 @@ def _run(args: argparse.Namespace, say) -> int:
     except KeyboardInterrupt:
         running = stop_children()
         jobs_now = f'{running} running job{"s" * (running != 1)}'
+        spent = budget is not None and budget.spent
         say_and_log(f'--minutes {args.minutes:g} spent: stopping {jobs_now} at a checkpoint; run the same command '
-                    'again to resume' if budget is not None and budget.spent else
+                    'again to resume' if spent else
                     f'interrupted: stopping {jobs_now} at a checkpoint (Ctrl-C again: at once); run the same command '
                     'again to resume')
         try:
@@ -278,7 +279,7 @@ def _run(args: argparse.Namespace, say) -> int:
                 runner.close()
         except KeyboardInterrupt:
             stop_children(kill=True)
-        return TIME_BUDGET_SPENT if budget is not None and budget.spent else 130
+        return TIME_BUDGET_SPENT if spent else 130
     finally:
         if budget is not None:
             budget.cancel()

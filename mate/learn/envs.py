@@ -219,7 +219,7 @@ class TeamVecEnv:
         factory = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
         self.envs = SingleTeamVecEnv(resolve_config(spec.env_id, spec.config), team, self.num_envs,
                                      opponent=lambda n, counts, _: factory(n, counts, opponent_seed),
-                                     reward='own' if credit == 'own' else 'team', max_episode_steps=self.horizon,
+                                     reward='team' if credit == 'team' else credit, max_episode_steps=self.horizon,
                                      observation_dtype=np.float32, autoreset_mode='next_step', **overrides)
         self.vec = self.envs.vec
         self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
@@ -229,7 +229,7 @@ class TeamVecEnv:
         self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
-        self._credit = None        # difference credit of the last env step (B, Nc): the core's camera_reward_parts
+        self._agent_rewards = None   # credit 'own' / 'difference': the last env step's per-agent rewards
         self._raw = self._own_raw = self._before = None
         self._return = np.zeros(self.num_envs)   # the learner's reward summed (the game's statistics: the core's)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
@@ -263,10 +263,8 @@ class TeamVecEnv:
         target_reward = self.vec.world.target_reward.copy()
         rewards = (-target_reward, target_reward)           # the game is zero-sum
         observations = self.vec.observations
-        if self.credit == 'own':          # the single-team env's own parts of the team reward (B, Nt)
-            self._own_rewards = reward
-        if self.credit == 'difference':   # each camera's share of the targets it alone tracks (the core's)
-            self._credit = self.vec.world.camera_reward_parts.copy()
+        if self.credit != 'team':         # the single-team env's per-agent rewards: each target's own part of the
+            self._agent_rewards = reward  # team reward (B, Nt), or each camera's difference credit (B, Nc)
         observations = self._enhanced(observations)
         if self.spec.velocity:
             own = self._own(observations)
@@ -351,10 +349,8 @@ class TeamVecEnv:
             if self.team is Team.CAMERA:
                 r = infos['coverage_rate'] if self.camera_reward == 'coverage' else \
                     mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
-            if self.credit == 'difference':
-                reward += np.where(live[:, None], self._credit, 0.0)
-            elif self.credit == 'own':
-                reward += np.where(live[:, None], self._own_rewards, 0.0)
+            if self.credit != 'team':
+                reward += np.where(live[:, None], self._agent_rewards, 0.0)
             else:
                 reward += np.where(live, r, 0.0)
             coverage += np.where(live, infos['coverage_rate'], 0.0)
