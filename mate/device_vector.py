@@ -55,7 +55,7 @@ from gymnasium.vector import VectorEnv
 
 from . import registration
 from .core.device import BLOCK, DeviceCore, from_torch, to_torch
-from .core.world import World, episode_statistics
+from .core.world import World, episode_statistics, obstacle_states
 from .env import GameDescription, MultiAgentTracking, team_shape_error
 from .messages import Team
 from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
@@ -393,6 +393,17 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         with a leading batch axis, as the CPU env's `world`); read it, never write it (the next step overwrites it
         in place)."""
         return self._world
+
+    @property
+    def obstacle_states(self):
+        """(B, No, 3) tensor: obstacle [x, y, r] per game and slot (a fresh tensor), as the CPU env's."""
+        return obstacle_states(self._world)
+
+    @property
+    def remaining_cargoes(self):
+        """(B, 4, 4) tensor: units waiting at warehouse `src` (rows) for destination `dst` (a copy), as the CPU
+        env's."""
+        return self._world.remaining_cargoes.clone()
 
     def world_tensor(self, name: str):
         """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.

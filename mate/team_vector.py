@@ -164,15 +164,21 @@ class SingleTeamVecEnv(VectorEnv):
         self._sums = {'r': np.zeros(self.num_envs)}    # the learner's reward (the game's statistics: the core's)
         self._other_obs = None
         self._pending = np.zeros(self.num_envs, dtype=bool)    # next_step: rows that restart at the next step
+        self._no_episode = None        # step_games' mate_episode of a step where no game ended (made once)
 
     # ------------------------------------------------------------------ API
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
         """Start new episodes in every game; returns (observations (B, N, D), infos). `seed` s: game i and the
-        opponent's row i are seeded s + i; None continues their streams."""
+        opponent's row i are seeded s + i (`opponent_seed` o: the opponent's row i with o + i); None continues
+        their streams."""
+        if opponent_seed is not None and seed is None:
+            raise ValueError('opponent_seed needs an int seed (an unseeded reset goes on with every stream)')
+        for name, value in (('seed', seed), ('opponent_seed', opponent_seed)):
+            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 0):
+                raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')
         if seed is not None:
-            if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-                raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
-            self.opponent = self._make_opponent(self.num_envs, self.counts, int(seed))
+            self.opponent = self._make_opponent(self.num_envs, self.counts,
+                                                int(seed if opponent_seed is None else opponent_seed))
         observations, infos = self.vec.reset(seed=seed, options=options)
         self._other_obs = observations[1 - self._own]
         self.opponent.reset(self._other_obs, np.ones(self.num_envs, dtype=bool))
@@ -224,6 +230,24 @@ class SingleTeamVecEnv(VectorEnv):
                     final[game] = pair[self._own]
             infos['final_obs'] = final
         return observations[self._own], rewards, terminations, truncations, infos
+
+    def step_games(self, actions, keep_final: bool = False):
+        """`step` with the infos of the device env's `step_games` (what the training envs of `mate.learn` call on
+        either device): `mate_episode` and its mask `_mate_episode` at every step (on a step where no game ended,
+        read-only zeros and False, the same arrays every time); `final_obs` / `final_info` (same_step) only with
+        `keep_final`."""
+        observations, rewards, terminations, truncations, infos = self.step(actions)
+        if EPISODE_INFO not in infos:
+            if self._no_episode is None:
+                nothing = np.zeros(self.num_envs, dtype=bool)
+                self._no_episode = (self._episode_statistics(nothing, infos), nothing)
+                for array in (*self._no_episode[0].values(), nothing):
+                    array.setflags(write=False)
+            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = self._no_episode
+        if not keep_final:
+            for key in ('final_obs', '_final_obs', 'final_info', '_final_info'):
+                infos.pop(key, None)
+        return observations, rewards, terminations, truncations, infos
 
     def _final_rewards(self, rewards: np.ndarray, final: dict, done: np.ndarray) -> np.ndarray:
         """`rewards` with those of the games that ended in a same_step autoreset taken from their ended step (the

@@ -167,8 +167,9 @@ def test_the_private_name_check_sees_relative_and_lazy_imports(tmp_path, monkeyp
 
 
 LAYERS = (
-    ('support', ('mate.version', 'mate.constants', 'mate.config', 'mate.messages', 'mate.spaces', 'mate.reproducible',
-                 'mate.arguments', 'mate.options', 'mate.progress', 'mate.plotting', 'mate.extras', 'mate.runners')),
+    ('support', ('mate.version', 'mate.arrays', 'mate.constants', 'mate.config', 'mate.messages', 'mate.spaces',
+                 'mate.reproducible', 'mate.arguments', 'mate.options', 'mate.progress', 'mate.plotting', 'mate.extras',
+                 'mate.runners')),
     ('core', ('mate.core',)),
     ('game', ('mate.env', 'mate.registration', 'mate.vector_contract', 'mate.vector', 'mate.device_vector',
               'mate.render', 'mate.video', 'mate.generator')),

@@ -191,3 +191,47 @@ def test_an_ending_steps_rewards_are_its_own_in_either_autoreset_mode(config, te
         assert (terminated | truncated).all()
     assert np.array_equal(rewards['same_step'], rewards['next_step'])
     assert np.abs(rewards['next_step']).sum() > 0
+
+
+def test_step_games_is_step_with_the_episode_statistics_at_every_step():
+    """The training envs' step on the CPU: `step`'s numbers, `mate_episode` and its mask at every step (zeros and
+    False where no game ended), no final_obs without keep_final."""
+    rng = np.random.default_rng(2)
+    actions = rng.uniform(-3, 3, size=(12, 2, 4, 2))
+    made = [mate.make_team_vec('MATE-2v4-0', 'target', 2, max_episode_steps=5, autoreset_mode='same_step')
+            for _ in range(2)]
+    for envs in made:
+        envs.reset(seed=3)
+    ended = 0
+    for step in range(12):
+        expected = [np.copy(part) if isinstance(part, np.ndarray) else part for part in made[0].step(actions[step])]
+        found = made[1].step_games(actions[step])
+        for a, b in zip(expected[:4], found[:4]):
+            np.testing.assert_array_equal(a, b)
+        infos = found[4]
+        assert '_mate_episode' in infos and 'final_obs' not in infos and 'final_info' not in infos
+        mask = infos['_mate_episode']
+        assert mask.dtype == bool and mask.shape == (2,)
+        if '_mate_episode' in expected[4]:
+            ended += 1
+            np.testing.assert_array_equal(mask, expected[4]['_mate_episode'])
+            for key, value in expected[4]['mate_episode'].items():
+                np.testing.assert_array_equal(infos['mate_episode'][key], value)
+        else:
+            assert not mask.any() and all(not np.any(value) for value in infos['mate_episode'].values())
+    assert ended >= 2
+    kept = made[1].step_games(actions[0], keep_final=True)[4]
+    assert set(kept) >= {'mate_episode', '_mate_episode'}
+
+
+def test_an_opponent_seed_seeds_the_opponent_apart_from_the_games():
+    seen = []
+    factory = lambda n, counts, seed: (seen.append(seed), GreedyTeam('camera', n, counts, seed=seed))[1]  # noqa: E731
+    envs = mate.make_team_vec('MATE-2v4-0', 'target', 2, opponent=factory)
+    envs.reset(seed=5, opponent_seed=40)
+    envs.reset(seed=5)
+    assert seen[1:] == [40, 5]
+    with pytest.raises(ValueError, match='opponent_seed needs an int seed'):
+        envs.reset(opponent_seed=3)
+    with pytest.raises(ValueError, match='opponent_seed must be a non-negative integer or None, got -1'):
+        envs.reset(seed=1, opponent_seed=-1)

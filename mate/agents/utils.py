@@ -31,14 +31,15 @@ from ..constants import (
     TARGET_STATE_DIM_PRIVATE,
     TARGET_STATE_DIM_PUBLIC,
 )
+from ..arrays import array_namespace, copied, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import coordinate_mask_of, observation_indices_of, observation_space_of
 from .geometry import RAD2DEG, Vector2D
 
 __all__ = [
-    'convert_coordinates', 'normalize_observation', 'rescale_observation', 'split_observation',
-    'StateBase', 'CameraStatePublic', 'CameraStatePrivate', 'TargetStatePublic', 'TargetStatePrivate',
-    'ObstacleState',
+    'box_scaling', 'convert_coordinates', 'normalize_observation', 'observation_scaling', 'relative_in_place',
+    'relative_layout', 'rescale_observation', 'scale_in_place', 'split_observation', 'StateBase', 'CameraStatePublic',
+    'CameraStatePrivate', 'TargetStatePublic', 'TargetStatePrivate', 'ObstacleState',
 ]
 
 _OWN_LOCATION = slice(PRESERVED_DIM, PRESERVED_DIM + 2)
@@ -68,46 +69,82 @@ def relative_layout(team: Team, num_cameras: int, num_targets: int, num_obstacle
     return xs, flags
 
 
-def convert_coordinates(observation, team, num_cameras: int, num_targets: int, num_obstacles: int) -> np.ndarray:
-    """A copy of `observation` (..., D[+extra]) with coordinates relative to the agent's own (x, y).
-
-    Warehouse centres always become relative; an opponent/obstacle/teammate record only when its
-    flag is 1, so invisible (all-zero) records stay zero. The agent's own state block is untouched.
-    """
-    team = Team(team)
-    out = np.array(observation, dtype=np.float64, copy=True)
-    xs, flags = relative_layout(team, num_cameras, num_targets, num_obstacles)
-    origin = out[..., _OWN_LOCATION].copy()
-    gate = np.where(flags >= 0, out[..., np.maximum(flags, 0)] == 1.0, True)
-    out[..., xs] -= gate * origin[..., 0:1]
-    out[..., xs + 1] -= gate * origin[..., 1:2]
+def relative_in_place(out, team, num_cameras: int, num_targets: int, num_obstacles: int):
+    """`convert_coordinates` on a float64 array or tensor `out` (..., D[+extra]), in place; returns it."""
+    xs, ys, safe_flags, gated = _relative_constants(Team(team), num_cameras, num_targets, num_obstacles)
+    xs, ys, safe_flags, gated = (on_device_of(c, out) for c in (xs, ys, safe_flags, gated))
+    origin_x = copied(out[..., PRESERVED_DIM:PRESERVED_DIM + 1])
+    origin_y = copied(out[..., PRESERVED_DIM + 1:PRESERVED_DIM + 2])
+    gate = ~gated | (out[..., safe_flags] == 1.0)
+    out[..., xs] -= gate * origin_x
+    out[..., ys] -= gate * origin_y
     return out
 
 
-def normalize_observation(observation, observation_space: gym_spaces.Box, additional_mask=None) -> np.ndarray:
-    """Map every box-bounded field of `observation` (..., D[+extra]) onto [-1, 1]: `2 (v - low) / (high - low) - 1`.
+@functools.cache
+def _relative_constants(team: Team, num_cameras: int, num_targets: int, num_obstacles: int):
+    """(x positions, y positions, gating flags (0 where none), gated) of `relative_layout`, read-only."""
+    xs, flags = relative_layout(team, num_cameras, num_targets, num_obstacles)
+    constants = (xs, xs + 1, np.maximum(flags, 0), flags >= 0)
+    for array in constants:
+        array.setflags(write=False)
+    return constants
 
-    Fields bounded below only are shifted by `-low`; unbounded fields and extra trailing columns
-    are unchanged. `additional_mask` (D,) bool restricts the scaling step further.
+
+def convert_coordinates(observation, team, num_cameras: int, num_targets: int, num_obstacles: int):
+    """A float64 copy of `observation` (..., D[+extra]) with coordinates relative to the agent's own (x, y).
+
+    Warehouse centres always become relative; an opponent/obstacle/teammate record only when its
+    flag is 1, so invisible (all-zero) records stay zero. The agent's own state block is untouched.
+    A numpy array (or anything array-like) gives a numpy array, a torch tensor a tensor on its device.
     """
-    out = np.array(observation, dtype=np.float64, copy=True)
+    return relative_in_place(float64_copy(observation), team, num_cameras, num_targets, num_obstacles)
+
+
+def box_scaling(observation_space: gym_spaces.Box, additional_mask=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(shift, span, scaled) (D,) of `normalize_observation` for `observation_space`: what is subtracted, what the
+    shifted value is divided by, and which fields are mapped onto [-1, 1]."""
     low, high = observation_space.low, observation_space.high
-    dim = low.shape[0]
     below, above = observation_space.bounded_below, observation_space.bounded_above
     scaled = below & above & (high > low)
     if additional_mask is not None:
         scaled = scaled & np.asarray(additional_mask, dtype=bool)
-    core = out[..., :dim]
-    core -= np.where(below, low, 0.0)
-    span = np.where(scaled, high - low, 1.0)
-    core[...] = np.where(scaled, 2.0 * core / span - 1.0, core)
+    return np.where(below, low, 0.0), np.where(scaled, high - low, 1.0), scaled
+
+
+def scale_in_place(out, scaling):
+    """`normalize_observation` on a float64 array or tensor `out` (..., D[+extra]) with `box_scaling`'s constants,
+    in place; returns it."""
+    shift, span, scaled = (on_device_of(c, out) for c in scaling)
+    core = out[..., :shift.shape[0]]
+    core -= shift
+    core[...] = array_namespace(out).where(scaled, 2.0 * core / span - 1.0, core)
     return out
 
 
-def rescale_observation(observation, team, num_cameras: int, num_targets: int, num_obstacles: int) -> np.ndarray:
+def normalize_observation(observation, observation_space: gym_spaces.Box, additional_mask=None):
+    """Map every box-bounded field of `observation` (..., D[+extra]) onto [-1, 1]: `2 (v - low) / (high - low) - 1`.
+
+    Fields bounded below only are shifted by `-low`; unbounded fields and extra trailing columns
+    are unchanged. `additional_mask` (D,) bool restricts the scaling step further. Returns a float64 copy (a
+    tensor for a tensor).
+    """
+    return scale_in_place(float64_copy(observation), box_scaling(observation_space, additional_mask))
+
+
+@functools.cache
+def observation_scaling(team: Team, num_cameras: int, num_targets: int, num_obstacles: int):
+    """`box_scaling` of the team's standard observation space (read-only arrays, one set per game)."""
+    constants = box_scaling(observation_space_of(team, num_cameras, num_targets, num_obstacles))
+    for array in constants:
+        array.setflags(write=False)
+    return constants
+
+
+def rescale_observation(observation, team, num_cameras: int, num_targets: int, num_obstacles: int):
     """`normalize_observation` with the team's standard observation space."""
-    space = observation_space_of(Team(team), num_cameras, num_targets, num_obstacles)
-    return normalize_observation(observation, space)
+    return scale_in_place(float64_copy(observation), observation_scaling(Team(team), num_cameras, num_targets,
+                                                                         num_obstacles))
 
 
 def split_observation(observation, team, num_cameras: int, num_targets: int, num_obstacles: int):

@@ -125,8 +125,10 @@ def episode_statistics(params: Params, world: World, row: int | None = None) -> 
 
 
 def obstacle_states(world: World, b: int | slice = slice(None)) -> np.ndarray:
-    """Obstacle [x, y, r] per slot of row b, (No, 3), or of every row, (B, No, 3) (a fresh array)."""
-    return np.concatenate([world.obstacle_pos[b], world.obstacle_radius[b][..., None]], axis=-1)
+    """Obstacle [x, y, r] per slot of row b, (No, 3), or of every row, (B, No, 3) (a fresh array; a tensor for a
+    world of tensors)."""
+    xp = array_namespace(world.obstacle_pos)
+    return xp.concat([world.obstacle_pos[b], world.obstacle_radius[b][..., None]], axis=-1)
 
 
 def target_headings(world: World, b: int) -> np.ndarray:

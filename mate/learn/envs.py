@@ -35,29 +35,42 @@ learner can bootstrap through a truncation.
 
 `state_dict()` / `load_state_dict()` hold everything the batch's future depends on (the games, the opponent's
 state and random streams, the sighting memory, the episode sums), for exact resumes.
+
+On a GPU (`device='cuda'`, `mate train ... --game-device cuda`) the same class plays the games there: the
+single-team env of that device (`mate.make_team_vec(..., device='cuda')`: the games and the greedy opponent as CUDA
+kernels) and the same code over torch tensors (the spec's pipeline, the memory, `compress` and
+`enhance_observations` serve both kinds, `mate.arrays`; the HRL executor runs as a kernel there). Only the
+decision's episode records come to the host. What it does not play there is named by `device_unsupported`: the
+population players' 'mixed' camera reward and opponents other than the greedy rules. The device teams draw from
+counter-based streams of their own, so a run there and a CPU run (whose greedy team draws as the Python agents)
+play other games of the same distribution (docs/performance.md, "The game on a CUDA device"); with the device
+team's host twin (`mate.teams.device.HostTeam`) as the CPU env's opponent they play the same games.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Literal
 
 import numpy as np
 
-from ..agents.utils import normalize_observation
+from ..agents.utils import box_scaling, scale_in_place
+from ..arrays import array_namespace, copied, float64_copy, is_host, maybe_any
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..options import option
-from ..protocol import PAPER_SETTINGS
+from ..protocol import EPISODE_INFO, PAPER_SETTINGS
 from ..registration import resolve_config
-from ..team_vector import SingleTeamVecEnv
+from ..team_vector import make_team_vec
 from ..teams import GreedyTeam
 from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
 from .memory import SightingMemory
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv',
-           'compress', 'game_of', 'mixed_camera_reward', 'team_positions']
+           'compress', 'device_game_available', 'device_unsupported', 'game_of', 'mixed_camera_reward',
+           'team_positions']
 
 CREDITS = ('team', 'difference', 'own')
 """How an agent's reward is assigned: the team's (both teams); a camera's own marginal contribution to the coverage
@@ -65,6 +78,8 @@ rate ('difference'); a target's own part of the team's raw reward ('own')."""
 CAMERA_REWARDS = ('coverage', 'mixed')
 """What a camera team is rewarded with per env step: the coverage rate (the paper's cooperative runs), or
 0.5 coverage + 0.5 real coverage + 0.1 raw camera-team reward (its population players, docs/population.md)."""
+
+
 def game_of(config: str | None, team: str) -> tuple[str, str | None]:
     """(env_id, config path) of a `--config` value: a registered preset name (with or without '-v0'), a YAML/JSON
     path, or None for the paper preset of `team`. A bad name or file raises `ConfigError` listing the presets."""
@@ -134,22 +149,27 @@ class TeamEnvConfig:
                                    full_observability=self.full_observability, network=network, hidden=hidden,
                                    activation=activation, lstm=lstm, algo=algo, deterministic=deterministic)
 
-    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage') -> TeamVecEnv:
-        """The training envs of this config for a policy of `spec` (the one place a `TeamVecEnv` is made)."""
+    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage',
+                 device: str | None = None) -> TeamVecEnv:
+        """The training envs of this config for a policy of `spec` (the one place a `TeamVecEnv` is made), with the
+        games on `device` (None: the CPU)."""
         return TeamVecEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
-                          credit=self.credit, camera_reward=camera_reward, opponent=opponent)
+                          credit=self.credit, camera_reward=camera_reward, opponent=opponent, device=device)
 
 
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):
     """The population players' camera reward (docs/population.md) from one env step's (B,) arrays."""
-    return 0.5 * np.asarray(coverage_rate) + 0.5 * np.asarray(real_coverage_rate) + 0.1 * np.asarray(camera_reward)
+    return 0.5 * coverage_rate + 0.5 * real_coverage_rate + 0.1 * camera_reward
 
 
-def compress(x: np.ndarray) -> np.ndarray:
+def compress(x):
     """float32 x, with the entries beyond [-1, 1] (unbounded counters: bounties, freights, cargo counts up
-    to 200) squashed logarithmically, sign(x) (1 + log|x|), so that they do not saturate the critic."""
-    magnitude = np.abs(x)
-    return np.where(magnitude > 1.0, np.sign(x) * (1.0 + np.log(np.maximum(magnitude, 1.0))), x).astype(np.float32)
+    to 200) squashed logarithmically, sign(x) (1 + log|x|), so that they do not saturate the critic (numpy, or a
+    tensor on its device)."""
+    xp = array_namespace(x)
+    magnitude = xp.abs(x)
+    squashed = xp.sign(x) * (1.0 + xp.log(xp.maximum(magnitude, 1.0)))
+    return xp.astype(xp.where(magnitude > 1.0, squashed, x), xp.float32)
 
 
 def team_positions(state: np.ndarray, team: Team, counts) -> np.ndarray:
@@ -174,32 +194,67 @@ def greedy_opponent(team: Team, num_envs: int, counts, seed):
     return GreedyTeam(Team.TARGET if team is Team.CAMERA else Team.CAMERA, num_envs, counts, seed=seed)
 
 
+def device_unsupported(spec: PolicySpec, camera_reward: str = 'coverage', opponent=None) -> list[str]:
+    """The settings of a training env that the games on a CUDA device cannot play, in the words of the command line
+    (empty: it plays them all)."""
+    found = []
+    if spec.action == 'discrete':
+        found.append("'discrete' actions (a toy task)")
+    if camera_reward != 'coverage':
+        found.append(f'the {camera_reward!r} camera reward')
+    if opponent is not None:
+        found.append('an opponent other than the greedy rules')
+    return found
+
+
+@functools.cache
+def device_game_available() -> bool:
+    """Whether numba sees a CUDA device (or its simulator) to play the games on."""
+    try:
+        from numba import cuda
+    except ImportError:
+        return False
+    return bool(cuda.is_available())
+
+
 class TeamVecEnv:
-    """B games in which a policy of `spec` plays its team against a batched opponent (module docstring).
+    """B games in which a policy of `spec` plays its team against a batched opponent (module docstring), on the CPU
+    (numpy arrays in and out) or on a CUDA device (`device='cuda'`: torch tensors on it in and out; only the
+    decision's episode records come to the host).
 
     `reset(seed)` -> (obs (B, N, D) float32, state (B, S) float32).
     `step(actions)` -> (obs, state, reward, done (B,), truncated (B,), info). Actions: what the team holds for the
     decision, (B, N, heads) int choices (or (B, N) for one head) or (B, N, 2) continuous shares in [-1, 1] (values
-    outside are clipped, as the env's action box would). Reward (B,) the team's, or (B, N) per camera with
-    `credit='difference'`; done covers both ends of an episode, `truncated` the horizon cuts, and info holds
-    `final_obs` / `final_state` (rows valid where done), `coverage` (B,) mean env-step coverage of the decision,
-    and `episodes`: a list of finished-episode dicts (`coverage`: step-mean coverage rate, `return`: the learner's
-    reward summed, `raw_return`: the target team's raw reward summed and divided by the preset's maximum
-    target-team episode reward (the paper's normalised reward), `length`).
+    outside are clipped, as the env's action box would). Reward (B,) the team's, or (B, N) per agent with
+    `credit` 'difference' or 'own'; done covers both ends of an episode, `truncated` the horizon cuts, and info holds
+    `final_obs` / `final_state` (rows valid where done, zeros elsewhere), `coverage` (B,) mean env-step coverage of
+    the decision, and `episodes`: a host list of finished-episode dicts (`coverage`: step-mean coverage rate,
+    `return`: the learner's reward summed, `raw_return`: the target team's raw reward summed and divided by the
+    preset's maximum target-team episode reward (the paper's normalised reward), `length`), in the order the
+    episodes ended (env step, then game).
+
+    The same code on both devices (`mate.arrays`): the single-team env of the device (`mate.make_team_vec`), the
+    spec's pipeline (`PolicySpec.features`, `decode`, `allowed`), the sighting memory and `compress` serve numpy
+    arrays and torch tensors. With the device team's host twin as the CPU env's opponent (`HostTeam`) the two play
+    the same games, number for number (tests/learn/test_device_envs.py, under numba's CUDA simulator).
 
     Args:
         spec: the trained policy's spec (team, game, frame skip, observation features, action kind).
         num_envs: B.
         horizon: env steps per episode (None: 500 decisions).
         seed: seed of `reset()` without a seed, and of the opponent (seed + 7919).
-        credit: 'team' or 'difference' (cameras).
-        camera_reward: 'coverage' or 'mixed' (cameras, credit 'team').
-        opponent: a factory `f(num_envs, counts, seed)` of the other team (default: the greedy rules).
+        credit: 'team', 'difference' (cameras) or 'own' (targets).
+        camera_reward: 'coverage' or 'mixed' (cameras, credit 'team'; the CPU only).
+        opponent: a factory `f(num_envs, counts, seed)` of the other team (default: the greedy rules; the CPU
+            only: on a device the greedy device team plays).
+        device: None or 'cpu' (numpy), or 'cuda' / 'cuda:N' (the games as CUDA kernels, torch tensors).
+        block: threads per CUDA block (device only; None: the core's default).
         **overrides: config keys of the game (`mate.make_vec`'s).
     """
 
     def __init__(self, spec: PolicySpec, num_envs: int = 64, horizon: int | None = None, seed: int | None = 0,
-                 credit: str = 'team', camera_reward: str = 'coverage', opponent=None, **overrides) -> None:
+                 credit: str = 'team', camera_reward: str = 'coverage', opponent=None, device: str | None = None,
+                 block: int | None = None, **overrides) -> None:
         team = as_team(spec.team)
         if credit not in CREDITS:
             raise ValueError(f'credit must be one of {CREDITS}, got {credit!r}')
@@ -211,79 +266,104 @@ class TeamVecEnv:
             raise ValueError("credit 'difference' (each camera's own share of the coverage) exists for cameras only")
         if credit == 'own' and team is not Team.TARGET:
             raise ValueError("credit 'own' (each target's own part of the team reward) exists for targets only")
+        self.tensors = device is not None and str(device) != 'cpu'
+        """Whether the games are on a CUDA device (the trainer passes actions as tensors and takes tensors back)."""
+        games = dict(reward='team' if credit == 'team' else credit, max_episode_steps=horizon or 500 * spec.frame_skip,
+                     observation_dtype=np.float32, autoreset_mode='next_step', **overrides)
+        if self.tensors:
+            unsupported = device_unsupported(spec, camera_reward, opponent)
+            if unsupported:
+                raise ValueError(f'{unsupported[0]} is not played on the device yet; use --game-device cpu')
+            from ..core.device import BLOCK
+
+            games.update(device=device, block=block or BLOCK)
+        else:
+            games['opponent'] = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
         self.spec, self.team, self.credit, self.camera_reward = spec, team, credit, camera_reward
         self.frame_skip = spec.frame_skip
         self.horizon = int(horizon or 500 * spec.frame_skip)
         self.num_envs = int(num_envs)
-        opponent_seed = None if seed is None else seed + OPPONENT_SEED_OFFSET
-        factory = opponent or (lambda n, counts, s: greedy_opponent(team, n, counts, s))
-        self.envs = SingleTeamVecEnv(resolve_config(spec.env_id, spec.config), team, self.num_envs,
-                                     opponent=lambda n, counts, _: factory(n, counts, opponent_seed),
-                                     reward='team' if credit == 'team' else credit, max_episode_steps=self.horizon,
-                                     observation_dtype=np.float32, autoreset_mode='next_step', **overrides)
+        self.envs = make_team_vec(resolve_config(spec.env_id, spec.config), team, self.num_envs, **games)
         self.vec = self.envs.vec
-        self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
+        self.counts = tuple(self.envs.counts)
         spec.check_game(team, self.counts, 'the policy spec')
         self.num_agents = spec.num_agents
         self.obs_dim, self.state_dim = spec.obs_dim, self.vec.single_state_space.shape[0]
         self.action_heads, self.action_choices, self.num_actions = spec.heads, spec.choices, spec.num_actions
-        self.memory = SightingMemory(self.num_envs, self.counts, spec.memory) if spec.memory else None
         self._seed = seed
-        self._agent_rewards = None   # credit 'own' / 'difference': the last env step's per-agent rewards
-        self._raw = self._own_raw = self._before = None
-        self._return = np.zeros(self.num_envs)   # the learner's reward summed (the game's statistics: the core's)
+        self._opponent_seed = None if seed is None else seed + OPPONENT_SEED_OFFSET
+        self._state_scaling = box_scaling(self.vec.single_state_space)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
+        like = self.vec.world.target_reward                # an array of the games' kind, on their device
+        self.device = getattr(like, 'device', None) if self.tensors else None
+        self._zeros = lambda *shape, dtype=np.float64: self._like(np.zeros(shape, dtype=dtype))   # noqa: E731
+        self.memory = SightingMemory(self.num_envs, self.counts, spec.memory, like=like) if spec.memory else None
+        self._return = self._zeros(self.num_envs)      # the learner's reward summed (the game's statistics: the core's)
+        self._raw = self._before = None                # the team's raw observations now and one env step before
+
+    def _like(self, array: np.ndarray):
+        """A host array as an array of the games' kind (a tensor on their device)."""
+        if not self.tensors:
+            return array
+        import torch
+
+        return torch.as_tensor(array, device=self.device)
 
     # ------------------------------------------------------------------ helpers
-    def _own(self, observations):
-        return observations[0] if self.team is Team.CAMERA else observations[1]
+    def _enhanced(self, raw):
+        """The team's raw observations (B, N, D) as it sees them: unchanged, or (full observability) a copy with
+        every record filled (`enhance_observations`: every entity's public state and flag 1; targets: the true empty
+        warehouses). The opponent keeps its partial view."""
+        if not self.spec.full_observability:
+            return raw
+        camera = self.team is Team.CAMERA
+        camera_obs, target_obs = self.vec.observations
+        own = copied(raw)
+        enhance_observations(own if camera else camera_obs, target_obs if camera else own, self.vec.obstacle_states,
+                             empty_warehouses(self.vec.remaining_cargoes), *self.counts, camera=camera,
+                             target=not camera)
+        return own
 
-    def _enhanced(self, observations):
-        """`observations` as the trained team sees them: unchanged, or (full observability) with every
-        record of its team filled in place (the vector env's buffers; the opponent's are untouched)."""
-        if self.spec.full_observability:
-            camera = self.team is Team.CAMERA
-            enhance_observations(*observations, self.vec.obstacle_states, empty_warehouses(self.vec.remaining_cargoes),
-                                 *self.counts, camera=camera, target=not camera)
-        return observations
+    def _features(self, raw, memory=None, before=None):
+        """The spec's features of raw observations (B, N, D), with the team's memory now (or `memory` = (age,
+        location) kept from an earlier step) and the observations of the env step before (or `before`)."""
+        columns = None
+        if self.memory is not None:
+            columns = self.memory.columns(raw, *(memory or (self.memory.age, self.memory.location)))
+        return self.spec.features(raw, columns, self._before if before is None else before)
 
-    def _features(self, raw, rows=None):
-        """The spec's features of raw own observations (R, N, D_raw) of the rows `rows` (all if None)."""
-        memory = None if self.memory is None else self.memory.features(raw, rows)
-        before = self._before if rows is None else self._before[rows]
-        return self.spec.features(raw, memory, before)
+    def _state(self, state=None):
+        """The learner's global state (B, S) float32: the games' state now (or `state`) rescaled with the state-space
+        bounds, its unbounded counters log-compressed."""
+        state = self.vec.state() if state is None else state
+        return compress(scale_in_place(float64_copy(state), self._state_scaling))
 
-    def _step_vec(self, own_actions, restarting):
-        """One env step of the single-team env (the opponent acts inside it, and restarts with its rows); returns
-        (both teams' observations, (camera reward, target reward), terminated, truncated, infos). Keeps the trained
-        team's previous raw observations (velocity), which for rows starting an episode at this step are their first
-        ones (no motion yet)."""
-        before = self._own_raw.copy() if self.spec.velocity else None
-        _, reward, terminated, truncated, infos = self.envs.step(own_actions)
-        target_reward = self.vec.world.target_reward.copy()
-        rewards = (-target_reward, target_reward)           # the game is zero-sum
-        observations = self.vec.observations
-        if self.credit != 'team':         # the single-team env's per-agent rewards: each target's own part of the
-            self._agent_rewards = reward  # team reward (B, Nt), or each camera's difference credit (B, Nc)
-        observations = self._enhanced(observations)
-        if self.spec.velocity:
-            own = self._own(observations)
-            before[restarting] = own[restarting]
-            self._before = before
-        return observations, rewards, terminated, truncated, infos
+    def _team_reward(self, infos):
+        """(B,) the learner's team reward of the env step just played: cameras the coverage rate (or the population
+        players' mixed reward), targets the raw team reward."""
+        target_reward = self.vec.world.target_reward
+        if self.team is Team.TARGET:
+            return target_reward
+        if self.camera_reward == 'coverage':
+            return infos['coverage_rate']
+        return mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], -target_reward)
 
-    def _remember(self, observations, restarting=None) -> None:
-        """One env step of the sighting memory: rows that start an episode forget, then every camera's
-        sightings enter the team's memory."""
-        if self.memory is None:
-            return
-        if restarting is not None and restarting.any():
-            self.memory.forget(restarting)
-        self.memory.tick()
-        self.memory.observe_team(self._own(observations))
-
-    def _state(self):
-        return compress(normalize_observation(self.vec.state(), self.vec.single_state_space))
+    def _play(self, own_actions, previous, restarting):
+        """One env step of the games (the opponent acts inside the single-team env and restarts with its rows);
+        returns (the team's raw observations as it sees them, the single-team env's rewards, terminated, truncated,
+        infos). Keeps the team's raw observations of the step before (`previous`; for the rows of `restarting`,
+        which start an episode now, their first ones: no motion yet) and updates the sighting memory."""
+        previous = copied(previous) if self.spec.velocity else None    # (the env overwrites its buffers)
+        raw, rewards, terminated, truncated, infos = self.envs.step_games(own_actions)
+        raw = self._enhanced(raw)
+        if previous is not None:
+            self._before = array_namespace(raw).where(restarting[:, None, None], raw, previous)
+        if self.memory is not None:
+            if maybe_any(restarting):
+                self.memory.forget(restarting)
+            self.memory.tick()
+            self.memory.observe_team(raw)
+        return raw, rewards, terminated, truncated, infos
 
     # ------------------------------------------------------------------ API
     @property
@@ -292,123 +372,170 @@ class TeamVecEnv:
         return self.envs.opponent
 
     @property
-    def raw_observations(self) -> np.ndarray:
+    def raw_observations(self):
         """(B, N, D) unprocessed observations of the trained team at the current decision (do not modify)."""
         return self._raw
 
     def positions(self) -> np.ndarray:
-        """(B, N, 2) float64 world positions of the trained team's agents at the current decision, cut from the
-        global state as `RestrictedCommunicationRange` reads them (the training channel's range test)."""
-        return team_positions(self.vec.state(), self.team, self.counts)
+        """(B, N, 2) float64 host array: world positions of the trained team's agents at the current decision, cut
+        from the global state as `RestrictedCommunicationRange` reads them (the training channel's range test)."""
+        state = self.vec.state()
+        return team_positions(state if is_host(state) else state.cpu().numpy(), self.team, self.counts)
 
-    def allowed_actions(self, features: np.ndarray) -> np.ndarray | None:
+    def allowed_actions(self, features):
         """The spec's allowed choices (..., N, heads, choices) of features (..., N, D); None when all are."""
         return self.spec.allowed(features)
-
-    def reset(self, seed: int | None = None):
-        self.envs.reset(seed=self._seed if seed is None else seed)
-        observations = self._enhanced(self.vec.observations)
-        self._raw = self._own(observations).copy()
-        self._before = self._raw.copy()
-        self._own_raw = self._own(observations)
-        if self.memory is not None:
-            self.memory.forget()
-        self._remember(observations)
-        self._return[:] = 0.0
-        return self._features(self._raw), self._state()
-
-    def _held(self, actions) -> np.ndarray:
-        """The decision's actions as (B, N, heads) choices or (B, N, 2) continuous shares."""
-        B, N = self.num_envs, self.num_agents
-        actions = np.asarray(actions)
-        if self.spec.continuous:
-            return np.clip(actions.reshape(B, N, 2), -1.0, 1.0)
-        return actions.reshape(B, N, self.action_heads)
-
-    def step(self, actions):
-        B = self.num_envs
-        held = self._held(actions)
-        if not self.spec.closed_loop:   # open loop: decoded once, at the decision (the limits are fixed in an episode)
-            own_actions = self.spec.decode(held, self._raw)
-        reward = np.zeros(B if self.credit == 'team' else (B, self.num_agents))
-        coverage = np.zeros(B)
-        counted = np.zeros(B)
-        done = np.zeros(B, dtype=bool)
-        truncated = np.zeros(B, dtype=bool)
-        final_obs = np.zeros((B, self.num_agents, self.obs_dim), dtype=np.float32)
-        final_state = np.zeros((B, self.state_dim), dtype=np.float32)
-        episodes = []
-        restarting = np.zeros(B, dtype=bool)     # rows whose episode ended at the previous env step
-        for _ in range(self.frame_skip):
-            if self.spec.closed_loop:   # the executor re-aims at every env step from the fresh observation
-                own_actions = self.spec.decode(held, self._own_raw)
-            observations, rewards, terminated, truncated_now, infos = self._step_vec(own_actions, restarting)
-            self._remember(observations, restarting)
-            live = ~done & ~restarting
-            r = rewards[0] if self.team is Team.CAMERA else rewards[1]
-            if self.team is Team.CAMERA:
-                r = infos['coverage_rate'] if self.camera_reward == 'coverage' else \
-                    mixed_camera_reward(infos['coverage_rate'], infos['real_coverage_rate'], rewards[0])
-            if self.credit != 'team':
-                reward += np.where(live[:, None], self._agent_rewards, 0.0)
-            else:
-                reward += np.where(live, r, 0.0)
-            coverage += np.where(live, infos['coverage_rate'], 0.0)
-            counted += live
-            self._return += np.where(live, r, 0.0)
-            ended = live & (terminated | truncated_now)
-            restarting = ended.copy()
-            if ended.any():
-                rows = np.flatnonzero(ended)
-                final_obs[rows] = self._features(self._own(observations)[rows], rows)
-                final_state[rows] = self._state()[rows]
-                truncated[rows] = truncated_now[rows] & ~terminated[rows]
-                done |= ended
-                game = infos.get('final_info', infos)     # the episode's statistics, as the core counted them
-                for i in rows:
-                    episodes.append(dict(coverage=float(game['episode_coverage_rate'][i]),
-                                         length=int(game['episode_step'][i]), **{'return': float(self._return[i])},
-                                         raw_return=float(game['episode_target_return'][i]) / self._max_reward))
-                self._return[rows] = 0.0
-            self._own_raw = self._own(observations)
-        if restarting.any():   # ended at the last env step: restart now so the next decision is clean
-            observations = self._step_vec(own_actions, restarting)[0]
-            self._remember(observations, restarting)
-        self._own_raw = self._own(observations)
-        self._raw = self._own(observations).copy()
-        info = dict(final_obs=final_obs, final_state=final_state, coverage=coverage / np.maximum(counted, 1),
-                    episodes=episodes)
-        return self._features(self._raw), self._state(), reward, done, truncated, info
-
-    # ------------------------------------------------------------------ checkpoints
-    def state_dict(self) -> dict:
-        """Everything the batch's future depends on, as plain data (see the module docstring)."""
-        memory = None if self.memory is None else dict(location=self.memory.location.copy(), age=self.memory.age.copy())
-        games = self.envs.state_dict()
-        return dict(vec=games['vec'], opponent=games['opponent'], pending=games['pending'], memory=memory,
-                    before=None if self._before is None else self._before.copy(),
-                    sums=dict(returns=self._return.copy()))
-
-    def load_state_dict(self, state: dict) -> None:
-        """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind)."""
-        if 'device' in state:
-            raise ValueError('this checkpoint holds the state of games played on a GPU; resume it with '
-                             '--game-device cuda')
-        self.envs.load_state_dict(dict(vec=state['vec'], opponent=state['opponent'],
-                                       pending=state.get('pending', False)))   # (older checkpoints: none pending)
-        if self.memory is not None:
-            self.memory.location[...] = state['memory']['location']
-            self.memory.age[...] = state['memory']['age']
-        observations = self._enhanced(self.vec.observations)
-        self._own_raw = self._own(observations)
-        self._raw = self._own(observations).copy()
-        self._before = None if state['before'] is None else np.array(state['before'])
-        sums = state['sums']
-        self._return[...] = sums['returns']
-        if 'coverage_rate_sum' not in state['vec']['world'] and 'coverage' in sums:   # an earlier version's state
-            self.vec.world.coverage_rate_sum[...] = sums['coverage']
 
     def observations(self):
         """(features (B, N, D), state (B, S)) of the current decision (as `reset` and `step` return them)."""
         return self._features(self._raw), self._state()
 
+    def reset(self, seed: int | None = None):
+        seed = self._seed if seed is None else seed
+        raw, _ = self.envs.reset(seed=seed, opponent_seed=None if seed is None else self._opponent_seed)
+        self._raw = copied(self._enhanced(raw))
+        self._before = copied(self._raw) if self.spec.velocity else None
+        if self.memory is not None:
+            self.memory.forget()
+            self.memory.tick()
+            self.memory.observe_team(self._raw)
+        self._return[...] = 0.0
+        return self.observations()
+
+    def _held(self, actions):
+        """The decision's actions as (B, N, heads) choices or (B, N, 2) continuous shares clipped to [-1, 1], on the
+        games' device."""
+        B, N = self.num_envs, self.num_agents
+        if self.tensors:
+            import torch
+
+            actions = torch.as_tensor(actions, device=self.device)
+            actions = actions.to(torch.float64) if self.spec.continuous else actions.to(torch.long)
+        else:
+            actions = np.asarray(actions)
+        xp = array_namespace(actions)
+        if self.spec.continuous:
+            return xp.minimum(xp.maximum(xp.reshape(actions, (B, N, 2)), -1.0), 1.0)
+        return xp.reshape(actions, (B, N, self.action_heads))
+
+    def step(self, actions):
+        B, N = self.num_envs, self.num_agents
+        held = self._held(actions)
+        xp = array_namespace(held)
+        own_actions = None if self.spec.closed_loop else self.spec.decode(held, self._raw)
+        reward = self._zeros(*((B,) if self.credit == 'team' else (B, N)))
+        coverage, counted = self._zeros(B), self._zeros(B)
+        done, truncated = self._zeros(B, dtype=bool), self._zeros(B, dtype=bool)
+        final_raw = final_state = None                  # the ended rows' last observations and states
+        final_before = final_memory = None
+        ended_at = self._zeros(B, dtype=np.int64)       # the env step a row's episode ended at
+        record = {name: self._zeros(B) for name in ('coverage', 'length', 'return', 'raw_return')}
+        restarting = self._zeros(B, dtype=bool)          # rows whose episode ended at the last env step
+        own_raw = self._raw
+        for k in range(self.frame_skip):
+            if self.spec.closed_loop:      # the executor re-aims at every env step from the fresh observation
+                own_actions = self.spec.decode(held, own_raw)
+            raw, rewards, terminated, truncated_now, infos = self._play(own_actions, own_raw, restarting)
+            live = ~done & ~restarting
+            team_reward = self._team_reward(infos)
+            if self.credit == 'team':
+                reward += xp.where(live, team_reward, 0.0)
+            else:                          # each agent's part: a target's own reward, a camera's difference credit
+                reward += xp.where(live[:, None], rewards, 0.0)
+            coverage += xp.where(live, infos['coverage_rate'], 0.0)
+            counted += live
+            self._return += xp.where(live, team_reward, 0.0)
+            ended = live & (terminated | truncated_now)
+            if maybe_any(ended):
+                final_raw = xp.where(ended[:, None, None], raw, raw if final_raw is None else final_raw)
+                final_state = xp.where(ended[:, None], self.vec.state(),
+                                       0.0 if final_state is None else final_state)
+                if self.spec.velocity:
+                    final_before = xp.where(ended[:, None, None], self._before,
+                                            self._before if final_before is None else final_before)
+                if self.memory is not None:
+                    age, location = self.memory.age, self.memory.location
+                    kept = (age, location) if final_memory is None else final_memory
+                    final_memory = (xp.where(ended[:, None], age, kept[0]),
+                                    xp.where(ended[:, None, None], location, kept[1]))
+                truncated |= ended & truncated_now & ~terminated
+                done |= ended
+                episode = infos[EPISODE_INFO]      # the episode's statistics, as the core counted them
+                for name, value in (('coverage', episode['coverage_rate']), ('length', episode['l']),
+                                    ('return', self._return),
+                                    ('raw_return', episode['target_return'] / self._max_reward)):
+                    record[name] = xp.where(ended, xp.astype(value, xp.float64), record[name])
+                ended_at = xp.where(ended, k, ended_at)
+                self._return = xp.where(ended, 0.0, self._return)
+            restarting = ended
+            own_raw = raw
+        if bool(xp.any(restarting)):   # ended at the last env step: restart now so that the next decision is clean
+            raw = self._play(own_actions, own_raw, restarting)[0]
+        self._raw = copied(raw)
+        B, N = self.num_envs, self.num_agents
+        info = dict(final_obs=self._final(done, final_raw, lambda: self._features(final_raw, final_memory,
+                                                                                   final_before), (B, N, self.obs_dim)),
+                    final_state=self._final(done, final_state, lambda: self._state(final_state), (B, self.state_dim)),
+                    coverage=coverage / xp.maximum(counted, 1.0), episodes=self._episodes(done, ended_at, record))
+        features, state = self.observations()
+        return features, state, reward, done, truncated, info
+
+    def _final(self, done, kept, compute, shape: tuple[int, ...]):
+        """`final_obs` (B, N, D) or `final_state` (B, S) of a decision (`shape`), float32: `compute()` of the rows
+        `kept` at their episode's end where `done`, zeros elsewhere (and everywhere when no row ended)."""
+        if kept is None:                 # (host arrays only: on a device every step keeps its rows)
+            return self._zeros(*shape, dtype=np.float32)
+        values = compute()
+        mask = done[:, None, None] if values.ndim == 3 else done[:, None]
+        return array_namespace(values).where(mask, values, 0.0)
+
+    @staticmethod
+    def _episodes(done, ended_at, record) -> list[dict]:
+        """The finished episodes' records (host dicts), in the order they ended (env step, then row)."""
+        if is_host(done):
+            rows = np.flatnonzero(done)
+            order = rows[np.argsort(ended_at[rows] * done.shape[0] + rows, kind='stable')]
+            values = {name: value[order].tolist() for name, value in record.items()}
+        else:
+            rows = done.nonzero().flatten()
+            if rows.numel() == 0:
+                return []
+            order = rows[(ended_at[rows] * done.shape[0] + rows).argsort()]
+            values = {name: value[order].cpu().tolist() for name, value in record.items()}
+        return [dict(coverage=values['coverage'][i], length=int(values['length'][i]),
+                     **{'return': values['return'][i]}, raw_return=values['raw_return'][i])
+                for i in range(len(values['coverage']))]
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict:
+        """Everything the batch's future depends on, as host arrays (see the module docstring): the games and the
+        opponent (the single-team env's `state_dict`), the sighting memory, the observations of the env step
+        before and the episodes' sums; `games_on` says where the games were played."""
+        host = lambda x: None if x is None else (x.copy() if is_host(x) else x.cpu().numpy().copy())  # noqa: E731
+        memory = None if self.memory is None else dict(location=host(self.memory.location), age=host(self.memory.age))
+        return dict(games=self.envs.state_dict(), games_on='cuda' if self.tensors else 'cpu', memory=memory,
+                    before=host(self._before), sums=dict(returns=host(self._return)))
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind; a state of
+        an earlier version's CPU env loads too)."""
+        on = state.get('games_on', 'cuda' if 'device' in state else 'cpu')
+        here = 'cuda' if self.tensors else 'cpu'
+        if on != here:
+            where = 'a GPU' if on == 'cuda' else 'the CPU'
+            raise ValueError(f'this checkpoint holds the state of games played on {where}; resume it with '
+                             f'--game-device {on}')
+        games = state.get('games') or dict(vec=state['vec'], opponent=state['opponent'],
+                                           pending=state.get('pending', False))   # (older: none pending)
+        self.envs.load_state_dict(games)
+        if self.memory is not None:
+            self.memory.location = self._like(np.array(state['memory']['location']))
+            self.memory.age = self._like(np.array(state['memory']['age']))
+        self._raw = copied(self._enhanced(self.vec.observations[0 if self.team is Team.CAMERA else 1]))
+        self._before = None if state['before'] is None or not self.spec.velocity else self._like(
+            np.array(state['before']))
+        sums = state['sums']
+        self._return = self._like(np.array(sums['returns'], dtype=np.float64))
+        vec_state = games.get('vec', {})
+        if 'world' in vec_state and 'coverage_rate_sum' not in vec_state['world'] and 'coverage' in sums:
+            self.vec.world.coverage_rate_sum[...] = sums['coverage']      # an earlier version's state

@@ -98,7 +98,7 @@ class PPOConfig(RunConfig, TeamEnvConfig):
         if self.game_device == 'cpu':
             return 'cpu'
         from .device import resolve_device
-        from .device_envs import device_game_available, device_unsupported
+        from .envs import device_game_available, device_unsupported
 
         unsupported = device_unsupported(spec, camera_reward, opponent)
         if self.game_device == 'auto':
@@ -113,19 +113,18 @@ class PPOConfig(RunConfig, TeamEnvConfig):
         return 'cuda'
 
     def make_env(self, spec, opponent=None, camera_reward: str = 'coverage'):
-        """The training envs: `TeamVecEnv` on the CPU, or `DeviceTeamEnv` where `resolved_game_device` says cuda."""
+        """The training envs (`TeamVecEnv`), their games on the CPU or on the GPU where `resolved_game_device` says
+        cuda."""
         if self.resolved_game_device(spec, opponent, camera_reward) == 'cpu':
             return TeamEnvConfig.make_env(self, spec, opponent, camera_reward)
         from .device import resolve_device
-        from .device_envs import DeviceTeamEnv
 
         index = resolve_device(self.device).index if self.device.startswith('cuda') else None
         if index:                  # the games on the networks' GPU (numba's current device; the first by default)
             from numba import cuda
 
             cuda.select_device(index)
-        return DeviceTeamEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
-                             credit=self.credit)
+        return TeamEnvConfig.make_env(self, spec, opponent, camera_reward, device='cuda')
 
 
 

@@ -1,7 +1,7 @@
 """The one PPO loop of `mate.learn`: MAPPO, IPPO, MAPPO-AS, their recurrent versions, TarMAC and I2C all train here.
 
     spec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games, the other team a
-            batched opponent; `DeviceTeamEnv` with the games on a GPU, `--game-device`)
+            batched opponent; with `--game-device cuda` the games on a GPU, torch tensors in and out)
         ->  networks: the actor the spec names (`make_actor`), one critic (`critic_inputs`: the global state, each
             agent's observation, or both; TarMAC's messages appended), the value normaliser, and an algorithm's own
             modules (`Auxiliary`: I2C's training signals)
@@ -210,7 +210,7 @@ def train(config: PPOConfig, spec: PolicySpec, envs=None, callback=None, console
         warm_start(config.init_from, spec, actor, dict(critic=value_net, value_norm=value_norm), config.algo,
                    config.credit)
     # the envs' arrays: numpy on the host (`TeamVecEnv`), or torch tensors where the games run on a device
-    # (`DeviceTeamEnv`, `tensors = True`: nothing crosses to the host but the decision's episode records)
+    # (`TeamVecEnv.tensors`: nothing crosses to the host but the decision's episode records)
     to_envs = (lambda x: x) if getattr(envs, 'tensors', False) else (lambda x: x.cpu().numpy())
     here = lambda x: torch.as_tensor(x, device=device)   # noqa: E731  (numpy: no copy on the CPU)
     obs, state = map(here, run.first_observations(envs, saved))

@@ -43,7 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from ..agents.utils import convert_coordinates, rescale_observation
+from ..agents.utils import observation_scaling, relative_in_place, scale_in_place
+from ..arrays import array_namespace, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import observation_indices_of
 from ..teams.protocol import action_high, as_team
@@ -67,19 +68,22 @@ class SpecError(ValueError):
     """A spec that is invalid, or that does not fit a game or another spec (one line, naming the setting)."""
 
 
-def preprocess_observation(observation, team, num_cameras, num_targets, num_obstacles) -> np.ndarray:
-    """Raw observations (..., D) -> float32 relative coordinates rescaled to [-1, 1]."""
+def preprocess_observation(observation, team, num_cameras, num_targets, num_obstacles):
+    """Raw observations (..., D) -> float32 relative coordinates rescaled to [-1, 1] (numpy arrays, or tensors on
+    their device: one body, `mate.arrays`)."""
     team = as_team(team)
-    relative = convert_coordinates(observation, team, num_cameras, num_targets, num_obstacles)
-    return rescale_observation(relative, team, num_cameras, num_targets, num_obstacles).astype(np.float32)
+    out = relative_in_place(float64_copy(observation), team, num_cameras, num_targets, num_obstacles)
+    out = scale_in_place(out, observation_scaling(team, num_cameras, num_targets, num_obstacles))
+    return array_namespace(out).astype(out, array_namespace(out).float32)
 
 
-def discrete_to_continuous(indices, observation, team, levels: int = 5) -> np.ndarray:
+def discrete_to_continuous(indices, observation, team, levels: int = 5):
     """Action indices (..., N) -> continuous actions (..., N, 2) scaled by each agent's own bounds,
-    read from its raw observation (..., N, D) (`action_high`)."""
-    indices = np.asarray(indices, dtype=np.int64)
+    read from its raw observation (..., N, D) (`action_high`); numpy, or tensors on their device."""
+    if not hasattr(indices, 'shape'):
+        indices = np.asarray(indices, dtype=np.int64)
     grid = square_grid(levels) if as_team(team) is Team.CAMERA else disk_grid(levels)
-    return grid[indices] * action_high(observation, team)
+    return on_device_of(grid, observation)[indices] * action_high(observation, team)
 
 
 # flags of the command line that set each field, for `differences`
@@ -284,7 +288,7 @@ class PolicySpec:
             if previous is None:
                 raise SpecError('this policy reads target velocities (--velocity): pass the previous observations')
             columns.append(target_displacements(raw, previous, self.counts, self.frame_skip))
-        return np.concatenate(columns, axis=-1) if len(columns) > 1 else columns[0]
+        return array_namespace(columns[0]).concat(columns, axis=-1) if len(columns) > 1 else columns[0]
 
     def visible(self, features: np.ndarray) -> np.ndarray:
         """(..., Nt) bool: the target slots a camera sees, from its features (..., D) (the rescaled flags)."""
@@ -299,7 +303,8 @@ class PolicySpec:
             return None
         visible = self.visible(features)
         if self.action == 'hrl':
-            return np.stack([np.ones_like(visible), visible], axis=-1)
+            xp = array_namespace(visible)
+            return xp.stack([xp.ones_like(visible), visible], axis=-1)
         return joint_allowed(visible)[..., None, :]
 
     def choose(self, outputs: np.ndarray, features: np.ndarray, deterministic: bool,
@@ -320,17 +325,20 @@ class PolicySpec:
         u = rng.random(p.shape[:-1] + (1,))
         return np.minimum((p.cumsum(axis=-1) < u).sum(axis=-1), p.shape[-1] - 1)
 
-    def decode(self, held: np.ndarray, raw: np.ndarray) -> np.ndarray:
+    def decode(self, held, raw):
         """Env actions (..., N, 2) float64 from what a team holds, (..., N, heads) int choices or (..., N, 2)
-        continuous shares, and its raw observations (..., N, D_raw) at this env step."""
-        held = np.asarray(held)
+        continuous shares, and its raw observations (..., N, D_raw) at this env step (numpy arrays, or tensors on
+        their device)."""
+        if not hasattr(held, 'shape'):
+            held = np.asarray(held)
         if self.action == 'grid':
             return discrete_to_continuous(held[..., 0], raw, self.team, self.levels)
         if self.action == 'continuous':
-            return np.clip(held, -1.0, 1.0) * action_high(raw, self.team)
+            xp = array_namespace(held)            # (minimum/maximum: numpy's own functions, a clip by the namespace is not)
+            return xp.minimum(xp.maximum(held, -1.0), 1.0) * action_high(raw, self.team)
         if self.action == 'discrete':
             raise SpecError("'discrete' actions are decoded by their own env (a toy task), not by a game")
-        bits = held if self.action == 'hrl' else selection_bits(self.counts[1])[held[..., 0]]
+        bits = held if self.action == 'hrl' else on_device_of(selection_bits(self.counts[1]), held)[held[..., 0]]
         return executor_actions(raw, bits, *self.counts)
 
     # ------------------------------------------------------------------ fitting games and other specs

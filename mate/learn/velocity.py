@@ -14,8 +14,7 @@ see the target now and one step before (its own observations; no messages needed
 
 from __future__ import annotations
 
-import numpy as np
-
+from ..arrays import array_namespace
 from .memory import camera_sightings, target_record_scale
 
 __all__ = ['VELOCITY_FEATURES', 'target_displacements']
@@ -24,14 +23,15 @@ VELOCITY_FEATURES = 2
 """Columns per target slot: the displacement over one held decision, dx and dy."""
 
 
-def target_displacements(current: np.ndarray, previous: np.ndarray, counts, steps: int) -> np.ndarray:
+def target_displacements(current, previous, counts, steps: int):
     """(..., N, Nt * 2) float32 features from raw camera observations now and one env step before
-    (both (..., N, D)) of a game with `counts` = (Nc, Nt, No): each seen target's displacement over
+    (both (..., N, D), numpy or tensors) of a game with `counts` = (Nc, Nt, No): each seen target's displacement over
     `steps` env steps at its current velocity, rescaled like the target records; 0 where not seen twice."""
     counts = tuple(int(n) for n in counts)
+    xp = array_namespace(current)
     scale = target_record_scale(*counts)
     _, seen_now, where_now = camera_sightings(current, *counts)
     _, seen_before, where_before = camera_sightings(previous, *counts)
     both = (seen_now & seen_before)[..., None]
-    moved = np.where(both, (where_now - where_before) * (steps / scale), 0.0)
-    return moved.reshape(*moved.shape[:-2], -1).astype(np.float32)
+    moved = xp.where(both, (where_now - where_before) * (steps / scale), 0.0)
+    return xp.astype(xp.reshape(moved, (*moved.shape[:-2], -1)), xp.float32)

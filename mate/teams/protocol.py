@@ -15,6 +15,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from ..arrays import array_namespace
 from ..constants import PRESERVED_DIM
 from ..messages import Team, as_team
 
@@ -40,10 +41,14 @@ def idle(team, rows: np.ndarray) -> None:
         team.idle(rows)
 
 
-def action_high(observation, team) -> np.ndarray:
+def action_high(observation, team):
     """Each agent's action bound (..., 2), float64, from its raw observation (..., D): cameras
-    (rotation step, zooming step) in degrees, targets (step size, step size)."""
-    own = np.asarray(observation)[..., PRESERVED_DIM:]
+    (rotation step, zooming step) in degrees, targets (step size, step size). A tensor for a tensor."""
+    if not hasattr(observation, 'shape'):
+        observation = np.asarray(observation)
+    xp = array_namespace(observation)
+    own = observation[..., PRESERVED_DIM:]
     if as_team(team) is Team.CAMERA:
-        return own[..., 7:9].astype(np.float64)
-    return np.repeat(own[..., 4:5].astype(np.float64), 2, axis=-1)
+        return xp.astype(own[..., 7:9], xp.float64)
+    step = xp.astype(own[..., 4:5], xp.float64)
+    return xp.concat([step, step], axis=-1)

@@ -14,6 +14,7 @@ from mate.constants import (
     PRESERVED_DIM,
     TARGET_STATE_DIM_PUBLIC,
 )
+from mate.arrays import array_namespace, copied, device_of
 from mate.spaces import camera_observation_slices_of, target_observation_slices_of
 
 from .base import TeamObservationWrapper
@@ -28,23 +29,29 @@ TARGET_EMPTY_BITS = slice(PRESERVED_DIM + 10, PRESERVED_DIM + 10 + NUM_WAREHOUSE
 """Own empty_bits inside a target observation (the last 4 entries of its private state)."""
 
 
-def flagged_records(records: np.ndarray) -> np.ndarray:
-    """(..., n, d) records -> (..., 1, n * (d + 1)): each record followed by a flag 1, flattened into one row
-    block that broadcasts over the agent axis."""
-    records = np.asarray(records, dtype=np.float64)
-    ones = np.ones(records.shape[:-1] + (1,))
-    flagged = np.concatenate([records, ones], axis=-1)
-    return flagged.reshape(records.shape[:-2] + (1, flagged.shape[-2] * flagged.shape[-1]))
+def flagged_records(records):
+    """(..., n, d) records -> (..., 1, n * (d + 1)) float64: each record followed by a flag 1, flattened into one
+    row block that broadcasts over the agent axis (numpy, or tensors on their device, as every function here)."""
+    if not hasattr(records, 'shape'):
+        records = np.asarray(records)
+    xp = array_namespace(records)
+    records = xp.astype(records, xp.float64, copy=False)
+    ones = xp.ones((*records.shape[:-1], 1), dtype=xp.float64, device=device_of(records))
+    flagged = xp.concat([records, ones], axis=-1)
+    return xp.reshape(flagged, (*records.shape[:-2], 1, flagged.shape[-2] * flagged.shape[-1]))
 
 
-def public_records(camera_obs: np.ndarray, target_obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def public_records(camera_obs, target_obs):
     """Public states read from each agent's own private state: cameras (..., Nc, 6), targets (..., Nt, 4) (copies)."""
-    return camera_obs[..., _CAMERA_PUBLIC].copy(), target_obs[..., _TARGET_PUBLIC].copy()
+    return copied(camera_obs[..., _CAMERA_PUBLIC]), copied(target_obs[..., _TARGET_PUBLIC])
 
 
-def empty_warehouses(remaining_cargoes: np.ndarray) -> np.ndarray:
+def empty_warehouses(remaining_cargoes):
     """(..., 4) float 0/1: warehouse w has no cargo left to send (row w of `remaining_cargoes` (..., 4, 4) is zero)."""
-    return (~np.asarray(remaining_cargoes).any(axis=-1)).astype(np.float64)
+    if not hasattr(remaining_cargoes, 'shape'):
+        remaining_cargoes = np.asarray(remaining_cargoes)
+    xp = array_namespace(remaining_cargoes)
+    return xp.astype(~xp.any(remaining_cargoes != 0, axis=-1), xp.float64)
 
 
 def all_flagged_records(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle_states: np.ndarray):
@@ -57,7 +64,8 @@ def all_flagged_records(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle
 def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacle_states: np.ndarray,
                          empty_bits: np.ndarray, num_cameras: int, num_targets: int, num_obstacles: int,
                          camera: bool = True, target: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Fill every opponent, obstacle and teammate record with the entity's public state and flag 1, in place.
+    """Fill every opponent, obstacle and teammate record with the entity's public state and flag 1, in place
+    (numpy arrays, or tensors on their device).
 
     Args:
         camera_obs: (..., Nc, D_c) joint camera observations (modified in place when `camera`).
@@ -77,7 +85,9 @@ def enhance_observations(camera_obs: np.ndarray, target_obs: np.ndarray, obstacl
         camera_obs[..., s['teammate_states_with_mask']] = cameras
     if target:
         s = target_observation_slices_of(*counts)
-        target_obs[..., TARGET_EMPTY_BITS] = np.asarray(empty_bits, dtype=np.float64)[..., None, :]
+        if not hasattr(empty_bits, 'shape'):
+            empty_bits = np.asarray(empty_bits, dtype=np.float64)
+        target_obs[..., TARGET_EMPTY_BITS] = empty_bits[..., None, :]
         target_obs[..., s['opponent_states_with_mask']] = cameras
         target_obs[..., s['obstacle_states_with_mask']] = obstacles
         target_obs[..., s['teammate_states_with_mask']] = targets

@@ -1,6 +1,7 @@
-"""The training envs on a device (`mate.learn.device_envs`): the torch pipeline equals the spec's numpy pipeline; under
-numba's CUDA simulator `DeviceTeamEnv` plays `TeamVecEnv`'s games (with the device team's host twin as its opponent)
-number for number, and a PPO run over it logs the rows of a run over `TeamVecEnv` and resumes exactly."""
+"""The training env with its games on a device (`TeamVecEnv(..., device='cuda')`): the spec's pipeline gives on torch
+tensors the numbers it gives on numpy arrays (one body, `mate.arrays`); under numba's CUDA simulator the env on the
+device plays the CPU env's games (with the device team's host twin as the CPU env's opponent) number for number, and
+a PPO run over it logs the rows of a run over the CPU env and resumes exactly."""
 
 from __future__ import annotations
 
@@ -14,8 +15,7 @@ import torch
 from conftest import needs_extra, run_simulated
 
 from mate.agents.utils import normalize_observation
-from mate.learn.device_envs import TorchPipeline, device_unsupported
-from mate.learn.envs import TeamVecEnv, compress
+from mate.learn.envs import TeamVecEnv, compress, device_unsupported
 from mate.learn.memory import SightingMemory
 from mate.learn.mappo import MAPPOConfig, policy_spec
 from mate.learn.spec import PolicySpec
@@ -33,27 +33,31 @@ def _played(preset: str, steps: int = 12, seed: int = 0):
 
 
 def _check_memory_and_velocity(preset, raw, vec):
-    """The pipeline's memory and velocity columns are `SightingMemory.features` and `target_displacements` bit for
-    bit, on a memory that saw a few steps of the games and lost some targets."""
+    """The memory and velocity columns on tensors are those on numpy arrays bit for bit, on a memory (one of each
+    kind, fed the same steps) that saw a few steps of the games and lost some targets."""
     spec = PolicySpec.for_game('camera', f'{preset}-v0', frame_skip=5, action='hrl', memory=3, velocity=True)
-    pipeline = TorchPipeline(spec, 'cpu')
     memory = SightingMemory(raw.shape[0], spec.counts, spec.memory)
+    tensors = SightingMemory(raw.shape[0], spec.counts, spec.memory, like=torch.zeros(0))
     previous = raw
-    for _ in range(4):
+    for step in range(4):
         (now, _), *_ = vec.step(vec.action_space.sample())
-        memory.tick()
-        memory.observe_team(now)
+        for kept, observation in ((memory, now), (tensors, torch.from_numpy(now))):
+            if step == 2:
+                kept.forget(np.array([True] + [False] * (raw.shape[0] - 1)) if kept is memory
+                            else torch.tensor([True] + [False] * (raw.shape[0] - 1)))
+            kept.tick()
+            kept.observe_team(observation)
         previous, raw = raw, now.copy()
-    state = (torch.from_numpy(memory.age), torch.from_numpy(memory.location))
+    assert isinstance(tensors.age, torch.Tensor) and np.array_equal(tensors.age.numpy(), memory.age)
     assert (memory.age == spec.memory).any() and (memory.age == 0).any()   # forgotten targets and fresh ones
     expected = spec.features(raw, memory.features(raw), previous)
-    got = pipeline.features(torch.from_numpy(raw), state, torch.from_numpy(previous))
-    assert np.array_equal(got.numpy(), expected)
+    got = spec.features(torch.from_numpy(raw), tensors.features(torch.from_numpy(raw)), torch.from_numpy(previous))
+    assert isinstance(got, torch.Tensor) and np.array_equal(got.numpy(), expected)
     assert np.abs(expected[..., -2 * spec.counts[1]:]).max() > 0           # some target moved while seen
 
 
 @pytest.mark.parametrize('preset', ['MATE-4v8-9', 'MATE-2v4-0', 'MATE-8v8-9'])
-def test_the_torch_pipeline_is_the_specs_pipeline_bit_for_bit(preset):
+def test_the_specs_pipeline_gives_on_tensors_what_it_gives_on_arrays(preset):
     camera, target, vec = _played(preset)
     state = vec.state()
     rng = np.random.default_rng(1)
@@ -61,14 +65,14 @@ def test_the_torch_pipeline_is_the_specs_pipeline_bit_for_bit(preset):
         actions = ('grid', 'continuous') + (('hrl', 'hrl-joint') if team == 'camera' else ())
         for action in actions:
             spec = PolicySpec.for_game(team, f'{preset}-v0', frame_skip=5, action=action)
-            pipeline = TorchPipeline(spec, 'cpu')
             features = spec.features(raw)
-            got = pipeline.features(torch.from_numpy(raw))
+            got = spec.features(torch.from_numpy(raw))
             assert got.dtype == torch.float32 and np.array_equal(got.numpy(), features), (team, action)
             expected_state = compress(normalize_observation(state, vec.single_state_space))
-            assert np.array_equal(pipeline.state(torch.from_numpy(state)).numpy(), expected_state)
+            got_state = compress(normalize_observation(torch.from_numpy(state), vec.single_state_space))
+            assert isinstance(got_state, torch.Tensor) and np.array_equal(got_state.numpy(), expected_state)
             allowed = spec.allowed(features)
-            got_allowed = pipeline.allowed(torch.from_numpy(features))
+            got_allowed = spec.allowed(torch.from_numpy(features))
             if allowed is None:
                 assert got_allowed is None
             else:
@@ -79,12 +83,11 @@ def test_the_torch_pipeline_is_the_specs_pipeline_bit_for_bit(preset):
             if action in ('grid', 'continuous'):
                 held = rng.integers(0, spec.choices, raw.shape[:2] + (1,)) if action == 'grid' else \
                     rng.uniform(-1.5, 1.5, raw.shape[:2] + (2,))
-                decoded = pipeline.decode(torch.from_numpy(held), torch.from_numpy(raw))
-                assert np.array_equal(decoded.numpy(), spec.decode(held, raw)), (team, action)
             else:
                 held = rng.integers(0, spec.choices, raw.shape[:2] + (spec.heads,))
-                bits = held if action == 'hrl' else (held[..., :1] >> np.arange(spec.counts[1])) & 1
-                assert np.array_equal(pipeline.keep_bits(torch.from_numpy(held)).numpy(), bits.astype(bool))
+            decoded = spec.decode(torch.from_numpy(held), torch.from_numpy(raw))
+            assert isinstance(decoded, torch.Tensor) and np.array_equal(decoded.numpy(), spec.decode(held, raw)), \
+                (team, action)
 
 
 def test_what_the_device_does_not_play_is_named_and_auto_keeps_it_on_the_cpu(tmp_path):
@@ -113,7 +116,6 @@ from pathlib import Path
 import numpy as np, torch
 sys.path.insert(0, sys.argv[1])
 from resume import assert_same_run, stopped_and_resumed
-from mate.learn.device_envs import DeviceTeamEnv
 from mate.learn.envs import TeamVecEnv
 from mate.learn.mappo import MAPPOConfig, policy_spec, train
 from mate.learn.run import TIMING_COLUMNS
@@ -131,7 +133,7 @@ for team, preset, action, credit in (('camera', 'MATE-4v8-9', 'hrl', 'difference
         dict(full_observability=True)
     spec = PolicySpec.for_game(team, preset + '-v0', frame_skip=3, action=action, **columns)
     cpu = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, opponent=host_twin(team))
-    dev = DeviceTeamEnv(spec, 2, horizon=10, seed=4, credit=credit, block=2)
+    dev = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, device='cuda', block=2)
     differing, episodes = [], 0
     def compare(tag, a, b):
         b = b.numpy() if isinstance(b, torch.Tensor) else b
@@ -164,7 +166,8 @@ for hrl in (True, False):
                            **(dict(memory=4, velocity=True) if hrl else dict(team='target', credit='own')))
     device_config, cpu_config = config_of(str(folder / f'device-{hrl}'), True), config_of(str(folder / f'cpu-{hrl}'),
                                                                                          True, 'cpu')
-    made = type(device_config.make_env(policy_spec(device_config))).__name__
+    made = device_config.make_env(policy_spec(device_config))
+    made = f'{type(made).__name__} tensors={made.tensors}'
     train(device_config)
     train(cpu_config, envs=TeamVecEnv(policy_spec(cpu_config), 2, horizon=10, seed=1, credit=cpu_config.credit,
                                       opponent=host_twin(cpu_config.team)))
@@ -198,6 +201,6 @@ def test_the_simulated_device_env_trains_as_the_cpu_env():
         if name.startswith('env'):
             assert found['differing'] == [] and found['episodes'] >= 2, (name, found)
         else:
-            assert found['env'] == 'DeviceTeamEnv' and found['same'] and found['rows'] == 3, (name, found)
+            assert found['env'] == 'TeamVecEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
             assert found['episodes'] >= 2, (name, found)
     assert report['train hrl=True']['resumed']

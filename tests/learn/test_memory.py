@@ -8,7 +8,7 @@ import torch
 import mate
 from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
-from mate.learn.envs import TeamEnvConfig
+from mate.learn.envs import TeamEnvConfig, TeamVecEnv
 from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.memory import MEMORY_FEATURES, SightingMemory
 from mate.learn.networks import PerTargetActor
@@ -199,3 +199,32 @@ def test_train_command_validates_memory(capsys):
     assert config_of([]).memory == 0
     assert '>= 0' in refused(['--memory', '-1'])
     assert 'cameras only' in refused(['--team', 'target', '--memory', '25'])
+
+
+def test_a_training_env_checkpoint_of_the_earlier_layout_resumes_exactly():
+    """A CPU training env's state as the version before the one training env saved it (the games' vec, opponent
+    and pending at the top level) continues as the state of today's layout does: the checkpoints of runs in
+    progress resume."""
+    spec = PolicySpec.for_game('camera', 'MATE-4v8-9-v0', frame_skip=2, action='hrl', memory=5, velocity=True)
+    rng = np.random.default_rng(0)
+    actions = rng.integers(0, 2, size=(12, 3, spec.num_agents, spec.heads))
+    envs = TeamVecEnv(spec, 3, horizon=8, seed=2)
+    envs.reset()
+    for step in range(6):
+        envs.step(actions[step])
+    state = envs.state_dict()
+    assert state['games_on'] == 'cpu'
+    games = state.pop('games')
+    old = dict(state, vec=games['vec'], opponent=games['opponent'], pending=games['pending'])
+    del old['games_on']
+    expected = [envs.step(actions[step]) for step in range(6, 12)]
+    for saved in (dict(state, games=games), old):
+        again = TeamVecEnv(spec, 3, horizon=8, seed=2)
+        again.load_state_dict(saved)
+        for step, (features, world_state, reward, done, truncated, info) in zip(range(6, 12), expected):
+            found = again.step(actions[step])
+            for a, b in zip((features, world_state, reward, done, truncated), found[:5]):
+                np.testing.assert_array_equal(a, b)
+            assert found[5]['episodes'] == info['episodes']
+            np.testing.assert_array_equal(found[5]['final_obs'], info['final_obs'])
+    assert sum(len(info['episodes']) for *_, info in expected) >= 3
