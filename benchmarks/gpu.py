@@ -114,21 +114,50 @@ def speed(preset: str, batch_size: int, seconds: float, dtype) -> dict:
                 env_steps_per_second=steps * batch_size / elapsed)
 
 
+class TwoTeams:
+    """Both teams played on the device by `DeviceRuleTeam`s against each other in the device env (the loop a
+    researcher writes for two `mate.teams` teams on the CPU): `step()` plays one env step of every game and
+    returns (terminated, truncated, infos)."""
+
+    def __init__(self, env, camera_agent: str, target_agent: str, seed: int = 0) -> None:
+        import torch
+
+        from mate.teams.device import DeviceRuleTeam
+
+        self.env = env
+        B = env.num_envs
+        self.teams = (DeviceRuleTeam(camera_agent, 'camera', B, env.counts, seed=seed),
+                      DeviceRuleTeam(target_agent, 'target', B, env.counts, seed=seed))
+        self.observations, _ = env.reset(seed=seed)
+        every = torch.ones(B, dtype=torch.bool, device=self.observations[0].device)
+        for team, observation in zip(self.teams, self.observations):
+            team.reset(observation, every)
+        self.waiting = ~every               # the games that ended at the last step (next_step: they restart now)
+
+    def step(self):
+        actions = tuple(team.act(observation) for team, observation in zip(self.teams, self.observations))
+        self.observations, _, terminated, truncated, infos = self.env.step_games(actions)
+        for team, observation in zip(self.teams, self.observations):
+            team.reset(observation, self.waiting)
+        self.waiting = terminated | truncated
+        return terminated, truncated, infos
+
+
 def whole_game(preset: str, batch_size: int, seconds: float, target_agent: str = 'greedy') -> dict:
     """env-steps/s of the device env with both teams played on the device (module docstring, 3)."""
     import mate
 
     cuda = cuda_module()
-    env = mate.make_vec('MultiAgentTracking-v0', batch_size, config=preset, device='cuda', camera_agent='greedy',
-                        target_agent=target_agent, observation_dtype=np.float32)
-    env.reset(seed=0)
+    env = mate.make_vec('MultiAgentTracking-v0', batch_size, config=preset, device='cuda',
+                        observation_dtype=np.float32)
+    game = TwoTeams(env, 'greedy', target_agent)
     for _ in range(8):
-        env.step((None, None))
+        game.step()
     cuda.synchronize()
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         for _ in range(32):
-            env.step((None, None))
+            game.step()
         cuda.synchronize()
         steps += 32
     elapsed = time.perf_counter() - start
@@ -141,13 +170,12 @@ def greedy_statistics(preset: str = 'MATE-4v8-9', seeds: int = 300) -> dict:
     import mate
     from mate.teams import GreedyTeam, play_batch
 
-    env = mate.make_vec('MultiAgentTracking-v0', seeds, config=preset, device='cuda', camera_agent='greedy',
-                        target_agent='greedy')
-    env.reset(seed=0)
+    env = mate.make_vec('MultiAgentTracking-v0', seeds, config=preset, device='cuda')
+    game = TwoTeams(env, 'greedy', 'greedy')
     coverage = np.full(seeds, np.nan)
     start = time.perf_counter()
     while np.isnan(coverage).any():
-        _, _, terminated, truncated, info = env.step((None, None))
+        terminated, truncated, info = game.step()
         done = (terminated | truncated).cpu().numpy() & np.isnan(coverage)
         if done.any():
             coverage[done] = info['episode_coverage_rate'].cpu().numpy()[done]

@@ -32,17 +32,18 @@ What differs, and why:
 - The returned observations, rewards and flags are the env's buffers: the next call overwrites them (clone what
   you keep); there is no `copy=True`. The infos are fresh tensors.
 - No DISABLED autoreset (a game that ended restarts, at the next step or in the same one).
-- A team can be played on the device (`camera_agent='greedy'`, `target_agent='random'`, ...: `mate.teams.device`),
-  so that a learner drives one team and the rules the other without the CPU in the loop: its entry of the action
-  pair is then None.
+- The rule teams on the device are `mate.teams.device.DeviceRuleTeam`s ('greedy', 'random'), played by the
+  caller's loop as a `mate.teams` team is on the CPU (`team.act(observations)`, `team.reset(observations, rows)`);
+  `mate.make_team_vec(..., device='cuda')` plays one against the caller's team.
 - Gymnasium's vector wrappers that only pass the arrays on (`RecordVideo` aside, which needs frames) work; those
   that compute on them in numpy (`RecordEpisodeStatistics`, `NormalizeObservation`, `NormalizeReward`, ...) need
   host arrays: on a device, read the episode statistics from `infos` (`episode_*`, `_key` masks) or from
   `mate.make_team_vec(..., device='cuda')`'s `mate_episode`.
 
 SAME_STEP checks on the host whether a game ended (one scalar read per step), to put `final_obs`/`final_info` in
-exactly the steps where the CPU env does; the refusal of NaN and inf reads one more. The training env of
-`mate.learn` steps the games with `step_games`, which reads nothing back.
+exactly the steps where the CPU env does; the refusal of NaN and inf reads one more. `step_games(actions)` is `step`
+without that refusal (the actions' shapes are still checked): under NEXT_STEP it reads nothing back, what the
+training env of `mate.learn` steps.
 """
 
 from __future__ import annotations
@@ -61,12 +62,7 @@ from .messages import Team
 from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
                               uniform_actions, vector_spaces)
 
-__all__ = ['DeviceVecEnv', 'GAME_OUTPUTS']
-
-GAME_OUTPUTS = ('coverage_rate', 'episode_length', 'episode_coverage_rate', 'episode_real_coverage_rate',
-                'episode_target_return', 'transport_rate', 'delivered_cargoes')
-"""The (B,) tensors of `step_games`'s info: the step's coverage rate, and where `terminated | truncated` the ended
-episodes' statistics (`mate.core.device.Outputs`)."""
+__all__ = ['DeviceVecEnv']
 
 
 class DeviceVecEnv(GameDescription, VectorEnv):
@@ -76,19 +72,18 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         config: a preset name, a path or a dict, as `mate.make`'s; `overrides` are deep-merged into it.
         num_envs: B.
         observation_dtype: float64 or float32 (the world is float64 either way).
-        camera_agent: None (the caller acts for the cameras) or a built-in agent played on the device, 'greedy' or
-            'random'; `camera_options` are its options.
-        target_agent: the same for the targets (`target_options`).
-        seed: the teams' seeds (row b: seed + b; their random streams, not the games').
         autoreset_mode: `AutoresetMode.NEXT_STEP` (default) or `SAME_STEP`, or its name (module docstring).
         block: threads per CUDA block.
         **overrides: keys deep-merged into the configuration.
     """
 
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
-                 camera_agent: str | None = None, target_agent: str | None = None,
-                 camera_options: dict | None = None, target_options: dict | None = None, seed: int = 0,
                  autoreset_mode: str = 'next_step', block: int = BLOCK, **overrides: Any) -> None:
+        inside = sorted(set(overrides) & {'camera_agent', 'target_agent', 'camera_options', 'target_options'})
+        if inside:
+            raise TypeError(f'{inside[0]}: the device env plays no team inside; play a '
+                            'mate.teams.device.DeviceRuleTeam in your loop, or use mate.make_team_vec(..., '
+                            "device='cuda') for one team against the rules")
         if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
         dtype = np.dtype(observation_dtype)
@@ -111,72 +106,37 @@ class DeviceVecEnv(GameDescription, VectorEnv):
             setattr(self, name, space)
         dims = (self.camera_observation_space.shape[0], self.target_observation_space.shape[0])
         self.core = DeviceCore(p, B, dims, dtype, block=block)
-        self.every = self.core.cuda.to_device(np.ones(B, bool))
         rows = self.core.rows
-        self._agents = {team: (agent, dict(options or {})) for team, agent, options in (
-            (Team.CAMERA, camera_agent, camera_options), (Team.TARGET, target_agent, target_options))
-            if agent is not None}
-        self.teams = self._make_teams(seed)
         self._observations = (to_torch(rows.camera_obs), to_torch(rows.target_obs))
         out = self.core.out
         self._rewards = (to_torch(out.camera_reward), to_torch(out.target_reward))
         self._flags = (to_torch(out.terminated), to_torch(out.truncated))
-        self._info = {name: to_torch(getattr(out, name)) for name in GAME_OUTPUTS}
         self._world = World(*(to_torch(field) for field in self.core.world))     # views, kept: the world stays put
         self._info_mask = self._world.episode_step.new_ones(B, dtype=bool)      # the `_key` masks: every game
         self._started = False
 
-    def _make_teams(self, seed: int) -> dict:
-        """The device teams, row b seeded with seed + b, writing their actions into the core's action buffers."""
-        from .teams.device import device_team
-
-        buffers = {Team.CAMERA: self.core.rows.camera_actions, Team.TARGET: self.core.rows.target_actions}
-        teams = {}
-        for team, (agent, options) in self._agents.items():
-            device = device_team(agent, team, self.num_envs, self.counts, seed=seed, **options).to_device()
-            teams[team] = device._replace(state=device.state._replace(action=buffers[team]))
-        return teams
-
-    def _reset_teams(self, mask) -> None:
-        """The device teams start an episode in the games of `mask` (B,) bool (device array), from their first
-        observations."""
-        for team, observation in ((Team.CAMERA, self.core.rows.camera_obs), (Team.TARGET, self.core.rows.target_obs)):
-            if team in self.teams:
-                self.teams[team].reset(observation, mask, self.core.block)
-
-    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None,
-              team_seed: int | None = None):
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Start every game (or those of `options['reset_mask']`, a (B,) bool array or tensor); returns
-        ((camera_obs, target_obs), infos). `seed` s: game b and the device teams' row b are seeded with s + b (the
-        teams made anew); a list of B ints or None: game b with `seed[b]` (the teams' streams go on); None: every
-        stream goes on (the first reset draws fresh entropy), as the CPU vector env's. With a mask only its games
-        are seeded and reset (the device teams' streams go on). `team_seed` t (with an int seed): the teams' row b
-        is seeded t + b instead (`DeviceTeamVecEnv`'s opponent keeps the seed it was made with)."""
+        ((camera_obs, target_obs), infos). `seed` s: game b is seeded with s + b; a list of B ints or None: game b
+        with `seed[b]`; None: every stream goes on (the first reset draws fresh entropy), as the CPU vector env's.
+        With a mask only its games are seeded and reset."""
         options = dict(options or {})
         mask = options.pop('reset_mask', None)
         if options:
             raise ValueError(f"DeviceVecEnv.reset takes only the option 'reset_mask', got {sorted(options)}")
         B = self.num_envs
         mask = np.ones(B, bool) if mask is None else self._check_mask(mask)
-        whole = bool(mask.all())
-        if team_seed is not None and not isinstance(seed, (int, np.integer)):
-            raise ValueError('team_seed needs an int seed (an unseeded reset goes on with every stream)')
-        for name, value in (('seed', seed), ('team_seed', team_seed)):
-            if isinstance(value, (list, tuple)) and name == 'seed':
-                if len(value) != B:
-                    raise ValueError(f'reset(seed=...) got {len(value)} seeds for num_envs={B}: pass an int, None '
-                                     f'or a list of {B} seeds')
-                if any(s is not None and (not isinstance(s, (int, np.integer)) or isinstance(s, bool) or s < 0)
-                       for s in value):
-                    raise ValueError('reset(seed=...): each seed must be a non-negative integer or None, got '
-                                     f'{value!r}')
-            elif value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool)
-                                        or value < 0):
-                raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')
+        if isinstance(seed, (list, tuple)):
+            if len(seed) != B:
+                raise ValueError(f'reset(seed=...) got {len(seed)} seeds for num_envs={B}: pass an int, None '
+                                 f'or a list of {B} seeds')
+            if any(s is not None and (not isinstance(s, (int, np.integer)) or isinstance(s, bool) or s < 0)
+                   for s in seed):
+                raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {seed!r}')
+        elif seed is not None and (not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0):
+            raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
         if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))                 # also seeds self.np_random (sample_actions' default)
-            if whole:
-                self.teams = self._make_teams(int(seed if team_seed is None else team_seed))
             seeds = [int(seed) + b for b in range(B)]
         else:
             seeds = [None if s is None else int(s) for s in seed] if seed is not None else [None] * B
@@ -187,7 +147,6 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         if to_seed.any():
             self.core.seed(to_seed, [seeds[b] for b in np.flatnonzero(to_seed)])
         self.core.reset(mask)
-        self._reset_teams(self.every if whole else self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(B, bool))       # no game waits for a restart
         self._started = True
         return self._observations, self.infos()
@@ -200,19 +159,17 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         return np.array(host, dtype=bool)
 
     def _actions(self, actions, team: Team):
-        """`step_games`' check: None exactly for a team played on the device; the actions as a device array (or a
-        host array under the simulator), float64."""
-        if team in self.teams:
-            if actions is not None:
-                raise ValueError(f'the {team.name.lower()}s are played on the device: pass no actions for them')
-            return None
-        if actions is None:
-            raise ValueError(f'{team.name.lower()} actions are missing (no device team plays the '
-                             f'{team.name.lower()}s)')
+        """`step_games`' check: the shape (B, N, 2); the actions as a device array (or a host array under the
+        simulator), float64."""
+        count = self.counts[0 if team is Team.CAMERA else 1]
+        expected = (self.num_envs, count, 2)
+        if tuple(getattr(actions, 'shape', ())) != expected:
+            raise ValueError(f'{team.name.lower()} actions must have shape {expected} (games, agents, 2), got '
+                             f'{tuple(getattr(actions, "shape", ()))}')
         if hasattr(actions, 'to') and hasattr(actions, 'detach'):        # a torch tensor, float64 on its device
             import torch
 
-            actions = actions.to(dtype=torch.float64)
+            actions = actions.to(dtype=torch.float64).contiguous()
         array = from_torch(actions)
         if not hasattr(array, 'copy_to_host'):
             array = np.ascontiguousarray(array, dtype=np.float64)
@@ -220,11 +177,9 @@ class DeviceVecEnv(GameDescription, VectorEnv):
 
     def _team_actions(self, value, team: Team):
         """`step`'s check of one team's actions, as the CPU env's: (B, N, 2) or (B, 2N) of any real dtype, finite;
-        returned as a float64 tensor (B, N, 2) on the env's device, or None for a team played on the device."""
+        returned as a float64 tensor (B, N, 2) on the env's device."""
         import torch
 
-        if value is None or team in self.teams:
-            return value
         count = self.counts[0 if team is Team.CAMERA else 1]
         name, box = team.name.lower(), self.camera_action_space if team is Team.CAMERA else self.target_action_space
         expected = (self.num_envs, count, 2)
@@ -249,9 +204,17 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         return tensor.contiguous()
 
     def step(self, actions):
-        """Advance every game by one step with `actions` = (camera_actions, target_actions) (None for a team played
-        on the device); returns ((camera_obs, target_obs), (camera_rewards, target_rewards), terminations,
-        truncations, infos), as the CPU vector env's `step` (module docstring)."""
+        """Advance every game by one step with `actions` = (camera_actions, target_actions); returns ((camera_obs,
+        target_obs), (camera_rewards, target_rewards), terminations, truncations, infos), as the CPU vector env's
+        `step` (module docstring)."""
+        return self._step(actions, checked=True)
+
+    def step_games(self, actions):
+        """`step` without the refusal of NaN and inf, which reads the actions back (module docstring): under
+        NEXT_STEP autoreset nothing is read back. The actions are (B, N, 2) float64 tensors or arrays."""
+        return self._step(actions, checked=False)
+
+    def _step(self, actions, checked: bool):
         try:
             camera_actions, target_actions = actions
         except (TypeError, ValueError):
@@ -259,16 +222,20 @@ class DeviceVecEnv(GameDescription, VectorEnv):
                              f'got {type(actions).__name__}') from None
         if not self._started:
             raise RuntimeError('DeviceVecEnv: call reset() before step()')
-        camera_actions = self._team_actions(camera_actions, Team.CAMERA)
-        target_actions = self._team_actions(target_actions, Team.TARGET)
-        observations, rewards, terminated, truncated, _ = self.step_games(camera_actions, target_actions,
-                                                                           restart_ended=False)
+        if checked:                       # the CPU env's checks and conversions (a read back: NaN and inf)
+            camera_actions = self._team_actions(camera_actions, Team.CAMERA)
+            target_actions = self._team_actions(target_actions, Team.TARGET)
+        camera_actions = self._actions(camera_actions, Team.CAMERA)
+        target_actions = self._actions(target_actions, Team.TARGET)
+        self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
+        self.core.finish(restart=False)      # (same_step: the ended games restart below, after their last step)
+        observations, rewards, (terminated, truncated) = self._observations, self._rewards, self._flags
         infos = self.infos()
         if not self.next_step:
             done = terminated | truncated
             if bool(done.any()):
                 final_obs, final_info = (observations[0].clone(), observations[1].clone()), self.final_info(done)
-                self.restart_ended()
+                self.core.reset_masked()
                 infos = self.infos()
                 infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
         return observations, rewards, terminated, truncated, infos
@@ -309,43 +276,11 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         return (torch.as_tensor(uniform_actions(rng, self.camera_action_space, (B, nc, 2)), device=device),
                 torch.as_tensor(uniform_actions(rng, self.target_action_space, (B, nt, 2)), device=device))
 
-    def step_games(self, camera_actions=None, target_actions=None, restart_ended: bool = True):
-        """One step of every game, reading nothing back (the training envs' step): the device teams act, the world
-        advances, the games that ended restart. The actions are (B, N, 2) float64 tensors or arrays, unchecked but
-        for their shapes (NaN goes in as it is), None for a device team. Returns ((camera_obs, target_obs),
-        (camera_reward, target_reward), terminated, truncated, info), info the (B,) tensors of `GAME_OUTPUTS`.
-        `restart_ended=False` (same_step): the ended games restart only at `restart_ended()`, so that the world
-        arrays of their ended step can be read first (`world_tensor`)."""
-        if not self._started:
-            raise RuntimeError('DeviceVecEnv: call reset() before step()')
-        camera_actions = self._actions(camera_actions, Team.CAMERA)
-        target_actions = self._actions(target_actions, Team.TARGET)
-        rows = self.core.rows
-        for team, observation in ((Team.CAMERA, rows.camera_obs), (Team.TARGET, rows.target_obs)):
-            if team in self.teams:
-                self.teams[team].act(observation, self.every, self.core.block)
-        self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
-        if self.next_step:               # the games that ended last step restarted instead of stepping
-            self._reset_teams(rows.mask)
-            self.core.finish(restart=False)
-        elif restart_ended:
-            self.core.finish(restart=True)
-            self._reset_teams(rows.mask)
-        else:
-            self.core.finish(restart=False)
-        return self._observations, self._rewards, self._flags[0], self._flags[1], self._info
-
-    def restart_ended(self) -> None:
-        """After `step_games(..., restart_ended=False)`: the games that ended in it start their next episode."""
-        self.core.reset_masked()
-        self._reset_teams(self.core.rows.mask)
-
     def restart(self, mask) -> None:
         """The games of `mask` (B,) bool (host) start their next episode now, their streams going on (what a
         partial reset of TorchRL asks for); no game waits for a restart after it."""
         mask = np.asarray(mask, bool)
         self.core.reset(mask)
-        self._reset_teams(self.core.rows.mask)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))
 
     def state(self):
@@ -355,30 +290,23 @@ class DeviceVecEnv(GameDescription, VectorEnv):
 
     def state_dict(self) -> dict:
         """Everything the games' future depends on, as host numpy arrays: the world, the observations, the actions
-        held, the games waiting for a next_step restart and the device teams' states (their random streams
-        included). `load_state_dict` on an env made alike continues exactly."""
+        held and the games waiting for a next_step restart. `load_state_dict` on an env made alike continues
+        exactly."""
         core = self.core
         host = lambda group: {name: array.copy_to_host() for name, array in zip(group._fields, group)}  # noqa: E731
-        return dict(world=host(core.world), rows=host(core.rows),
-                    teams={team.name.lower(): host(device.state) for team, device in self.teams.items()},
-                    started=self._started)
+        return dict(world=host(core.world), rows=host(core.rows), started=self._started)
 
     def load_state_dict(self, state: dict) -> None:
-        """Continue from `state_dict()`'s output (taken from an env of the same game, size and device teams)."""
+        """Continue from `state_dict()`'s output (taken from an env of the same game and size)."""
+        if state.get('teams'):
+            raise ValueError('this state holds device teams played inside the env (an earlier version); the env '
+                             'plays none now: their state belongs to the team that plays them')
         core = self.core
         for group, arrays in ((core.world, state['world']), (core.rows, state['rows'])):
             for name, array in zip(group._fields, group):
                 if name in ADDED_FIELDS and name not in arrays:   # a state of an earlier version: recomputed
                     continue                                     # by the next step, as on the CPU
                 array.copy_to_device(np.ascontiguousarray(arrays[name]))
-        if sorted(state['teams']) != sorted(team.name.lower() for team in self.teams):
-            raise ValueError(f"the state's device teams ({', '.join(sorted(state['teams'])) or 'none'}) are not this "
-                             f"env's ({', '.join(sorted(team.name.lower() for team in self.teams)) or 'none'})")
-        for team, device in self.teams.items():
-            arrays = state['teams'][team.name.lower()]
-            for name, array in zip(device.state._fields, device.state):
-                if name != 'action':          # the core's action buffer, loaded with the rows
-                    array.copy_to_device(np.ascontiguousarray(arrays[name]))
         self._started = bool(state['started'])      # (a state's 'seeded' of earlier versions: the streams tell)
 
     @property
@@ -415,9 +343,8 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         """Nothing to release (the device arrays go with the object)."""
 
     def __repr__(self) -> str:
-        teams = ', '.join(f'{team.name.lower()}s: {agent}' for team, (agent, _) in self._agents.items())
         return (f'DeviceVecEnv({self.name}, num_envs={self.num_envs}, observation_dtype={self.observation_dtype.name}, '
-                f'autoreset_mode={self.autoreset_mode.name}{", " + teams if teams else ""})')
+                f'autoreset_mode={self.autoreset_mode.name})')
 
 
 def make_device_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None,

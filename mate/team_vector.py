@@ -68,12 +68,13 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
+from .arrays import array_namespace, copied, is_host, maybe_any
 from .messages import Team
 from .protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
 from .teams.protocol import as_team
 from .vector import AutoresetMode, make_vec
 
-__all__ = ['EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'make_team_vec',
+__all__ = ['DEVICE_OPPONENTS', 'EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'make_team_vec',
            'opponent_factory', 'step_rewards']
 
 EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate', 'camera_return', 'target_return',
@@ -81,33 +82,73 @@ EPISODE_KEYS = ('r', 'l', 'coverage_rate', 'real_coverage_rate', 'transport_rate
 """The statistics of `infos['mate_episode']`."""
 
 
-def opponent_factory(opponent, team: Team):
+DEVICE_OPPONENTS = ('greedy', 'random')
+"""The built-in opponents with a team on a CUDA device (`mate.teams.device.DeviceRuleTeam`)."""
+FINAL_KEYS = ('final_obs', '_final_obs', 'final_info', '_final_info')
+"""Same-step autoreset's keys, which `step_games` passes on only with `keep_final`."""
+
+
+def opponent_factory(opponent, team: Team, options: dict | None = None, device: str | None = None,
+                     block: int | None = None):
     """A factory f(num_envs, counts, seed) of the team that plays against `team` (module docstring;
     `mate.protocol.agent_team_factory`, but the upper-bound cameras, which read the true state of a whole batch, are
-    no opponent)."""
+    no opponent). `options`: the built-in agent's options. `device` 'cuda': 'greedy' and 'random' as device teams
+    (`DeviceRuleTeam`, `block` threads a block); a factory there must make a team that plays tensors."""
+    other = Team.TARGET if team is Team.CAMERA else Team.CAMERA
+    options = dict(options or {})
     if opponent == 'upper-bound':
         raise ValueError('the upper-bound cameras read the true state of a whole batch; they are a reference of '
                          'mate.score_policy, not an opponent of the single-team env')
-    return agent_team_factory(opponent, Team.TARGET if team is Team.CAMERA else Team.CAMERA, 'opponent')
+    if callable(opponent) and not isinstance(opponent, str):
+        if options:
+            raise ValueError('opponent_options are the options of a built-in opponent; a factory takes its own')
+        return opponent
+    if device is not None:
+        if opponent not in DEVICE_OPPONENTS:
+            raise ValueError(f'on a device the opponent is one of {", ".join(DEVICE_OPPONENTS)} (or a factory of a '
+                             f'team that plays tensors), got {opponent!r}')
+        from .core.device import BLOCK
+        from .teams.device import DeviceRuleTeam, device_team
+
+        device_team(opponent, other, 1, (1, 1, 0), **options)     # bad options fail now, with the usual line
+        return lambda num_envs, counts, seed: DeviceRuleTeam(opponent, other, num_envs, counts, seed=seed,
+                                                             block=block or BLOCK, **options)
+    if options:
+        from .teams import RULE_TEAMS, make_team
+
+        if opponent not in RULE_TEAMS:
+            raise ValueError(f'opponent_options are the options of a built-in opponent ({", ".join(RULE_TEAMS)}), '
+                             f'not of {opponent!r}')
+        make_team(opponent, other, 1, (1, 1, 0), **options)
+        return lambda num_envs, counts, seed: make_team(opponent, other, num_envs, counts, seed=seed, **options)
+    return agent_team_factory(opponent, other, 'opponent')
 
 
-def step_rewards(reward: str, world, team_reward, coverage_rate) -> np.ndarray:
+def step_rewards(reward: str, world, team_reward, coverage_rate):
     """The rewards of kind `reward` (`REWARDS`) of the step just played in the batched world (B, ...): 'team' the
     own team's reward (B,), 'coverage' the coverage rate (B,), 'difference' (B, Nc) and 'own' (B, Nt) per agent:
     each target's part of the team's dense reward as the core's step computed it (`World.target_reward_parts`: its
     tracking penalty and its delivery's pay; they sum to the team reward), and each camera's difference credit
-    (`World.camera_reward_parts`: the share of the targets it alone tracks)."""
+    (`World.camera_reward_parts`: the share of the targets it alone tracks). Fresh arrays (tensors for a world of
+    tensors), float64."""
     if reward == 'team':
-        return np.array(team_reward, dtype=np.float64)
+        return _float64(team_reward)
     if reward == 'coverage':
-        return np.array(coverage_rate, dtype=np.float64)
-    if reward == 'difference':
-        return world.camera_reward_parts.copy()
-    return world.target_reward_parts.copy()
+        return _float64(coverage_rate)
+    return copied(world.camera_reward_parts if reward == 'difference' else world.target_reward_parts)
+
+
+def _float64(values):
+    """A float64 copy of a (B,) array, tensor or list."""
+    if hasattr(values, 'shape'):
+        xp = array_namespace(values)
+        return xp.astype(values, xp.float64, copy=True)
+    return np.array(values, dtype=np.float64)
 
 
 class SingleTeamVecEnv(VectorEnv):
-    """B games of one team against a batched opponent, as a Gymnasium `VectorEnv` (module docstring).
+    """B games of one team against a batched opponent, as a Gymnasium `VectorEnv` (module docstring), on the CPU or
+    on a CUDA device (`device='cuda'`: torch tensors on it in and out).
 
     One env is one game of the whole team of N agents: `single_observation_space` is Box(N, D) (a row per agent,
     D the team's observation length), `observation_space` Box(B, N, D), `single_action_space` Box(N, 2) and
@@ -119,19 +160,24 @@ class SingleTeamVecEnv(VectorEnv):
             cameras, MATE-2v4-0 for targets).
         team: 'camera' or 'target', the team the caller plays.
         num_envs: B.
-        opponent: the other team: an agent name or a factory f(num_envs, counts, seed).
+        opponent: the other team: an agent name or a factory f(num_envs, counts, seed) (on a device 'greedy' or
+            'random', played there by `mate.teams.device.DeviceRuleTeam`).
+        opponent_options: the built-in opponent's options (e.g. {'frame_skip': 4} for 'random').
         reward: 'team', 'coverage' (cameras), 'own' (targets) or 'difference' (cameras).
         max_episode_steps: the episodes' step cap (None: the config's).
         observation_dtype: np.float64 or np.float32.
         autoreset_mode: 'next_step' (default) or 'same_step'.
+        device: None or 'cpu', or 'cuda' / 'cuda:N' (the gpu extra: `mate.make_vec(..., device='cuda')`).
+        block: threads per CUDA block (device only).
         **overrides: config keys (deep-merged, as for `mate.make_vec`).
     """
 
     metadata = {'render_modes': [], 'autoreset_mode': AutoresetMode.NEXT_STEP}
 
     def __init__(self, config: Any = None, team='camera', num_envs: int = 1, *, opponent='greedy',
-                 reward: str = 'team', max_episode_steps: int | None = None, observation_dtype=np.float64,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **overrides) -> None:
+                 opponent_options: dict | None = None, reward: str = 'team', max_episode_steps: int | None = None,
+                 observation_dtype=np.float64, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 device: str | None = None, block: int | None = None, **overrides) -> None:
         self.team = as_team(team)
         name = self.team.name.lower()
         checked_reward(self.team, reward)
@@ -139,13 +185,20 @@ class SingleTeamVecEnv(VectorEnv):
             if not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
                 raise ValueError(f'max_episode_steps must be a positive integer or None, got {max_episode_steps!r}')
             overrides['max_episode_steps'] = int(max_episode_steps)
+        on_device = device is not None and str(device) != 'cpu'
+        if on_device and block is not None:
+            overrides['block'] = block
+        elif block is not None:
+            raise ValueError('block (threads per CUDA block) is a device option: pass device=\'cuda\' too')
         self.config = paper_config(self.team) if config is None else config
         self.reward_kind = reward
         self.vec = make_vec('MultiAgentTracking-v0', num_envs=num_envs, config=self.config,
-                            observation_dtype=observation_dtype, autoreset_mode=autoreset_mode, **overrides)
+                            observation_dtype=observation_dtype, autoreset_mode=autoreset_mode,
+                            device=device if on_device else None, **overrides)
         if self.vec.autoreset_mode is AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode must be 'next_step' or 'same_step' (play_batch plays without autoreset)")
         self.metadata = {'render_modes': [], 'autoreset_mode': self.vec.autoreset_mode}
+        self.render_mode = None
         self.num_envs = self.vec.num_envs
         self.counts = (self.vec.num_cameras, self.vec.num_targets, self.vec.num_obstacles)
         self.num_agents = self.counts[0] if self.team is Team.CAMERA else self.counts[1]
@@ -158,13 +211,26 @@ class SingleTeamVecEnv(VectorEnv):
         self.single_action_space = spaces.Box(joint.low, joint.high, dtype=np.float64)
         self.action_space = spaces.Box(np.broadcast_to(joint.low, (self.num_envs, *joint.shape)),
                                        np.broadcast_to(joint.high, (self.num_envs, *joint.shape)), dtype=np.float64)
-        self._make_opponent = opponent_factory(opponent, self.team)
+        self._make_opponent = opponent_factory(opponent, self.team, opponent_options, device if on_device else None,
+                                               block)
         self.opponent = self._make_opponent(self.num_envs, self.counts, None)
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
-        self._sums = {'r': np.zeros(self.num_envs)}    # the learner's reward (the game's statistics: the core's)
+        like = self.vec.world.target_reward          # an array of the games' kind, on their device
+        self._host = is_host(like)
+        self._sums = {'r': self._like(np.zeros(self.num_envs), like)}  # the learner's reward (the game's: the core's)
         self._other_obs = None
-        self._pending = np.zeros(self.num_envs, dtype=bool)    # next_step: rows that restart at the next step
-        self._no_episode = None        # step_games' mate_episode of a step where no game ended (made once)
+        self._pending = self._like(np.zeros(self.num_envs, dtype=bool), like)   # next_step: rows restarting next
+        self._every = self._like(np.ones(self.num_envs, dtype=bool), like)
+        self._no_episode = None        # step_games' mate_episode of a step where no game ended (the host: made once)
+
+    @staticmethod
+    def _like(array: np.ndarray, like):
+        """A host array as an array of `like`'s kind (a tensor on its device)."""
+        if is_host(like):
+            return array
+        import torch
+
+        return torch.as_tensor(array, device=like.device)
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
@@ -173,122 +239,158 @@ class SingleTeamVecEnv(VectorEnv):
         their streams."""
         if opponent_seed is not None and seed is None:
             raise ValueError('opponent_seed needs an int seed (an unseeded reset goes on with every stream)')
-        for name, value in (('seed', seed), ('opponent_seed', opponent_seed)):
-            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 0):
-                raise ValueError(f'{name} must be a non-negative integer or None, got {value!r}')
+        for label, value in (('seed', seed), ('opponent_seed', opponent_seed)):
+            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool)
+                                      or value < 0):
+                raise ValueError(f'{label} must be a non-negative integer or None, got {value!r}')
         if seed is not None:
             self.opponent = self._make_opponent(self.num_envs, self.counts,
                                                 int(seed if opponent_seed is None else opponent_seed))
         observations, infos = self.vec.reset(seed=seed, options=options)
         self._other_obs = observations[1 - self._own]
-        self.opponent.reset(self._other_obs, np.ones(self.num_envs, dtype=bool))
+        self.opponent.reset(self._other_obs, self._every)
         for values in self._sums.values():
-            values[:] = 0.0
-        self._pending[:] = False
+            values[...] = 0.0
+        self._pending[...] = False
         return observations[self._own], infos
 
-    def _joint(self, actions: np.ndarray) -> tuple:
+    def restart(self, mask) -> None:
+        """The games of `mask` (B,) bool (host) start their next episode now, their streams going on, none of them
+        waiting for a next_step restart any more (what a partial reset of TorchRL asks for)."""
+        mask = np.asarray(mask, bool)
+        observations, _ = self.vec.reset(options={'reset_mask': mask})
+        self._other_obs = observations[1 - self._own]
+        restarted = self._like(mask, self._pending)
+        self.opponent.reset(self._other_obs, restarted)
+        self._pending = self._pending & ~restarted
+        self._sums['r'] = array_namespace(restarted).where(restarted, 0.0, self._sums['r'])
+
+    def _joint(self, actions) -> tuple:
         other = self.opponent.act(self._other_obs)
         return (actions, other) if self.team is Team.CAMERA else (other, actions)
 
-    def _checked(self, actions) -> np.ndarray:
-        actions = np.asarray(actions)
+    def _checked(self, actions):
+        if not hasattr(actions, 'shape'):
+            actions = np.asarray(actions)
         expected = (self.num_envs, self.num_agents, 2)
-        if actions.shape != expected:
+        if tuple(actions.shape) != expected:
             raise ValueError(f'{self.team.name.lower()} actions must have shape {expected} (games, agents, 2), got '
-                             f'{actions.shape}')
+                             f'{tuple(actions.shape)}')
         return actions
 
     def step(self, actions):
         """One env step of every game with the team's `actions` (B, N, 2); returns (observations, rewards,
         terminations, truncations, infos) (module docstring)."""
+        return self._step(actions, games_only=False)
+
+    def step_games(self, actions, keep_final: bool = False):
+        """`step` as the training envs of `mate.learn` call it on either device: on a device without the refusal
+        of NaN and inf, reading nothing back under next_step autoreset; `mate_episode` and its mask `_mate_episode`
+        at every step (zeros and False where no game ended: on the host read-only arrays, the same every time);
+        `final_obs` / `final_info` (same_step) only with `keep_final`."""
+        return self._step(actions, games_only=True, keep_final=keep_final)
+
+    def _step(self, actions, games_only: bool, keep_final: bool = False):
         if self._other_obs is None:
             raise RuntimeError('SingleTeamVecEnv: call reset() before step()')
         actions = self._checked(actions)
-        restarting = self._pending.copy()
-        observations, team_rewards, terminations, truncations, infos = self.vec.step(self._joint(actions))
+        restarting = self._pending
+        joint = self._joint(actions)
+        step = self.vec.step_games if games_only else self.vec.step
+        observations, team_rewards, terminations, truncations, infos = step(joint)
         self._other_obs = observations[1 - self._own]
+        xp = array_namespace(terminations)
         rewards = step_rewards(self.reward_kind, self.vec.world, team_rewards[self._own], infos['coverage_rate'])
         live = ~restarting               # a game restarting at this step (next_step) is rewarded 0, whatever the kind
-        rewards = np.where(live if rewards.ndim == 1 else live[:, None], rewards, 0.0)
+        rewards = xp.where(live if rewards.ndim == 1 else live[:, None], rewards, 0.0)
         if 'final_info' in infos:          # same_step: the ended games were reset; their step is in final_info
             rewards = self._final_rewards(rewards, infos['final_info'], infos['_final_info'])
         ended = live & (terminations | truncations)
-        self._sums['r'] += np.where(live, rewards if rewards.ndim == 1 else rewards.sum(axis=1), 0.0)
-        if ended.any():
-            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = self._episode_statistics(ended, infos), ended
+        self._sums['r'] = self._sums['r'] + xp.where(live, rewards if rewards.ndim == 1 else xp.sum(rewards, axis=1),
+                                                     0.0)
+        if maybe_any(ended):              # (a tensor: always, reading nothing back)
+            episode = self._episode_statistics(ended, infos)
+            if games_only or bool(xp.any(ended)):
+                infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = episode, ended
+        elif games_only:
+            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = self._no_episode_statistics(infos)
         if self.vec.autoreset_mode is AutoresetMode.NEXT_STEP:
-            if restarting.any():
+            if maybe_any(restarting):
                 self.opponent.reset(self._other_obs, restarting)
             self._pending = ended
-        elif ended.any():                 # same_step: the ended games already show their next episode
+        elif maybe_any(ended):            # same_step: the ended games already show their next episode
             self.opponent.reset(self._other_obs, ended)
-        if 'final_obs' in infos:         # (B,) objects: (N, D) arrays of the ended games, None elsewhere
-            final = np.full(self.num_envs, None, dtype=object)
-            for game, pair in enumerate(infos['final_obs']):
-                if pair is not None:
-                    final[game] = pair[self._own]
-            infos['final_obs'] = final
+        if games_only and not keep_final:
+            for key in FINAL_KEYS:
+                infos.pop(key, None)
+        elif 'final_obs' in infos:
+            infos['final_obs'] = self._own_final_obs(infos['final_obs'])
         return observations[self._own], rewards, terminations, truncations, infos
 
-    def step_games(self, actions, keep_final: bool = False):
-        """`step` with the infos of the device env's `step_games` (what the training envs of `mate.learn` call on
-        either device): `mate_episode` and its mask `_mate_episode` at every step (on a step where no game ended,
-        read-only zeros and False, the same arrays every time); `final_obs` / `final_info` (same_step) only with
-        `keep_final`."""
-        observations, rewards, terminations, truncations, infos = self.step(actions)
-        if EPISODE_INFO not in infos:
-            if self._no_episode is None:
-                nothing = np.zeros(self.num_envs, dtype=bool)
-                self._no_episode = (self._episode_statistics(nothing, infos), nothing)
-                for array in (*self._no_episode[0].values(), nothing):
-                    array.setflags(write=False)
-            infos[EPISODE_INFO], infos[f'_{EPISODE_INFO}'] = self._no_episode
-        if not keep_final:
-            for key in ('final_obs', '_final_obs', 'final_info', '_final_info'):
-                infos.pop(key, None)
-        return observations, rewards, terminations, truncations, infos
+    def _own_final_obs(self, final_obs):
+        """Same-step autoreset's last observations of the ended games, of the own team: on the host (B,) objects,
+        the (N, D) arrays of the ended games and None elsewhere; on a device one (B, N, D) tensor, valid where
+        `_final_obs` (the vector env's forms)."""
+        if not self._host:
+            return final_obs[self._own]
+        final = np.full(self.num_envs, None, dtype=object)
+        for game, pair in enumerate(final_obs):
+            if pair is not None:
+                final[game] = pair[self._own]
+        return final
 
-    def _final_rewards(self, rewards: np.ndarray, final: dict, done: np.ndarray) -> np.ndarray:
+    def _no_episode_statistics(self, infos) -> tuple[dict, np.ndarray]:
+        """`step_games`' mate_episode and mask of a host step where no game ended: read-only zeros, made once."""
+        if self._no_episode is None:
+            nothing = np.zeros(self.num_envs, dtype=bool)
+            self._no_episode = (self._episode_statistics(nothing, infos), nothing)
+            for array in (*self._no_episode[0].values(), nothing):
+                array.setflags(write=False)
+        return self._no_episode
+
+    def _final_rewards(self, rewards, final: dict, done):
         """`rewards` with those of the games that ended in a same_step autoreset taken from their ended step (the
         world and the infos show their next episode already)."""
+        xp = array_namespace(done)
         if self.reward_kind == 'coverage':
-            return np.where(done, final['coverage_rate'], rewards)
-        if self.reward_kind == 'own':
-            rewards[done] = final['target_reward_parts'][done]
-        elif self.reward_kind == 'difference':
-            rewards[done] = final['camera_reward_parts'][done]
+            return xp.where(done, final['coverage_rate'], rewards)
+        if self.reward_kind in ('own', 'difference'):
+            parts = final['target_reward_parts' if self.reward_kind == 'own' else 'camera_reward_parts']
+            return xp.where(done[:, None], parts, rewards)
         return rewards
 
     def _episode_statistics(self, ended, infos) -> dict:
         """`infos['mate_episode']` of the games that ended at this step (zeros elsewhere): the learner's summed
         reward, and the game's own statistics as the core counted them (`mate.core.world.episode_statistics`; with
         same_step autoreset, from `final_info`, the ended games' last step before their reset)."""
+        xp = array_namespace(ended)
         game = infos.get('final_info', infos)
-        target_return = game['episode_target_return']
-        stats = {'r': np.where(ended, self._sums['r'], 0.0),
-                 'l': np.where(ended, game['episode_step'], 0).astype(np.int64),
-                 'camera_return': np.where(ended, -target_return, 0.0),
-                 'target_return': np.where(ended, target_return, 0.0),
-                 'normalized_target_return': np.where(ended, target_return / self._max_reward, 0.0),
-                 'transport_rate': np.where(ended, game['mean_transport_rate'], 0.0),
-                 'delivered_cargoes': np.where(ended, game['num_delivered_cargoes'], 0).astype(np.int64)}
+        target_return = xp.where(ended, game['episode_target_return'], 0.0)
+        zero = xp.zeros_like(game['episode_step'])
+        stats = {'r': xp.where(ended, self._sums['r'], 0.0),
+                 'l': xp.astype(xp.where(ended, game['episode_step'], zero), xp.int64),
+                 'camera_return': -target_return, 'target_return': target_return,
+                 'normalized_target_return': target_return / self._max_reward,
+                 'transport_rate': xp.where(ended, game['mean_transport_rate'], 0.0),
+                 'delivered_cargoes': xp.astype(xp.where(ended, game['num_delivered_cargoes'],
+                                                         xp.zeros_like(game['num_delivered_cargoes'])), xp.int64)}
         for key in ('coverage_rate', 'real_coverage_rate'):
-            stats[key] = np.where(ended, game[f'episode_{key}'], 0.0)
-        self._sums['r'][ended] = 0.0
+            stats[key] = xp.where(ended, game[f'episode_{key}'], 0.0)
+        self._sums['r'] = xp.where(ended, 0.0, self._sums['r'])
         return {key: stats[key] for key in EPISODE_KEYS}
 
     # ------------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict:
-        """Everything the games' future depends on, as plain data: the vector env's state (worlds and random
-        streams), the opponent's (`state_dict()` of the `mate.teams` teams and trained policies), the episodes'
-        running sums and the rows waiting for their autoreset. `load_state_dict` on an env made alike continues
-        exactly."""
+        """Everything the games' future depends on, as plain data (host arrays on either device): the vector env's
+        state (worlds and random streams), the opponent's (`state_dict()` of the `mate.teams` teams, the device
+        teams and trained policies), the episodes' running sums and the rows waiting for their autoreset.
+        `load_state_dict` on an env made alike continues exactly."""
         if not hasattr(self.opponent, 'state_dict'):
             raise TypeError(f'the opponent {type(self.opponent).__name__} has no state_dict(): its state cannot be '
                             'saved')
-        return dict(vec=self.vec.state_dict(), opponent=self.opponent.state_dict(), pending=self._pending.copy(),
-                    sums={key: values.copy() for key, values in self._sums.items()})
+        host = lambda x: x.copy() if is_host(x) else x.cpu().numpy().copy()   # noqa: E731
+        return dict(vec=self.vec.state_dict(), opponent=self.opponent.state_dict(), pending=host(self._pending),
+                    sums={key: host(values) for key, values in self._sums.items()})
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from an env of the same game, size and opponent kind;
@@ -296,15 +398,18 @@ class SingleTeamVecEnv(VectorEnv):
         self.vec.load_state_dict(state['vec'])
         self.opponent.load_state_dict(state['opponent'])
         self._other_obs = self.vec.observations[1 - self._own]
-        self._pending[:] = state.get('pending', False)
+        like = self._pending
+        self._pending = self._like(np.broadcast_to(np.asarray(state.get('pending', False)), (self.num_envs,)).copy(),
+                                   like)
         sums = state.get('sums', {})
-        self._sums['r'][:] = sums.get('r', 0.0)
+        self._sums['r'] = self._like(np.broadcast_to(np.asarray(sums.get('r', 0.0), np.float64),
+                                                     (self.num_envs,)).copy(), like)
         for key in ('coverage_rate', 'real_coverage_rate'):   # a state of an earlier version kept these sums here
             if f'{key}_sum' not in state['vec']['world'] and key in sums:
-                getattr(self.vec.world, f'{key}_sum')[:] = sums[key]
+                getattr(self.vec.world, f'{key}_sum')[...] = sums[key]
 
     # ------------------------------------------------------------------ extras
-    def state(self) -> np.ndarray:
+    def state(self):
         """(B, S) the global state of every game (`mate.make_vec`'s `state()`), e.g. for a centralised critic."""
         return self.vec.state()
 
@@ -317,8 +422,9 @@ class SingleTeamVecEnv(VectorEnv):
             self.vec.close()
 
     def __repr__(self) -> str:
-        return (f'SingleTeamVecEnv({self.team.name.lower()}s of {self.config!r} vs {type(self.opponent).__name__}, '
-                f'num_envs={self.num_envs}, reward={self.reward_kind!r})')
+        where = '' if self._host else ' on the device'
+        return (f'SingleTeamVecEnv({self.team.name.lower()}s of {self.config!r} vs {type(self.opponent).__name__}'
+                f'{where}, num_envs={self.num_envs}, reward={self.reward_kind!r})')
 
 
 class AgentsAsEnvs(VectorWrapper):
@@ -423,14 +529,9 @@ class AgentsAsEnvs(VectorWrapper):
 
 
 def make_team_vec(config: Any = None, team='camera', num_envs: int = 1, *, device: str | None = None, **kwargs):
-    """`SingleTeamVecEnv(config, team, num_envs, **kwargs)`: B games of `team` against a batched opponent.
-
-    `device='cuda'` (the gpu extra): the games and the opponent on a CUDA device, torch tensors in and out
-    (`mate.device_team_vector.DeviceTeamVecEnv`; opponents 'greedy' or 'random')."""
-    if device is None or str(device) == 'cpu':
-        return SingleTeamVecEnv(config, team, num_envs, **kwargs)
-    if not str(device).startswith('cuda'):
+    """`SingleTeamVecEnv(config, team, num_envs, device=device, **kwargs)`: B games of `team` against a batched
+    opponent; `device='cuda'` (the gpu extra): the games and the opponent on a CUDA device, torch tensors in and out
+    (opponents 'greedy' or 'random')."""
+    if device is not None and str(device) != 'cpu' and not str(device).startswith('cuda'):
         raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")
-    from .device_team_vector import DeviceTeamVecEnv
-
-    return DeviceTeamVecEnv(config, team, num_envs, **kwargs)
+    return SingleTeamVecEnv(config, team, num_envs, device=device, **kwargs)

@@ -240,6 +240,11 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return (self._team_actions(camera_actions, self.params.num_cameras, 'camera', self.camera_action_space),
                 self._team_actions(target_actions, self.params.num_targets, 'target', self.target_action_space))
 
+    def step_games(self, actions):
+        """`step(actions)`: the device env's `step_games` leaves out a check that reads the device back; on the host
+        there is nothing to leave out (one loop steps either env)."""
+        return self.step(actions)
+
     def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
         B = self.num_envs
         expected = (B, count, 2)
@@ -397,9 +402,9 @@ def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: A
 
     `device='cuda'` (or 'cuda:N' where numba-cuda sees it as the current device) gives the games on the GPU:
     `mate.device_vector.DeviceVecEnv` (the gpu extra), the same Gymnasium `VectorEnv` API (spaces, `reset`,
-    `step`, infos, autoreset NEXT_STEP or SAME_STEP, seeding) with torch tensors on the device for arrays; it also
-    takes `camera_agent=` / `target_agent=` ('greedy', 'random') to play a team there. None or 'cpu': this
-    module's env. Autoreset NEXT_STEP unless `autoreset_mode` says otherwise, on either."""
+    `step`, infos, autoreset NEXT_STEP or SAME_STEP, seeding) with torch tensors on the device for arrays (the rule
+    teams there: `mate.teams.device.DeviceRuleTeam`). None or 'cpu': this module's env. Autoreset NEXT_STEP unless
+    `autoreset_mode` says otherwise, on either."""
     if device is not None and str(device) != 'cpu':
         if not str(device).startswith('cuda'):
             raise ValueError(f"device must be 'cpu' or 'cuda' (or 'cuda:N'), got {device!r}")

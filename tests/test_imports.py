@@ -175,7 +175,7 @@ LAYERS = (
               'mate.render', 'mate.video', 'mate.generator')),
     ('players', ('mate.agents', 'mate.teams')),
     ('wrappers', ('mate.wrappers',)),
-    ('evaluation', ('mate.team_vector', 'mate.device_team_vector', 'mate.protocol', 'mate.evaluate',
+    ('evaluation', ('mate.team_vector', 'mate.protocol', 'mate.evaluate',
                     'mate.evaluate_command')),
     ('learn', ('mate.learn',)),
     ('above', ('mate.benchmark', 'mate.integrations', 'mate.pretrained')),
@@ -185,7 +185,6 @@ LAYERS = (
 its submodules; the longest prefix decides)."""
 
 CLIMBING = {
-    ('mate.device_vector', 'mate.teams.device'): 'the device env plays device teams inside (camera_agent=)',
     ('mate.teams.play', 'mate.wrappers.enhanced_observation'): 'full observability is a wrapper, not a core option yet',
     ('mate.protocol', 'mate.learn.policy'): "scoring 'checkpoint:' and 'pretrained:' agents loads a learned policy",
     ('mate.evaluate', 'mate.learn.policy'): "mate evaluate plays 'checkpoint:' and 'pretrained:' agents",

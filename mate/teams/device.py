@@ -39,9 +39,9 @@ from . import rules
 from .protocol import as_team
 from .streams import AGENT_BLOCK, SPACE_BLOCK, row_seeds
 
-__all__ = ['CameraSettings', 'CameraState', 'DeviceTeam', 'HostTeam', 'RandomSettings', 'RandomState', 'TargetSettings',
-           'TargetState', 'compile_hrl_ptx', 'compile_ptx', 'device_team', 'host_act', 'host_reset', 'hrl_actions',
-           'stream_keys', 'top_up_row']
+__all__ = ['CameraSettings', 'CameraState', 'DeviceRuleTeam', 'DeviceTeam', 'HostTeam', 'RandomSettings',
+           'RandomState', 'TargetSettings', 'TargetState', 'compile_hrl_ptx', 'compile_ptx', 'device_team', 'host_act',
+           'host_reset', 'hrl_actions', 'stream_keys', 'top_up_row']
 
 OWN = PRESERVED_DIM
 _GAMMA, _ODD = np.uint64(0x9E3779B97F4A7C15), np.uint64(0xBF58476D1CE4E5B9)
@@ -400,6 +400,70 @@ class HostTeam:
         """Continue from `state_dict()`'s output (a team of the same kind and sizes)."""
         for name, array in zip(self.device_team.state._fields, self.device_team.state):
             array[...] = state[name]
+
+
+class DeviceRuleTeam:
+    """A `DeviceTeam` on the CUDA device behind the batched-team protocol of `mate.teams` (`reset(observation,
+    rows)`, `act(observation)`, `idle(rows)`, `state_dict()`), torch tensors in and out: what plays the other team of
+    `mate.make_team_vec(..., device='cuda')`, and what a loop of the researcher's plays on the device as it plays a
+    `mate.teams` team on the CPU. Its state stays on the device; `act` launches one thread a game and returns the
+    team's action buffer (B, N, 2) float64 (a tensor viewing it, overwritten by the next `act`).
+
+    Args:
+        name: 'greedy' or 'random'.
+        team: 'camera' or 'target'.
+        num_envs: B.
+        counts: (Nc, Nt, No) of the game.
+        seed: row b seeded with seed + b (None: fresh entropy), or one seed per row.
+        block: threads per CUDA block.
+        **options: the agents' options (`device_team`).
+    """
+
+    def __init__(self, name: str, team, num_envs: int, counts, seed: int | Sequence[int] | None = None,
+                 block: int = BLOCK, **options) -> None:
+        from ..core.device import to_torch
+
+        self.device_team = device_team(name, team, num_envs, counts, seed=seed, **options).to_device()
+        self.team, self.block = self.device_team.team, int(block)
+        self._every = cuda_module().to_device(np.ones(int(num_envs), bool))
+        self._action = to_torch(self.device_team.state.action)
+
+    def reset(self, observation, rows) -> None:
+        """The games of `rows` (B,) bool start an episode from `observation` (B, N, D) (tensors on the device)."""
+        from ..core.device import from_torch
+
+        self.device_team.reset(from_torch(observation.contiguous()), from_torch(_device_mask(rows, observation)),
+                               self.block)
+
+    def act(self, observation):
+        """Every game's actions (B, N, 2) float64 from `observation` (B, N, D): the team's buffer, as a tensor."""
+        from ..core.device import from_torch
+
+        self.device_team.act(from_torch(observation.contiguous()), self._every, self.block)
+        return self._action
+
+    def idle(self, rows) -> None:
+        """The games of `rows` (B,) bool are out of play until their next reset."""
+        from ..core.device import to_torch
+
+        to_torch(self.device_team.state.active).masked_fill_(_device_mask(rows, self._action), False)
+
+    def state_dict(self) -> dict:
+        """The team's arrays, its random streams included, as host numpy arrays (exact resumes)."""
+        state = self.device_team.state
+        return {name: array.copy_to_host() for name, array in zip(state._fields, state)}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from `state_dict()`'s output (a team of the same kind and sizes)."""
+        for name, array in zip(self.device_team.state._fields, self.device_team.state):
+            array.copy_to_device(np.ascontiguousarray(state[name]))
+
+
+def _device_mask(rows, like):
+    """(B,) bool `rows` (a tensor or a host array) as a contiguous bool tensor on `like`'s device."""
+    import torch
+
+    return torch.as_tensor(rows, dtype=torch.bool, device=like.device).contiguous()
 
 
 @functools.cache

@@ -43,7 +43,7 @@ from mate.vector import FINAL_WORLD_KEYS, INFO_KEYS
 from mate.learn.hrl import executor_actions
 from mate.spaces import observation_indices_of
 from mate.messages import Team
-from mate.teams.device import device_team, host_act, host_reset, hrl_actions
+from mate.teams.device import DeviceRuleTeam, device_team, host_act, host_reset, hrl_actions
 from numba import cuda
 import torch
 
@@ -53,24 +53,29 @@ for preset in sys.argv[1:]:
     for mode, agents in (('same_step', (None, None)), ('same_step', ('greedy', 'greedy')),
                          ('next_step', (None, None)), ('next_step', ('greedy', 'greedy')),
                          ('next_step', ('random', 'greedy')), ('next_step', ('greedy', 'random'))):
-        dev = mate.make_vec('MultiAgentTracking-v0', B, config=preset, device='cuda', camera_agent=agents[0],
-                            target_agent=agents[1], seed=3, max_episode_steps=12, block=4, autoreset_mode=mode)
+        dev = mate.make_vec('MultiAgentTracking-v0', B, config=preset, device='cuda', max_episode_steps=12, block=4,
+                            autoreset_mode=mode)
         cpu = mate.make_vec('MultiAgentTracking-v0', B, config=preset, autoreset_mode=mode, max_episode_steps=12)
         counts = (cpu.num_cameras, cpu.num_targets, cpu.num_obstacles)
         (dc, dt), _ = dev.reset(seed=7)
         (cc, ct), _ = cpu.reset(seed=7)
-        teams = [None if a is None else device_team(a, side, B, counts, seed=7)
+        teams = [None if a is None else device_team(a, side, B, counts, seed=7)          # host twins on the CPU
                  for a, side in zip(agents, ('camera', 'target'))]
+        played = [None if a is None else DeviceRuleTeam(a, side, B, counts, seed=7, block=4)   # the device's
+                  for a, side in zip(agents, ('camera', 'target'))]
         for team, obs in zip(teams, (cc, ct)):
             if team is not None:
                 host_reset(team, obs, np.ones(B, bool))
+        for team, obs in zip(played, (dc, dt)):
+            if team is not None:
+                team.reset(obs, torch.ones(B, dtype=torch.bool))
         rng = np.random.default_rng(0)
         differing, ends, pending = [], 0, np.zeros(B, bool)
         for step in range(T):
             ca, ta = rng.uniform(-30, 30, (B, counts[0], 2)), rng.uniform(-3, 3, (B, counts[1], 2))
             ca = ca if teams[0] is None else host_act(teams[0], cc).copy()
             ta = ta if teams[1] is None else host_act(teams[1], ct).copy()
-            own = (None if agents[0] else ca, None if agents[1] else ta)
+            own = tuple(a if team is None else team.act(obs) for a, team, obs in zip((ca, ta), played, (dc, dt)))
             (dc, dt), (dcr, dtr), dterm, dtrunc, dinfo = dev.step(own)
             (cc, ct), (ccr, ctr), cterm, ctrunc, cinfo = cpu.step((ca, ta))
             done = cterm | ctrunc
@@ -79,6 +84,9 @@ for preset in sys.argv[1:]:
             for team, obs in zip(teams, (cc, ct)):
                 if team is not None:
                     host_reset(team, obs, restarted)
+            for team, obs in zip(played, (dc, dt)):
+                if team is not None:
+                    team.reset(obs, torch.from_numpy(restarted))
             pending = done
             pairs = dict(camera_obs=(dc, cc), target_obs=(dt, ct), camera_reward=(dcr, ccr),
                          target_reward=(dtr, ctr), terminated=(dterm, cterm), truncated=(dtrunc, ctrunc),
@@ -139,12 +147,13 @@ for actions in ((np.zeros((3, 2, 2)), np.full((3, 4, 2), np.nan)), (np.zeros((2,
     messages.append(found[0])
 for call in (lambda: dev.reset(options={'reset_mask': np.ones(2, bool)}), lambda: dev.reset(seed=[1, 2]),
              lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda', autoreset_mode='disabled'),
-             lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda', target_agent='greedy').step(
+             lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda', target_agent='greedy'),
+             lambda: mate.make_vec('MultiAgentTracking-v0', 2, device='cuda').step(
                  (np.zeros((2, 4, 2)), np.zeros((2, 8, 2))))):
     try:
         call()
         messages.append('accepted')
-    except (ValueError, RuntimeError) as exc:
+    except (ValueError, RuntimeError, TypeError) as exc:
         messages.append(str(exc))
 report['resets and refusals'] = dict(differing=differing, messages=messages)
 
@@ -271,7 +280,8 @@ def test_the_simulated_device_env_and_teams_play_the_cpu_games_exactly():
     assert 'camera actions must have shape (3, 2, 2)' in messages[1] and 'ragged' in messages[2]
     assert 'actions must be a pair' in messages[3] and 'not numeric' in messages[4]
     assert "reset_mask'] must be a bool array of shape (3,)" in messages[5] and 'got 2 seeds' in messages[6]
-    assert "'next_step' or 'same_step'" in messages[7] and 'call reset() before step()' in messages[8]
+    assert "'next_step' or 'same_step'" in messages[7] and 'plays no team inside' in messages[8]
+    assert 'call reset() before step()' in messages[9]
     assert report['user loop same_step']['finished'] >= 2, report['user loop same_step']   # final_info seen
     for pairing, found in report.items():
         assert found['differing'] == [], (pairing, found['differing'])
@@ -358,3 +368,30 @@ def test_bad_options_are_refused():
         device.device_team('heuristic', 'camera', 2, (4, 8, 9))
     with pytest.raises(ValueError, match='memory_period'):
         device.device_team('greedy', 'camera', 2, (4, 8, 9), memory_period=0)
+
+
+GPU_BENCHMARK = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import gpu
+found = dict(whole=gpu.whole_game('MATE-2v4-0', 3, 0.05), camera=gpu.rollout('camera', 2, 0.05),
+             target=gpu.rollout('target', 2, 0.05))
+print(json.dumps({name: {key: value for key, value in record.items() if key != 'seconds'}
+                  for name, record in found.items()}))
+"""
+
+
+@pytest.mark.slow
+def test_the_gpu_benchmark_plays_on_the_one_api_under_the_simulator():
+    """benchmarks/gpu.py, ready for the first GPU at hand: its whole-game loop (both teams DeviceRuleTeams) and its
+    rollouts (the single-team env's step_games) run on the simulated device."""
+    needs_extra('numba_cuda')
+    needs_extra('torch')
+    from pathlib import Path
+
+    benchmarks = str(Path(__file__).resolve().parents[2] / 'benchmarks')
+    done = run_simulated(GPU_BENCHMARK, benchmarks, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report['whole']['steps'] >= 32 and report['whole']['teams'] == 'greedy vs greedy', report
+    assert report['camera']['decisions'] >= 1 and report['target']['decisions'] >= 1, report
