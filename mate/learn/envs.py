@@ -68,7 +68,8 @@ from ..wrappers.enhanced_observation import empty_warehouses, enhance_observatio
 from .memory import SightingMemory
 from .spec import PolicySpec, as_team
 
-__all__ = ['CAMERA_REWARDS', 'CREDITS', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS', 'TeamEnvConfig', 'TeamVecEnv',
+__all__ = ['CAMERA_REWARDS', 'CREDITS', 'GAME_DEVICES', 'GameDeviceConfig', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS',
+           'TeamEnvConfig', 'TeamVecEnv',
            'compress', 'device_game_available', 'device_unsupported', 'game_of', 'mixed_camera_reward',
            'team_positions']
 
@@ -155,6 +156,64 @@ class TeamEnvConfig:
         games on `device` (None: the CPU)."""
         return TeamVecEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
                           credit=self.credit, camera_reward=camera_reward, opponent=opponent, device=device)
+
+
+GAME_DEVICES = ('auto', 'cpu', 'cuda')
+"""Where a trainer's games run (`--game-device`)."""
+
+
+@dataclasses.dataclass
+class GameDeviceConfig:
+    """`--game-device`, an option of the trainers that train in a `TeamVecEnv` (PPO's family, IQL, QMIX, MA-TD3):
+    where the games and the greedy opponent run, and the training envs made there (`make_env`)."""
+
+    game_device: Literal['auto', 'cpu', 'cuda'] = option(
+        'auto', 'where the games and the greedy opponent run: cuda (CUDA kernels, the gpu extra), cpu (numba), or '
+                'auto: on the GPU when --device is one and the settings allow it (not PSRO\'s mixed rewards and '
+                'population opponents), else the CPU')
+
+    OFF_POLICY = ('cpu', 'where the games and the greedy opponent run: cpu (numba; the default: the off-policy '
+                         "learners' 16 games step faster there), cuda (CUDA kernels, the gpu extra; their arrays come "
+                         'to the host once per decision for the replay), or auto: cuda when --device is a GPU and '
+                         'the settings allow it')
+    """The off-policy trainers' default and help (`option(*GameDeviceConfig.OFF_POLICY)`)."""
+
+    def __post_init__(self) -> None:
+        if self.game_device not in GAME_DEVICES:
+            raise ValueError(f"--game-device must be auto, cpu or cuda, got {self.game_device!r}")
+
+    def resolved_game_device(self, spec, opponent=None, camera_reward: str = 'coverage') -> str:
+        """'cuda' or 'cpu': where `make_env` plays the games of `spec` (`game_device`). ValueError (one line) when
+        cuda is asked for and a setting is not played on the device or numba sees no CUDA device."""
+        if self.game_device == 'cpu':
+            return 'cpu'
+        from .device import resolve_device
+
+        unsupported = device_unsupported(spec, camera_reward, opponent)
+        if self.game_device == 'auto':
+            on_gpu = resolve_device(self.device).type == 'cuda'
+            return 'cuda' if on_gpu and not unsupported and device_game_available() else 'cpu'
+        if unsupported:
+            raise ValueError(f'--game-device cuda: {unsupported[0]} is not played on the device yet; use '
+                             '--game-device cpu')
+        if not device_game_available():
+            raise ValueError('--game-device cuda: numba sees no CUDA device here (pip install "mate[gpu]" on a '
+                             'machine with an NVIDIA GPU); use --game-device cpu')
+        return 'cuda'
+
+    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage') -> TeamVecEnv:
+        """The training envs (`TeamEnvConfig.make_env`), their games on the CPU or on the GPU where
+        `resolved_game_device` says cuda (the networks' GPU: numba's current device)."""
+        if self.resolved_game_device(spec, opponent, camera_reward) == 'cpu':
+            return TeamEnvConfig.make_env(self, spec, opponent, camera_reward)
+        from .device import resolve_device
+
+        index = resolve_device(self.device).index if self.device.startswith('cuda') else None
+        if index:                  # the games on the networks' GPU (numba's current device; the first by default)
+            from numba import cuda
+
+            cuda.select_device(index)
+        return TeamEnvConfig.make_env(self, spec, opponent, camera_reward, device='cuda')
 
 
 def mixed_camera_reward(coverage_rate, real_coverage_rate, camera_reward):

@@ -41,16 +41,15 @@ import torch
 from torch import nn
 
 from ..options import option
-from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
+from .offpolicy_loop import train_off_policy
 from .policy import make_actor
-from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_targets, epsilon_greedy
+from .qlearning import QLearner, QLearningConfig, action_kind, allowed_choices, double_q_targets
 from .replay import ReplayBuffer
-from .run import Run, mean_or_nan
-from .schedules import piecewise, resolve_schedule
+from .run import Run
 from .spec import PolicySpec
 
-__all__ = ['IQLConfig', 'iql_loss', 'policy_spec', 'train']
+__all__ = ['IQLConfig', 'IQLLearner', 'iql_loss', 'policy_spec', 'train']
 
 
 @dataclasses.dataclass
@@ -96,118 +95,52 @@ def iql_loss(q_net, target_net, batch: dict, gamma: float, heads: int,
 
 # ============================================================================ training
 
+class IQLLearner(QLearner):
+    """IQL on the off-policy loop (`mate.learn.offpolicy_loop`): the agents' shared dueling Q-network and its target
+    copy, one replay ring of agent transitions (B x N per decision step), one double-Q update of `batch_size` of
+    them per `update_every` decision steps (Adam, eps 1e-8, no gradient clipping)."""
+
+    def __init__(self, config: IQLConfig, spec: PolicySpec, envs, device, rng: np.random.Generator) -> None:
+        super().__init__(config, spec, device)
+        self.q_net = make_actor(spec).to(device)
+        self.target_net = copy.deepcopy(self.q_net).requires_grad_(False)
+        self.optimizer = torch.optim.Adam(self.q_net.parameters(), lr=config.lr_schedule[0][1], eps=1e-8)
+        self.replay = ReplayBuffer(config.buffer_size, envs.obs_dim, self.heads)
+        self.networks = dict(actor=self.q_net, target=self.target_net)
+        self.shape = (envs.num_envs, envs.num_agents, envs.obs_dim)
+
+    def act(self, obs, state, steps, rng):
+        with torch.no_grad():
+            q = self.q_net(torch.from_numpy(obs).to(self.device)).cpu()
+        return self.explore(q, obs, steps, rng)
+
+    def store(self, obs, state, action, reward, done, truncated, next_obs, next_state, info) -> None:
+        """The B x N agent transitions; an ended episode's own last observation is its next one."""
+        B, N, D = self.shape
+        landing = np.where(done[:, None, None], info['final_obs'], next_obs)
+        terminal = (done & ~truncated).astype(np.float32)
+        reward = np.broadcast_to(np.asarray(reward, dtype=np.float32).reshape(B, -1), (B, N))
+        self.replay.add(obs.reshape(B * N, D), action.reshape(B * N, self.heads), reward.reshape(-1),
+                        landing.reshape(B * N, D), np.repeat(terminal, N))
+
+    def update(self, steps, rng) -> None:
+        self.set_learning_rate(steps)
+        batch = self.replay.sample(self.config.batch_size, rng)
+        next_allowed = allowed_choices(self.spec, batch['next_obs'].numpy(), self.device)
+        batch = {key: value.to(self.device) for key, value in batch.items()}
+        loss, q_mean = iql_loss(self.q_net, self.target_net, batch, self.config.gamma, self.heads, next_allowed)
+        self.optimizer.zero_grad()
+        loss.backward()
+        self.optimizer.step()
+        self.losses.append(loss.item())
+        self.q_means.append(q_mean)
+
+    def copy_targets(self) -> None:
+        self.target_net.load_state_dict(self.q_net.state_dict())
+
+
 def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/iql-TEAM-seedN); resume from its checkpoint
     unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
-    device = resolve_device(config.device)
-    spec = policy_spec(config, envs)
-    run = Run.of(config, 'iql', spec, callback, console)
-
-    # ---- environments
-    envs = envs or config.make_env(spec)
-    B, N, D = envs.num_envs, envs.num_agents, envs.obs_dim
-    H, C = spec.heads, spec.choices                                  # values per agent: H heads of C choices
-
-    # ---- networks, optimiser, replay, exploration
-    # one torch thread for acting (the vector env runs its own threads) and for the initialisation, whose
-    # orthogonal matrices (QR decompositions) differ with the thread count
-    torch.set_num_threads(1)
-    torch.manual_seed(config.seed)
-    q_net = make_actor(spec).to(device)
-    target_net = copy.deepcopy(q_net).requires_grad_(False)
-    optimizer = torch.optim.Adam(q_net.parameters(), lr=config.lr_schedule[0][1], eps=1e-8)
-    replay = ReplayBuffer(config.buffer_size, D, H)
-    rng = np.random.default_rng([config.seed, 0])                   # exploration and replay sampling
-    saved = run.resume()
-    if saved is not None:
-        q_net.load_state_dict(saved['networks']['actor'])
-        target_net.load_state_dict(saved['networks']['target'])
-        optimizer.load_state_dict(saved['optimizer'])
-        rng.bit_generator.state = saved['rng']
-    obs = run.first_observations(envs, saved)[0]
-
-    # ---- the schedule, in decision steps: updates, target copies, log rows
-    steps = run.env_steps
-    if saved is not None and replay.fits(saved.get('replay')):       # the end of a session: continue exactly
-        replay.load_state_dict(saved['replay'])
-        learning_from, next_update, next_copy, next_report = (saved['schedule'][key] for key in (
-            'learning_from', 'next_update', 'next_copy', 'next_report'))
-    else:                                                            # fresh, or a periodic checkpoint: fill first
-        learning_from = steps + config.learning_starts
-        next_update = max(learning_from, steps + config.update_every)
-        next_copy = (steps // config.target_update + 1) * config.target_update
-        next_report = (steps // config.report_every + 1) * config.report_every
-        if saved is not None:
-            next_copy, next_report = saved['schedule']['next_copy'], saved['schedule']['next_report']
-
-    def run_state(with_replay: bool = False) -> dict:   # everything the run's future depends on
-        algorithm = dict(networks=dict(actor=q_net.state_dict(), target=target_net.state_dict()),
-                         optimizer=optimizer.state_dict(), rng=rng.bit_generator.state,
-                         schedule=dict(learning_from=learning_from, next_update=next_update, next_copy=next_copy,
-                                       next_report=next_report))
-        if hasattr(envs, 'state_dict'):
-            algorithm['envs'] = envs.state_dict()
-        if with_replay:
-            algorithm['replay'] = replay.state_dict()
-        return algorithm
-
-    learn_threads = update_threads(config)
-    epsilon_schedule, lr_schedule = (resolve_schedule(points, config.steps)    # shares of the budget: steps
-                                     for points in (config.epsilon_schedule, config.lr_schedule))
-    coverage, episodes, losses, q_means = [], [], [], []
-    with run:
-        while run.running():
-            while True:   # one iteration: decisions until the next log row
-                # ---- act: epsilon-greedy for every agent of every env, one forward pass
-                epsilon = piecewise(epsilon_schedule, steps, interpolate=True)
-                with torch.no_grad():
-                    q = q_net(torch.from_numpy(obs).to(device)).cpu()
-                action = epsilon_greedy(q.unflatten(-1, (H, C)), epsilon, rng, allowed_choices(spec, obs))  # (B, N, H)
-                next_obs, _, reward, done, truncated, info = envs.step(action[..., 0] if H == 1 else action)
-
-                # ---- store the B x N agent transitions; an ended episode's own last observation is its next one
-                landing = np.where(done[:, None, None], info['final_obs'], next_obs)
-                terminal = (done & ~truncated).astype(np.float32)
-                reward = np.broadcast_to(np.asarray(reward, dtype=np.float32).reshape(B, -1), (B, N))
-                replay.add(obs.reshape(B * N, D), action.reshape(B * N, H), reward.reshape(-1),
-                           landing.reshape(B * N, D), np.repeat(terminal, N))
-                obs = next_obs
-                steps += B
-                coverage.append(float(np.mean(info['coverage'])))
-                episodes += info['episodes']
-
-                # ---- learn: one double-Q update every `update_every` decision steps, from `learning_from` on
-                if steps >= next_update and replay.size:
-                    torch.set_num_threads(learn_threads)
-                    while steps >= next_update and replay.size:
-                        next_update += config.update_every
-                        lr = piecewise(lr_schedule, steps, interpolate=False)
-                        for group in optimizer.param_groups:
-                            group['lr'] = lr
-                        batch = replay.sample(config.batch_size, rng)
-                        next_allowed = allowed_choices(spec, batch['next_obs'].numpy(), device)
-                        batch = {key: value.to(device) for key, value in batch.items()}
-                        loss, q_mean = iql_loss(q_net, target_net, batch, config.gamma, H, next_allowed)
-                        optimizer.zero_grad()
-                        loss.backward()
-                        optimizer.step()
-                        losses.append(loss.item())
-                        q_means.append(q_mean)
-                    torch.set_num_threads(1)
-                if steps >= next_copy:
-                    target_net.load_state_dict(q_net.state_dict())
-                    next_copy += config.target_update
-                if steps >= next_report or steps >= config.steps or run.out_of_time():
-                    break
-
-            # ---- log, keep the best policy, checkpoint
-            next_report += config.report_every
-            run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
-                epsilon=epsilon, lr=piecewise(lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
-                q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
-                actor=q_net.state_dict,
-                save=run_state)
-            coverage, episodes, losses, q_means = [], [], [], []
-    run.finish(run_state(with_replay=True), q_net.state_dict())
-    return run
+    return train_off_policy(config, 'iql', policy_spec(config, envs), IQLLearner, envs, callback, console)

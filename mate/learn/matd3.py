@@ -44,21 +44,21 @@ import torch
 from torch import nn
 
 from ..options import option
-from .device import resolve_device, update_threads
-from .envs import TeamEnvConfig, TeamVecEnv
+from .envs import GameDeviceConfig, TeamEnvConfig, TeamVecEnv
 from .networks import AgentwiseMLP
+from .offpolicy_loop import OffPolicyLearner, train_off_policy
 from .policy import make_actor
 from .replay import TransitionRing
 from .run import Run, RunConfig, mean_or_nan
 from .schedules import check_network_options
 from .spec import PolicySpec
 
-__all__ = ['MATD3Config', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'critic_targets', 'policy_spec',
-           'smoothed_actions', 'train']
+__all__ = ['MATD3Config', 'MATD3Learner', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'critic_targets',
+           'policy_spec', 'smoothed_actions', 'train']
 
 
 @dataclasses.dataclass
-class MATD3Config(RunConfig, TeamEnvConfig):
+class MATD3Config(GameDeviceConfig, RunConfig, TeamEnvConfig):
     """Settings of an MA-TD3 run (`train(config)`, `mate train matd3`)."""
 
     num_envs: int = option(16, 'games played at once', minimum=1)
@@ -83,6 +83,7 @@ class MATD3Config(RunConfig, TeamEnvConfig):
     hidden: tuple[int, ...] = option((512, 256), 'hidden layer widths of the actors and the critics', minimum=1)
     activation: Literal['tanh', 'relu'] = option('tanh', 'hidden activation')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
+    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
 
     def cuts_its_last_iteration(self) -> bool:
         """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
@@ -91,6 +92,7 @@ class MATD3Config(RunConfig, TeamEnvConfig):
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
+        GameDeviceConfig.__post_init__(self)
         if self.hrl:
             raise ValueError('--hrl is not an option of MA-TD3: it acts with continuous actions (HRL selections are '
                              'discrete: mappo, iql, qmix)')
@@ -155,143 +157,103 @@ def critic_targets(reward, terminal, next_q1, next_q2, gamma: float) -> torch.Te
 
 # ============================================================================ training
 
+class MATD3Learner(OffPolicyLearner):
+    """MA-TD3 on the off-policy loop (`mate.learn.offpolicy_loop`): every agent's actor and twin critics (evaluated
+    at once), their target copies, a replay ring of the team's decisions; uniform actions for `random_steps` decision
+    steps, then the actors' plus Gaussian noise; per update both critics, the actors every `policy_delay` updates,
+    soft target updates after each."""
+
+    def __init__(self, config: MATD3Config, spec: PolicySpec, envs, device, rng: np.random.Generator) -> None:
+        B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, spec.num_actions
+        self.config, self.device, self.shape = config, device, (B, N, A)
+        self.actor = make_actor(spec).to(device)
+        self.critics = TwinCritics(N, S + N * A, config.hidden, config.activation).to(device)
+        self.target_actor = copy.deepcopy(self.actor).requires_grad_(False)
+        self.target_critics = copy.deepcopy(self.critics).requires_grad_(False)
+        self.actor_optimizer = torch.optim.Adam(self.actor.parameters(), lr=config.actor_lr)
+        self.critic_optimizer = torch.optim.Adam(self.critics.parameters(), lr=config.critic_lr)
+        self.replay = TransitionRing(config.buffer_size, obs=((N, D), np.float32), state=((S,), np.float32),
+                                     action=((N, A), np.float32), reward=((N,), np.float32),
+                                     next_obs=((N, D), np.float32), next_state=((S,), np.float32),
+                                     terminal=((), np.float32))
+        self.networks = dict(actor=self.actor, critics=self.critics, target_actor=self.target_actor,
+                             target_critics=self.target_critics)
+        self.noise = torch.Generator(device).manual_seed(int(rng.integers(2 ** 62)))    # target-policy smoothing
+        self.updates = 0
+        self.critic_losses, self.actor_losses, self.q_means = [], [], []
+
+    def state_dict(self) -> dict:
+        return dict(optimizers=dict(actor=self.actor_optimizer.state_dict(), critic=self.critic_optimizer.state_dict()),
+                    updates=self.updates, noise=self.noise.get_state())
+
+    def load_state_dict(self, saved: dict) -> None:
+        super().load_state_dict(saved)
+        self.actor_optimizer.load_state_dict(saved['optimizers']['actor'])
+        self.critic_optimizer.load_state_dict(saved['optimizers']['critic'])
+        self.noise.set_state(saved['noise'])
+        self.updates = int(saved['updates'])
+
+    def act(self, obs, state, steps, rng):
+        """Uniform at first, then the actors' actions plus Gaussian noise."""
+        if steps < self.config.random_steps:
+            action = rng.uniform(-1.0, 1.0, size=self.shape).astype(np.float32)
+        else:
+            with torch.no_grad():
+                action = self.actor(torch.from_numpy(obs).to(self.device)).cpu().numpy()
+            action = np.clip(action + self.config.exploration_noise * rng.standard_normal(action.shape), -1.0, 1.0)
+            action = action.astype(np.float32)
+        return action, action
+
+    def store(self, obs, state, action, reward, done, truncated, next_obs, next_state, info) -> None:
+        """The team's decision; an ended episode's own last observation is its next one."""
+        B, N, _ = self.shape
+        self.replay.add(obs=obs, state=state, action=action,
+                        reward=np.broadcast_to(np.asarray(reward, dtype=np.float32).reshape(B, -1), (B, N)),
+                        next_obs=np.where(done[:, None, None], info['final_obs'], next_obs),
+                        next_state=np.where(done[:, None], info['final_state'], next_state),
+                        terminal=(done & ~truncated).astype(np.float32))
+
+    def update(self, steps, rng) -> None:
+        """The critics, the actors every `policy_delay` updates, then the soft target updates."""
+        config, device = self.config, self.device
+        batch = {key: value.to(device) for key, value in self.replay.sample(config.batch_size, rng).items()}
+        with torch.no_grad():
+            smoothing = torch.randn(batch['action'].shape, generator=self.noise, device=device)
+            next_action = smoothed_actions(self.target_actor(batch['next_obs']), config.target_noise * smoothing,
+                                           config.target_noise_clip)
+            next_q1, next_q2 = self.target_critics(critic_inputs(batch['next_state'], next_action))
+            targets = critic_targets(batch['reward'], batch['terminal'], next_q1, next_q2, config.gamma)
+        q1, q2 = self.critics(critic_inputs(batch['state'], batch['action']))
+        critic_loss = (nn.functional.huber_loss(q1, targets, delta=config.huber)
+                       + nn.functional.huber_loss(q2, targets, delta=config.huber))
+        self.critic_optimizer.zero_grad()
+        critic_loss.backward()
+        self.critic_optimizer.step()
+        self.critic_losses.append(critic_loss.item())
+        self.q_means.append(q1.detach().mean().item())
+        self.updates += 1
+        if self.updates % config.policy_delay == 0:
+            own = self.actor(batch['obs'])
+            actor_loss = -self.critics.q1(actor_inputs(batch['state'], batch['action'], own)).mean()
+            self.actor_optimizer.zero_grad()
+            actor_loss.backward()
+            self.actor_optimizer.step()
+            self.actor_losses.append(actor_loss.item())
+        with torch.no_grad():   # soft target updates after every update
+            for net, target in ((self.actor, self.target_actor), (self.critics, self.target_critics)):
+                for p, p_target in zip(net.parameters(), target.parameters()):
+                    p_target.lerp_(p, config.tau)
+
+    def row(self, steps: int) -> dict:
+        row = dict(critic_loss=mean_or_nan(self.critic_losses), actor_loss=mean_or_nan(self.actor_losses),
+                   q_mean=mean_or_nan(self.q_means), buffer=self.replay.size)
+        self.critic_losses, self.actor_losses, self.q_means = [], [], []
+        return row
+
+
 def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/matd3-TEAM-seedN); resume from its checkpoint
     unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks with continuous actions); `callback(row)` sees every log row. Returns the
     `Run`."""
-    device = resolve_device(config.device)
-    spec = policy_spec(config, envs)
-    run = Run.of(config, 'matd3', spec, callback, console)
-
-    # ---- environments
-    envs = envs or config.make_env(spec)
-    B, N, D, S, A = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim, spec.num_actions
-
-    # ---- networks, optimisers, replay, noise
-    # one torch thread for acting (the vector env runs its own threads) and for the initialisation, whose
-    # orthogonal matrices (QR decompositions) differ with the thread count
-    torch.set_num_threads(1)
-    torch.manual_seed(config.seed)
-    actor = make_actor(spec).to(device)
-    critics = TwinCritics(N, S + N * A, config.hidden, config.activation).to(device)
-    target_actor = copy.deepcopy(actor).requires_grad_(False)
-    target_critics = copy.deepcopy(critics).requires_grad_(False)
-    actor_optimizer = torch.optim.Adam(actor.parameters(), lr=config.actor_lr)
-    critic_optimizer = torch.optim.Adam(critics.parameters(), lr=config.critic_lr)
-    replay = TransitionRing(config.buffer_size, obs=((N, D), np.float32), state=((S,), np.float32),
-                            action=((N, A), np.float32), reward=((N,), np.float32), next_obs=((N, D), np.float32),
-                            next_state=((S,), np.float32), terminal=((), np.float32))
-    rng = np.random.default_rng([config.seed, 0])                   # exploration and replay sampling
-    noise = torch.Generator(device).manual_seed(int(rng.integers(2 ** 62)))    # target-policy smoothing
-    updates = 0
-    saved = run.resume()
-    if saved is not None:
-        for module, name in ((actor, 'actor'), (critics, 'critics'), (target_actor, 'target_actor'),
-                             (target_critics, 'target_critics')):
-            module.load_state_dict(saved['networks'][name])
-        actor_optimizer.load_state_dict(saved['optimizers']['actor'])
-        critic_optimizer.load_state_dict(saved['optimizers']['critic'])
-        rng.bit_generator.state = saved['rng']
-        noise.set_state(saved['noise'])
-        updates = int(saved['updates'])
-    obs, state = run.first_observations(envs, saved)
-
-    # ---- the schedule, in decision steps: updates and log rows
-    steps = run.env_steps
-    if saved is not None and replay.fits(saved.get('replay')):       # the end of a session: continue exactly
-        replay.load_state_dict(saved['replay'])
-        learning_from, next_update, next_report = (saved['schedule'][key] for key in (
-            'learning_from', 'next_update', 'next_report'))
-    else:                                                            # fresh, or a periodic checkpoint: fill first
-        learning_from = steps + config.learning_starts
-        next_update = max(learning_from, steps + config.update_every)
-        next_report = (steps // config.report_every + 1) * config.report_every
-        if saved is not None:
-            next_report = saved['schedule']['next_report']
-
-    def run_state(with_replay: bool = False) -> dict:   # everything the run's future depends on
-        networks = dict(actor=actor.state_dict(), critics=critics.state_dict(), target_actor=target_actor.state_dict(),
-                        target_critics=target_critics.state_dict())
-        algorithm = dict(networks=networks,
-                         optimizers=dict(actor=actor_optimizer.state_dict(), critic=critic_optimizer.state_dict()),
-                         updates=updates, rng=rng.bit_generator.state, noise=noise.get_state(),
-                         schedule=dict(learning_from=learning_from, next_update=next_update, next_report=next_report))
-        if hasattr(envs, 'state_dict'):
-            algorithm['envs'] = envs.state_dict()
-        if with_replay:
-            algorithm['replay'] = replay.state_dict()
-        return algorithm
-
-    learn_threads = update_threads(config)
-    coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
-    with run:
-        while run.running():
-            while True:   # one iteration: decisions until the next log row
-                # ---- act: uniform at first, then the actors' actions plus Gaussian noise
-                if steps < config.random_steps:
-                    action = rng.uniform(-1.0, 1.0, size=(B, N, A)).astype(np.float32)
-                else:
-                    with torch.no_grad():
-                        action = actor(torch.from_numpy(obs).to(device)).cpu().numpy()
-                    action = np.clip(action + config.exploration_noise * rng.standard_normal(action.shape), -1.0, 1.0)
-                    action = action.astype(np.float32)
-                next_obs, next_state, reward, done, truncated, info = envs.step(action)
-
-                # ---- store the team's decision; an ended episode's own last observation is its next one
-                replay.add(obs=obs, state=state, action=action,
-                           reward=np.broadcast_to(np.asarray(reward, dtype=np.float32).reshape(B, -1), (B, N)),
-                           next_obs=np.where(done[:, None, None], info['final_obs'], next_obs),
-                           next_state=np.where(done[:, None], info['final_state'], next_state),
-                           terminal=(done & ~truncated).astype(np.float32))
-                obs, state = next_obs, next_state
-                steps += B
-                coverage.append(float(np.mean(info['coverage'])))
-                episodes += info['episodes']
-
-                # ---- learn: critics every `update_every` decision steps, actors every `policy_delay` critic updates
-                if steps >= next_update:
-                    torch.set_num_threads(learn_threads)
-                    while steps >= next_update:
-                        next_update += config.update_every
-                        batch = {key: value.to(device) for key, value in replay.sample(config.batch_size, rng).items()}
-                        with torch.no_grad():
-                            smoothing = torch.randn(batch['action'].shape, generator=noise, device=device)
-                            next_action = smoothed_actions(target_actor(batch['next_obs']),
-                                                           config.target_noise * smoothing, config.target_noise_clip)
-                            next_q1, next_q2 = target_critics(critic_inputs(batch['next_state'], next_action))
-                            targets = critic_targets(batch['reward'], batch['terminal'], next_q1, next_q2, config.gamma)
-                        q1, q2 = critics(critic_inputs(batch['state'], batch['action']))
-                        critic_loss = (nn.functional.huber_loss(q1, targets, delta=config.huber)
-                                       + nn.functional.huber_loss(q2, targets, delta=config.huber))
-                        critic_optimizer.zero_grad()
-                        critic_loss.backward()
-                        critic_optimizer.step()
-                        critic_losses.append(critic_loss.item())
-                        q_means.append(q1.detach().mean().item())
-                        updates += 1
-                        if updates % config.policy_delay == 0:
-                            own = actor(batch['obs'])
-                            actor_loss = -critics.q1(actor_inputs(batch['state'], batch['action'], own)).mean()
-                            actor_optimizer.zero_grad()
-                            actor_loss.backward()
-                            actor_optimizer.step()
-                            actor_losses.append(actor_loss.item())
-                        with torch.no_grad():   # soft target updates after every update
-                            for net, target in ((actor, target_actor), (critics, target_critics)):
-                                for p, p_target in zip(net.parameters(), target.parameters()):
-                                    p_target.lerp_(p, config.tau)
-                    torch.set_num_threads(1)
-                if steps >= next_report or steps >= config.steps or run.out_of_time():
-                    break
-
-            # ---- log, keep the best policy, checkpoint
-            next_report += config.report_every
-            run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
-                critic_loss=mean_or_nan(critic_losses), actor_loss=mean_or_nan(actor_losses),
-                q_mean=mean_or_nan(q_means), buffer=replay.size),
-                actor=actor.state_dict,
-                save=run_state)
-            coverage, episodes, critic_losses, actor_losses, q_means = [], [], [], [], []
-    run.finish(run_state(with_replay=True), actor.state_dict())
-    return run
+    return train_off_policy(config, 'matd3', policy_spec(config, envs), MATD3Learner, envs, callback, console)

@@ -16,14 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import torch
 from torch import nn
 
 from ..options import option
 from .checkpoint import CheckpointError, load_checkpoint, read_spec
-from .envs import TeamEnvConfig
+from .envs import GameDeviceConfig, TeamEnvConfig
 from .run import RunConfig
 from .schedules import check_network_options, piecewise, resolve_schedule
 
@@ -50,7 +50,7 @@ PAPER_HELP = ("the paper's settings where ours differ: the adaptive KL penalty (
               'HRL masking; options given explicitly still win')
 
 @dataclasses.dataclass
-class PPOConfig(RunConfig, TeamEnvConfig):
+class PPOConfig(GameDeviceConfig, RunConfig, TeamEnvConfig):
     """Settings of a PPO trainer: the team env's and the run's options, then PPO's hyper-parameters."""
 
     PRESETS: ClassVar[dict] = {'paper': (PAPER_HELP, PAPER_HYPERPARAMETERS)}
@@ -79,54 +79,12 @@ class PPOConfig(RunConfig, TeamEnvConfig):
                                         'it; masking removes its random bits from the gradient)')
     init_from: str | None = option(None, 'warm start from the networks of a checkpoint or policy file of the same '
                                          'setting (steps and schedules start from 0)', metavar='PATH')
-    game_device: Literal['auto', 'cpu', 'cuda'] = option(
-        'auto', 'where the games and the greedy opponent run: cuda (CUDA kernels, the gpu extra), cpu (numba), or '
-                'auto: on the GPU when --device is one and the settings allow it (not PSRO\'s mixed rewards and '
-                'population opponents), else the CPU')
-
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
         check_network_options(self, ('lr_schedule', 'entropy_schedule'), shares=True)
         self.hidden = tuple(self.hidden)
-        if self.game_device not in ('auto', 'cpu', 'cuda'):
-            raise ValueError(f"--game-device must be auto, cpu or cuda, got {self.game_device!r}")
-
-    def resolved_game_device(self, spec, opponent=None, camera_reward: str = 'coverage') -> str:
-        """'cuda' or 'cpu': where `make_env` plays the games of `spec` (`game_device`). ValueError (one line) when
-        cuda is asked for and a setting is not played on the device or numba sees no CUDA device."""
-        if self.game_device == 'cpu':
-            return 'cpu'
-        from .device import resolve_device
-        from .envs import device_game_available, device_unsupported
-
-        unsupported = device_unsupported(spec, camera_reward, opponent)
-        if self.game_device == 'auto':
-            on_gpu = resolve_device(self.device).type == 'cuda'
-            return 'cuda' if on_gpu and not unsupported and device_game_available() else 'cpu'
-        if unsupported:
-            raise ValueError(f'--game-device cuda: {unsupported[0]} is not played on the device yet; use '
-                             '--game-device cpu')
-        if not device_game_available():
-            raise ValueError('--game-device cuda: numba sees no CUDA device here (pip install "mate[gpu]" on a '
-                             'machine with an NVIDIA GPU); use --game-device cpu')
-        return 'cuda'
-
-    def make_env(self, spec, opponent=None, camera_reward: str = 'coverage'):
-        """The training envs (`TeamVecEnv`), their games on the CPU or on the GPU where `resolved_game_device` says
-        cuda."""
-        if self.resolved_game_device(spec, opponent, camera_reward) == 'cpu':
-            return TeamEnvConfig.make_env(self, spec, opponent, camera_reward)
-        from .device import resolve_device
-
-        index = resolve_device(self.device).index if self.device.startswith('cuda') else None
-        if index:                  # the games on the networks' GPU (numba's current device; the first by default)
-            from numba import cuda
-
-            cuda.select_device(index)
-        return TeamEnvConfig.make_env(self, spec, opponent, camera_reward, device='cuda')
-
-
+        GameDeviceConfig.__post_init__(self)
 
 
 # ============================================================================ the formulas

@@ -4,7 +4,10 @@
   copies, the log period, the HRL selection form); each trainer adds its replay size, network and optimiser;
 * `action_kind(config)`: the spec's action kind of a config (grid moves, or HRL selections in one of two forms);
 * `allowed_choices(spec, features)`: the choices an HRL camera may take, as a tensor (None for other kinds);
-* formulas: `masked_argmax`, `double_q_values`, `double_q_targets`, `epsilon_greedy`.
+* formulas: `masked_argmax`, `double_q_values`, `double_q_targets`, `epsilon_greedy`;
+* `QLearner`: what both learners do on the off-policy loop (`mate.learn.offpolicy_loop`): epsilon-greedy acting
+  from per-head values, the learning rate's step schedule, hard target copies every `target_update` decision
+  steps, the log row (epsilon, lr, loss, q_mean, buffer).
 
 Values are per head: (..., H, C) for H independent choices of C options each (grid moves: one head of 25; HRL
 'per-target': Nt heads of keep/ignore; HRL 'joint': one head of 2^Nt subsets). The value of a joint choice is the
@@ -21,20 +24,21 @@ import numpy as np
 import torch
 
 from ..options import option
-from .envs import TeamEnvConfig
-from .run import RunConfig
-from .schedules import check_network_options
+from .envs import GameDeviceConfig, TeamEnvConfig
+from .offpolicy_loop import OffPolicyLearner
+from .run import RunConfig, mean_or_nan
+from .schedules import check_network_options, piecewise, resolve_schedule
 from .spec import PolicySpec
 
-__all__ = ['QLearningConfig', 'SELECTIONS', 'action_kind', 'allowed_choices', 'double_q_targets', 'double_q_values',
-           'epsilon_greedy', 'masked_argmax']
+__all__ = ['QLearner', 'QLearningConfig', 'SELECTIONS', 'action_kind', 'allowed_choices', 'double_q_targets',
+           'double_q_values', 'epsilon_greedy', 'masked_argmax']
 
 SELECTIONS = ('joint', 'per-target')
 """How HRL cameras choose targets: one of the 2^Nt subsets (the spec's Discrete(256)) or a keep/ignore bit per slot."""
 
 
 @dataclasses.dataclass
-class QLearningConfig(RunConfig, TeamEnvConfig):
+class QLearningConfig(GameDeviceConfig, RunConfig, TeamEnvConfig):
     """Settings of a Q-learning run (IQL, QMIX): the team env's and the run's options, then what both learners share."""
 
     num_envs: int = option(16, 'games played at once', minimum=1)
@@ -52,6 +56,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
         ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...] '
         '(a step "P%%": P %% of --steps)')
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
+    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
 
     SCHEDULES: ClassVar[tuple[str, ...]] = ('epsilon_schedule',)
     """The schedule options of the config (a learner adds its learning rate's): checked once, in __post_init__."""
@@ -63,6 +68,7 @@ class QLearningConfig(RunConfig, TeamEnvConfig):
     def __post_init__(self) -> None:
         TeamEnvConfig.__post_init__(self)
         RunConfig.__post_init__(self)
+        GameDeviceConfig.__post_init__(self)
         if self.selection not in SELECTIONS:
             raise ValueError(f'selection must be one of {", ".join(SELECTIONS)} (HRL cameras), got {self.selection!r}')
         if self.selection != 'joint' and not self.hrl:
@@ -118,3 +124,61 @@ def epsilon_greedy(q: torch.Tensor, epsilon: float, rng: np.random.Generator, al
         uniform = np.minimum((weights.cumsum(-1) <= u).sum(-1), q.shape[-1] - 1)
         greedy = np.where(explore[..., None], uniform, greedy)
     return greedy
+
+
+# ============================================================================ on the off-policy loop
+
+class QLearner(OffPolicyLearner):
+    """What IQL and QMIX share on the off-policy loop (their files add the networks, the replay, `act`, `store`,
+    `update` and `copy_targets`): epsilon-greedy acting, the learning rate's steps, the target copies' schedule
+    (`next_copy`), the checkpoint's optimiser and the log row."""
+
+    schedule_keys = ('next_copy',)
+
+    def __init__(self, config: QLearningConfig, spec: PolicySpec, device) -> None:
+        self.config, self.spec, self.device = config, spec, device
+        self.heads, self.choices = spec.heads, spec.choices                 # values per agent: H heads of C choices
+        self.epsilon_schedule, self.lr_schedule = (resolve_schedule(points, config.steps)   # shares of the budget
+                                                   for points in (config.epsilon_schedule, config.lr_schedule))
+        self.epsilon = float(self.epsilon_schedule[0][1])
+        self.losses, self.q_means = [], []
+
+    def state_dict(self) -> dict:
+        return dict(optimizer=self.optimizer.state_dict())
+
+    def load_state_dict(self, saved: dict) -> None:
+        super().load_state_dict(saved)
+        self.optimizer.load_state_dict(saved['optimizer'])
+
+    def own_schedule(self, steps: int) -> dict:
+        return dict(next_copy=(steps // self.config.target_update + 1) * self.config.target_update)
+
+    def explore(self, q: torch.Tensor, features: np.ndarray, steps: int, rng: np.random.Generator):
+        """(the choices (B, N, H), what the envs take: (B, N) for one head) epsilon-greedy from the values q
+        (B, N, H x C) on the CPU of the features (B, N, D), at the schedule's epsilon of `steps`."""
+        self.epsilon = piecewise(self.epsilon_schedule, steps, interpolate=True)
+        action = epsilon_greedy(q.unflatten(-1, (self.heads, self.choices)), self.epsilon, rng,
+                                allowed_choices(self.spec, features))
+        return action, action[..., 0] if self.heads == 1 else action
+
+    def set_learning_rate(self, steps: int) -> None:
+        lr = piecewise(self.lr_schedule, steps, interpolate=False)
+        for group in self.optimizer.param_groups:
+            group['lr'] = lr
+
+    def copy_targets(self) -> None:
+        raise NotImplementedError
+
+    def after_step(self, steps: int, schedule: dict) -> None:
+        if steps >= schedule['next_copy']:
+            self.copy_targets()
+            schedule['next_copy'] += self.config.target_update
+
+    def row(self, steps: int) -> dict:
+        row = dict(epsilon=self.epsilon, lr=piecewise(self.lr_schedule, steps, interpolate=False),
+                   loss=mean_or_nan(self.losses), q_mean=mean_or_nan(self.q_means), buffer=self.replay.size)
+        self.losses, self.q_means = [], []
+        return row
+
+    def status(self) -> str:
+        return f'epsilon {self.epsilon:.2f}'

@@ -45,16 +45,15 @@ import torch
 from torch import nn
 
 from ..options import option
-from .device import resolve_device, update_threads
 from .envs import TeamVecEnv
+from .offpolicy_loop import train_off_policy
 from .policy import make_actor
-from .qlearning import QLearningConfig, action_kind, allowed_choices, double_q_values, epsilon_greedy
+from .qlearning import QLearner, QLearningConfig, action_kind, allowed_choices, double_q_values
 from .replay import SequenceReplay
-from .run import Run, mean_or_nan
-from .schedules import piecewise, resolve_schedule
+from .run import Run
 from .spec import PolicySpec
 
-__all__ = ['QMIXConfig', 'QMixer', 'policy_spec', 'qmix_loss', 'train']
+__all__ = ['QMIXConfig', 'QMIXLearner', 'QMixer', 'policy_spec', 'qmix_loss', 'train']
 
 
 @dataclasses.dataclass
@@ -134,131 +133,82 @@ def qmix_loss(q_net, target_net, mixer, target_mixer, batch: dict, gamma: float,
 
 # ============================================================================ training
 
+class QMIXLearner(QLearner):
+    """QMIX on the off-policy loop (`mate.learn.offpolicy_loop`): the agents' shared recurrent Q-network, the mixer,
+    their target copies, a replay of the team's decision sequences with the GRU states they started from, one
+    double-Q update of the mixed value from `batch_size` decisions of whole chunks per `update_every` decision steps
+    (RMSprop, gradients clipped at norm 1,000)."""
+
+    def __init__(self, config: QMIXConfig, spec: PolicySpec, envs, device, rng: np.random.Generator) -> None:
+        super().__init__(config, spec, device)
+        B, N, D, S = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim
+        self.q_net = make_actor(spec).to(device)
+        self.target_net = copy.deepcopy(self.q_net).requires_grad_(False).to(device)   # (the GRU's weights: one block)
+        self.mixer = QMixer(S, N, config.mixer_embed).to(device)
+        self.target_mixer = copy.deepcopy(self.mixer).requires_grad_(False)
+        self.learned = [*self.q_net.parameters(), *self.mixer.parameters()]
+        self.optimizer = torch.optim.RMSprop(self.learned, lr=config.lr_schedule[0][1], alpha=0.99, eps=1e-5)
+        self.replay = SequenceReplay(config.buffer_size, config.sequence_length, B, N, D, S, self.heads,
+                                     self.q_net.width)
+        self.networks = dict(actor=self.q_net, target=self.target_net, mixer=self.mixer,
+                             target_mixer=self.target_mixer)
+        self.hidden = self.q_net.initial_state(B, N)[0].to(device)          # (B, N, G) the acting GRU state
+        self._next_hidden = None
+        self.chunks = math.ceil(config.batch_size / config.sequence_length)   # per update
+
+    def state_dict(self) -> dict:
+        return dict(super().state_dict(), hidden=self.hidden.cpu())
+
+    def load_state_dict(self, saved: dict) -> None:
+        super().load_state_dict(saved)
+        self.hidden = torch.as_tensor(saved['hidden']).to(self.device)
+
+    def start(self, run, saved) -> None:
+        if not run.continues_episodes(saved):
+            self.hidden.zero_()                                              # the envs were reset: so is the memory
+
+    def begin_replay(self) -> None:
+        self.replay.begin(self.hidden.cpu().numpy())
+
+    def act(self, obs, state, steps, rng):
+        """Epsilon-greedy for every agent of every env from its GRU state, one forward pass."""
+        with torch.no_grad():
+            q, (self._next_hidden,) = self.q_net.step(torch.from_numpy(obs).to(self.device), (self.hidden,))
+        return self.explore(q.cpu(), obs, steps, rng)
+
+    def store(self, obs, state, action, reward, done, truncated, next_obs, next_state, info) -> None:
+        """The team's decision; an ended episode's own last observation is its next one, and its memory starts from
+        zero."""
+        next_hidden = self._next_hidden
+        next_hidden[torch.from_numpy(done).to(self.device)] = 0.0
+        self.replay.record(obs, state, action, np.asarray(reward, dtype=np.float32),
+                           (done & ~truncated).astype(np.float32), done,
+                           np.where(done[:, None, None], info['final_obs'], next_obs),
+                           np.where(done[:, None], info['final_state'], next_state), next_hidden.cpu().numpy())
+        self.hidden = next_hidden
+
+    def update(self, steps, rng) -> None:
+        """One double-Q update of the mixed value."""
+        self.set_learning_rate(steps)
+        batch = self.replay.sample(self.chunks, rng)
+        next_allowed = allowed_choices(self.spec, batch['obs'].transpose(0, 1)[1:].numpy(), self.device)
+        batch = {key: value.to(self.device) for key, value in batch.items()}
+        loss, q_mean = qmix_loss(self.q_net, self.target_net, self.mixer, self.target_mixer, batch, self.config.gamma,
+                                 self.heads, next_allowed)
+        self.optimizer.zero_grad()
+        loss.backward()
+        nn.utils.clip_grad_norm_(self.learned, 1000.0)
+        self.optimizer.step()
+        self.losses.append(loss.item())
+        self.q_means.append(q_mean)
+
+    def copy_targets(self) -> None:
+        self.target_net.load_state_dict(self.q_net.state_dict())
+        self.target_mixer.load_state_dict(self.mixer.state_dict())
+
+
 def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/qmix-TEAM-seedN); resume from its checkpoint
     unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
-    device = resolve_device(config.device)
-    spec = policy_spec(config, envs)
-    run = Run.of(config, 'qmix', spec, callback, console)
-
-    # ---- environments
-    envs = envs or config.make_env(spec)
-    B, N, D, S = envs.num_envs, envs.num_agents, envs.obs_dim, envs.state_dim
-    H, C = spec.heads, spec.choices                                  # values per agent: H heads of C choices
-
-    # ---- networks, optimiser, replay, exploration
-    torch.set_num_threads(1)                                         # acting: the vector env runs its own threads
-    torch.manual_seed(config.seed)
-    q_net = make_actor(spec).to(device)
-    target_net = copy.deepcopy(q_net).requires_grad_(False).to(device)   # (.to: the copied GRU's weights in one block)
-    mixer = QMixer(S, N, config.mixer_embed).to(device)
-    target_mixer = copy.deepcopy(mixer).requires_grad_(False)
-    learned = [*q_net.parameters(), *mixer.parameters()]
-    optimizer = torch.optim.RMSprop(learned, lr=config.lr_schedule[0][1], alpha=0.99, eps=1e-5)
-    replay = SequenceReplay(config.buffer_size, config.sequence_length, B, N, D, S, H, q_net.width)
-    rng = np.random.default_rng([config.seed, 0])                   # exploration and replay sampling
-    hidden = q_net.initial_state(B, N)[0].to(device)                 # (B, N, G) the acting GRU state
-    saved = run.resume()
-    if saved is not None:
-        for module, name in ((q_net, 'actor'), (target_net, 'target'), (mixer, 'mixer'),
-                             (target_mixer, 'target_mixer')):
-            module.load_state_dict(saved['networks'][name])
-        optimizer.load_state_dict(saved['optimizer'])
-        rng.bit_generator.state = saved['rng']
-        hidden = torch.as_tensor(saved['hidden']).to(device)
-    obs, state = run.first_observations(envs, saved)
-    if not run.continues_episodes(saved):
-        hidden.zero_()                                               # the envs were reset: so is the memory
-
-    # ---- the schedule, in decision steps: updates, target copies, log rows
-    steps = run.env_steps
-    if saved is not None and replay.fits(saved.get('replay')):       # the end of a session: continue exactly
-        replay.load_state_dict(saved['replay'])
-        learning_from, next_update, next_copy, next_report = (saved['schedule'][key] for key in (
-            'learning_from', 'next_update', 'next_copy', 'next_report'))
-    else:                                                            # fresh, or a periodic checkpoint: fill first
-        replay.begin(hidden.cpu().numpy())
-        learning_from = steps + config.learning_starts
-        next_update = max(learning_from, steps + config.update_every)
-        next_copy = (steps // config.target_update + 1) * config.target_update
-        next_report = (steps // config.report_every + 1) * config.report_every
-        if saved is not None:
-            next_copy, next_report = saved['schedule']['next_copy'], saved['schedule']['next_report']
-
-    def run_state(with_replay: bool = False) -> dict:   # everything the run's future depends on
-        networks = dict(actor=q_net.state_dict(), target=target_net.state_dict(), mixer=mixer.state_dict(),
-                        target_mixer=target_mixer.state_dict())
-        algorithm = dict(networks=networks,
-                         optimizer=optimizer.state_dict(), rng=rng.bit_generator.state, hidden=hidden.cpu(),
-                         schedule=dict(learning_from=learning_from, next_update=next_update, next_copy=next_copy,
-                                       next_report=next_report))
-        if hasattr(envs, 'state_dict'):
-            algorithm['envs'] = envs.state_dict()
-        if with_replay:
-            algorithm['replay'] = replay.state_dict()
-        return algorithm
-
-    learn_threads = update_threads(config)
-    epsilon_schedule, lr_schedule = (resolve_schedule(points, config.steps)    # shares of the budget: steps
-                                     for points in (config.epsilon_schedule, config.lr_schedule))
-    chunks = math.ceil(config.batch_size / config.sequence_length)    # per update
-    coverage, episodes, losses, q_means = [], [], [], []
-    with run:
-        while run.running():
-            while True:   # one iteration: decisions until the next log row
-                # ---- act: epsilon-greedy for every agent of every env from its GRU state, one forward pass
-                epsilon = piecewise(epsilon_schedule, steps, interpolate=True)
-                with torch.no_grad():
-                    q, (next_hidden,) = q_net.step(torch.from_numpy(obs).to(device), (hidden,))
-                action = epsilon_greedy(q.cpu().unflatten(-1, (H, C)), epsilon, rng, allowed_choices(spec, obs))
-                next_obs, next_state, reward, done, truncated, info = envs.step(action[..., 0] if H == 1 else action)
-
-                # ---- store the team's decision; an ended episode's own last observation is its next one
-                next_hidden[torch.from_numpy(done).to(device)] = 0.0          # a new episode starts from zero
-                replay.record(obs, state, action, np.asarray(reward, dtype=np.float32),
-                              (done & ~truncated).astype(np.float32), done,
-                              np.where(done[:, None, None], info['final_obs'], next_obs),
-                              np.where(done[:, None], info['final_state'], next_state), next_hidden.cpu().numpy())
-                obs, state, hidden = next_obs, next_state, next_hidden
-                steps += B
-                coverage.append(float(np.mean(info['coverage'])))
-                episodes += info['episodes']
-
-                # ---- learn: one double-Q update of the mixed value every `update_every` decision steps
-                if steps >= next_update and replay.size:
-                    torch.set_num_threads(learn_threads)
-                    while steps >= next_update and replay.size:
-                        next_update += config.update_every
-                        lr = piecewise(lr_schedule, steps, interpolate=False)
-                        for group in optimizer.param_groups:
-                            group['lr'] = lr
-                        batch = replay.sample(chunks, rng)
-                        next_allowed = allowed_choices(spec, batch['obs'].transpose(0, 1)[1:].numpy(), device)
-                        batch = {key: value.to(device) for key, value in batch.items()}
-                        loss, q_mean = qmix_loss(q_net, target_net, mixer, target_mixer, batch, config.gamma, H,
-                                                 next_allowed)
-                        optimizer.zero_grad()
-                        loss.backward()
-                        nn.utils.clip_grad_norm_(learned, 1000.0)
-                        optimizer.step()
-                        losses.append(loss.item())
-                        q_means.append(q_mean)
-                    torch.set_num_threads(1)
-                if steps >= next_copy:
-                    target_net.load_state_dict(q_net.state_dict())
-                    target_mixer.load_state_dict(mixer.state_dict())
-                    next_copy += config.target_update
-                if steps >= next_report or steps >= config.steps or run.out_of_time():
-                    break
-
-            # ---- log, keep the best policy, checkpoint
-            next_report += config.report_every
-            run.end_iteration(steps - run.env_steps, coverage, episodes, dict(
-                epsilon=epsilon, lr=piecewise(lr_schedule, steps, interpolate=False), loss=mean_or_nan(losses),
-                q_mean=mean_or_nan(q_means), buffer=replay.size), status=f'epsilon {epsilon:.2f}',
-                actor=q_net.state_dict,
-                save=run_state)
-            coverage, episodes, losses, q_means = [], [], [], []
-    run.finish(run_state(with_replay=True), q_net.state_dict())
-    return run
+    return train_off_policy(config, 'qmix', policy_spec(config, envs), QMIXLearner, envs, callback, console)

@@ -22,7 +22,7 @@ class RunConfig:
                              'cores, MAPPO cameras: 1 thread 1,760 decisions/s alone and 1,520 beside a busy process, '
                              'every core 2,070 alone but 705 beside it', minimum=0)
     device: str = option('auto', "where networks, rollouts and updates run: auto (a GPU when there is one), cpu, "
-                                 'cuda or cuda:N; the games run on the CPU unless a PPO trainer plays them on the GPU (--game-device)')
+                                 'cuda or cuda:N (where the games run: --game-device of mate train)')
     run_dir: str | None = option(None, 'output directory; None: runs/NAME-TEAM-seedN')
     fresh: bool = option(False, 'start over, ignoring (and replacing) a checkpoint in the run directory')
     progress: bool = option(True, 'the progress bar (plain lines every 30 s when the output is not a terminal)')

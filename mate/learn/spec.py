@@ -334,7 +334,7 @@ class PolicySpec:
         if self.action == 'grid':
             return discrete_to_continuous(held[..., 0], raw, self.team, self.levels)
         if self.action == 'continuous':
-            xp = array_namespace(held)            # (minimum/maximum: numpy's own functions, a clip by the namespace is not)
+            xp = array_namespace(held)        # (minimum/maximum: numpy's own functions; the namespace's clip is not)
             return xp.minimum(xp.maximum(held, -1.0), 1.0) * action_high(raw, self.team)
         if self.action == 'discrete':
             raise SpecError("'discrete' actions are decoded by their own env (a toy task), not by a game")

@@ -204,3 +204,64 @@ def test_the_simulated_device_env_trains_as_the_cpu_env():
             assert found['env'] == 'TeamVecEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
             assert found['episodes'] >= 2, (name, found)
     assert report['train hrl=True']['resumed']
+
+
+OFF_POLICY = """
+import csv, json, sys, tempfile
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+from resume import assert_same_run, stopped_and_resumed
+from mate.learn import iql, matd3, qmix
+from mate.learn.envs import TeamVecEnv
+from mate.learn.run import TIMING_COLUMNS
+from mate.teams.device import HostTeam
+
+SMALL = dict(seed=1, steps=48, num_envs=2, horizon=10, frame_skip=2, buffer_size=64, batch_size=8, update_every=4,
+             learning_starts=8, report_every=16, hidden=(16,), threads=1, progress=False, device='cpu',
+             checkpoint_every=1)
+TRAINERS = {'iql': (iql, lambda **kw: iql.IQLConfig(**SMALL, hrl=True, target_update=8, **kw)),
+            'qmix': (qmix, lambda **kw: qmix.QMIXConfig(**SMALL, sequence_length=4, mixer_embed=8, target_update=8,
+                                                        **kw)),
+            'matd3': (matd3, lambda **kw: matd3.MATD3Config(**SMALL, team='target', random_steps=16, **kw))}
+folder = Path(tempfile.mkdtemp())
+report = {}
+for name, (module, config_of) in TRAINERS.items():
+    device_config = config_of(run_dir=str(folder / f'{name}-device'), fresh=True, game_device='cuda')
+    cpu_config = config_of(run_dir=str(folder / f'{name}-cpu'), fresh=True, game_device='cpu')
+    made = device_config.make_env(module.policy_spec(device_config))
+    other = 'target' if cpu_config.team == 'camera' else 'camera'
+    twin = lambda n, counts, seed: HostTeam('greedy', other, n, counts, seed=seed)
+    module.train(device_config)
+    module.train(cpu_config, envs=TeamVecEnv(module.policy_spec(cpu_config), 2, horizon=10, seed=1,
+                                             credit=cpu_config.credit, opponent=twin))
+    rows = []
+    for run_dir in (device_config.run_dir, cpu_config.run_dir):
+        with open(Path(run_dir) / 'progress.csv', newline='') as f:
+            rows.append([{k: v for k, v in row.items() if k not in TIMING_COLUMNS} for row in csv.DictReader(f)])
+    found = dict(env=f'{type(made).__name__} tensors={made.tensors}', same=rows[0] == rows[1], rows=len(rows[0]),
+                 episodes=int(rows[0][-1]['episodes']),
+                 loss=rows[0][-1].get('loss', rows[0][-1].get('critic_loss')))
+    if name == 'qmix':        # a stopped and resumed run with its games on the device ends as the straight one
+        straight, stopped = stopped_and_resumed(module.train, lambda run_dir, fresh: config_of(
+            run_dir=run_dir, fresh=fresh, game_device='cuda'), 1, folder / 'resume')
+        assert_same_run(straight, stopped)
+        found['resumed'] = True
+    report[name] = found
+print(json.dumps(report))
+"""
+
+
+@pytest.mark.slow
+def test_the_off_policy_trainers_play_on_the_simulated_device_as_on_the_cpu():
+    """`mate train iql|qmix|matd3 --game-device cuda` under numba's CUDA simulator logs the rows of the same run with
+    its games on the CPU (the device team's host twin as the opponent), and QMIX's stops and resumes exactly."""
+    needs_extra('numba_cuda')
+    here = str(Path(__file__).parent)
+    done = run_simulated(OFF_POLICY, here, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert sorted(report) == ['iql', 'matd3', 'qmix'], report
+    for name, found in report.items():
+        assert found['env'] == 'TeamVecEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
+        assert found['episodes'] >= 2 and float(found['loss']) == float(found['loss']), (name, found)   # updated
+    assert report['qmix']['resumed']
