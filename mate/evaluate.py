@@ -60,7 +60,7 @@ def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
     prefix = spec.split(':', 1)[0]
     if prefix in ('checkpoint', 'pretrained'):
         try:
-            from .learn import load_agent
+            from .learn.policy import load_agent
         except ImportError as exc:
             raise ValueError(f'{spec!r}: loading learned policies needs the training extra '
                              f"(pip install 'mate[train]'): {exc}") from None

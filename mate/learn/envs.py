@@ -64,7 +64,7 @@ from ..protocol import EPISODE_INFO, PAPER_SETTINGS
 from ..registration import resolve_config
 from ..team_vector import make_team_vec
 from ..teams import GreedyTeam
-from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
+from ..core.observability import empty_warehouses, enhance_observations
 from .memory import SightingMemory
 from .spec import PolicySpec, as_team
 

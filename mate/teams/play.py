@@ -129,7 +129,7 @@ def _sight(vec, cameras, targets, counts) -> Callable[[np.ndarray, np.ndarray, i
     watchers = [team.watch for team in (cameras, targets) if hasattr(team, 'watch')]
     if not any(enhanced) and not watchers:
         return lambda camera_obs, target_obs, step: None
-    from ..wrappers.enhanced_observation import empty_warehouses, enhance_observations
+    from ..core.observability import empty_warehouses, enhance_observations
 
     def see(camera_obs: np.ndarray, target_obs: np.ndarray, step: int) -> None:
         if any(enhanced):
