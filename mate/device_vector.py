@@ -57,10 +57,10 @@ from gymnasium.vector import VectorEnv
 from . import registration
 from .core.device import BLOCK, DeviceCore, from_torch, to_torch
 from .core.world import World, episode_statistics, obstacle_states
-from .env import GameDescription, MultiAgentTracking, team_shape_error
+from .env import GameDescription, MultiAgentTracking
 from .messages import Team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
-                              uniform_actions, vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
+                              checked_team_actions, row_seeds_of, uniform_actions, vector_spaces)
 
 __all__ = ['DeviceVecEnv']
 
@@ -126,20 +126,9 @@ class DeviceVecEnv(GameDescription, VectorEnv):
             raise ValueError(f"DeviceVecEnv.reset takes only the option 'reset_mask', got {sorted(options)}")
         B = self.num_envs
         mask = np.ones(B, bool) if mask is None else self._check_mask(mask)
-        if isinstance(seed, (list, tuple)):
-            if len(seed) != B:
-                raise ValueError(f'reset(seed=...) got {len(seed)} seeds for num_envs={B}: pass an int, None '
-                                 f'or a list of {B} seeds')
-            if any(s is not None and (not isinstance(s, (int, np.integer)) or isinstance(s, bool) or s < 0)
-                   for s in seed):
-                raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {seed!r}')
-        elif seed is not None and (not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0):
-            raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
+        seeds = row_seeds_of(seed, B)
         if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))                 # also seeds self.np_random (sample_actions' default)
-            seeds = [int(seed) + b for b in range(B)]
-        else:
-            seeds = [None if s is None else int(s) for s in seed] if seed is not None else [None] * B
         # the games given a seed start their streams anew; the others go on, but never-seeded ones draw entropy
         streams = self.core.world.rng.copy_to_host()
         never_seeded = (streams[:, 0] == 0) & (streams[:, 1] == 0)
@@ -176,31 +165,20 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         return array
 
     def _team_actions(self, value, team: Team):
-        """`step`'s check of one team's actions, as the CPU env's: (B, N, 2) or (B, 2N) of any real dtype, finite;
-        returned as a float64 tensor (B, N, 2) on the env's device."""
+        """`step`'s check of one team's actions, as the CPU env's (`checked_team_actions`): (B, N, 2) or (B, 2N) of
+        any real dtype, finite; returned as a float64 tensor (B, N, 2) on the env's device."""
         import torch
 
-        count = self.counts[0 if team is Team.CAMERA else 1]
-        name, box = team.name.lower(), self.camera_action_space if team is Team.CAMERA else self.target_action_space
-        expected = (self.num_envs, count, 2)
-        try:
-            tensor = torch.as_tensor(value if isinstance(value, torch.Tensor) else np.asarray(value, np.float64),
-                                     dtype=torch.float64, device=self._info_mask.device)
-        except (TypeError, ValueError, RuntimeError) as exc:
-            if 'inhomogeneous' in str(exc):
-                raise ValueError(team_shape_error(name, expected, 'a ragged sequence', batched='num_envs x ',
-                                                  alternative=(self.num_envs, 2 * count))) from None
-            raise ValueError(f'{name} actions are not numeric: {exc}') from None
-        if tuple(tensor.shape) != expected:
-            if tuple(tensor.shape) != (self.num_envs, 2 * count):
-                raise ValueError(team_shape_error(name, expected, tuple(tensor.shape), batched='num_envs x ',
-                                                  alternative=(self.num_envs, 2 * count)))
-            tensor = tensor.reshape(expected)
-        finite = torch.isfinite(tensor).flatten(1).all(dim=1)
-        if not bool(finite.all()):
-            bad = np.flatnonzero(~finite.cpu().numpy())
-            raise ValueError(f'{name} actions contain NaN or inf (envs {env_listing(bad)}); every entry must be '
-                             f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+        camera = team is Team.CAMERA
+        device = self._info_mask.device
+
+        def convert(v):
+            return torch.as_tensor(v if isinstance(v, torch.Tensor) else np.asarray(v, np.float64), dtype=torch.float64,
+                                   device=device)
+
+        tensor = checked_team_actions(value, self.counts[0 if camera else 1], team.name.lower(),
+                                      self.camera_action_space if camera else self.target_action_space, self.num_envs,
+                                      convert)
         return tensor.contiguous()
 
     def step(self, actions):

@@ -17,10 +17,10 @@ from . import registration
 from .core import engine
 from .core.snapshot import get_snapshot
 from .core.world import empty_world, episode_statistics, obstacle_states
-from .env import GameDescription, MultiAgentTracking, team_shape_error
+from .env import GameDescription, MultiAgentTracking
 from .messages import Team, as_team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of, env_listing,
-                              uniform_actions, vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
+                              checked_team_actions, env_listing, row_seeds_of, uniform_actions, vector_spaces)
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
@@ -147,16 +147,9 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         """
         B = self.num_envs
         mask = self._everyone if not options or 'reset_mask' not in options else self._check_mask(options['reset_mask'])
-        if seed is None:
-            seeds = [None] * B
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        seeds = row_seeds_of(seed, B)
+        if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))  # also seeds self.np_random (sample_actions' default)
-            seeds = [int(seed) + i for i in range(B)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != B:
-                raise ValueError(f'reset(seed=...) got {len(seeds)} seeds for num_envs={B}: pass an int, None '
-                                 f'or a list of {B} seeds')
         world = self._world
         never_seeded = (world.rng[:, 0] == 0) & (world.rng[:, 1] == 0)
         given = np.array([s is not None for s in seeds], dtype=bool)
@@ -246,24 +239,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return self.step(actions)
 
     def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
-        B = self.num_envs
-        expected = (B, count, 2)
-        try:
-            array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            if 'inhomogeneous' in str(exc):   # rows of different lengths
-                raise ValueError(team_shape_error(team, expected, 'a ragged sequence', batched='num_envs x ',
-                                                  alternative=(B, 2 * count))) from None
-            raise ValueError(f'{team} actions are not numeric: {exc}') from None
-        if array.shape != expected:
-            if array.shape != (B, 2 * count):   # (B, 2N), documented, is the only other form accepted
-                raise ValueError(team_shape_error(team, expected, array.shape, batched='num_envs x ',
-                                                  alternative=(B, 2 * count)))
-            array = array.reshape(expected)
-        if not np.isfinite(array).all():
-            bad = np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))
-            raise ValueError(f'{team} actions contain NaN or inf (envs {env_listing(bad)}); every entry must be '
-                             f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+        array = checked_team_actions(value, count, team, box, self.num_envs, lambda v: np.asarray(v, dtype=np.float64))
         return np.ascontiguousarray(array)
 
     def _observations(self) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,6 @@
-"""What the vector envs of both devices share: the autoreset modes, the info keys, the spaces, the action draws and
-the refusals' listings (`mate.vector`'s CPU env and `mate.device_vector`'s device env have one API)."""
+"""What the vector envs of both devices share: the autoreset modes, the info keys, the spaces, the action draws, the
+seeds of a reset and the checks of the actions with their refusals (`mate.vector`'s CPU env and
+`mate.device_vector`'s device env have one API)."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
+from .arrays import array_namespace
 from .core.world import EPISODE_STATISTICS
-from .env import MultiAgentTracking
+from .env import MultiAgentTracking, team_shape_error
 
 __all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing',
+           'checked_team_actions', 'row_seeds_of',
            'uniform_actions', 'vector_spaces']
 
 try:
@@ -95,6 +98,59 @@ def uniform_actions(rng: np.random.Generator, box: spaces.Box, shape: tuple[int,
     rows *= np.tile(box.high - box.low, repeats)
     rows += np.tile(box.low, repeats)
     return out
+
+
+def _a_seed(value) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
+
+
+def row_seeds_of(seed, num_envs: int) -> list[int | None]:
+    """The seed of every game of `reset(seed=...)`, one rule for both vector envs: None (every stream goes on), an
+    int s (game b: s + b) or a sequence of `num_envs` ints and Nones (game b: seed[b]). ValueError (one line)
+    otherwise."""
+    if seed is None:
+        return [None] * num_envs
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        if seed < 0:
+            raise ValueError(f'seed must be a non-negative integer or None, got {seed!r}')
+        return [int(seed) + b for b in range(num_envs)]
+    if not isinstance(seed, (list, tuple, np.ndarray)):
+        raise ValueError(f'seed must be a non-negative integer, a list of {num_envs} seeds or None, got {seed!r}')
+    seeds = list(seed)
+    if len(seeds) != num_envs:
+        raise ValueError(f'reset(seed=...) got {len(seeds)} seeds for num_envs={num_envs}: pass an int, None or a '
+                         f'list of {num_envs} seeds')
+    if not all(s is None or _a_seed(s) for s in seeds):
+        raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {seed!r}')
+    return [None if s is None else int(s) for s in seeds]
+
+
+def checked_team_actions(value, count: int, team: str, box: spaces.Box, num_envs: int, convert):
+    """One team's actions as `step` takes them, one rule for both vector envs: (B, N, 2) or (B, 2N) of any real
+    dtype, finite; returned as (B, N, 2) float64, `convert(value)` the env's array of them (a numpy array, or a
+    tensor on the device). ValueError (one line) for a ragged, non-numeric, misshapen or non-finite input (which
+    reads a device's actions back once)."""
+    expected = (num_envs, count, 2)
+    try:
+        array = convert(value)
+    except (TypeError, ValueError, RuntimeError) as exc:
+        if 'inhomogeneous' in str(exc):   # rows of different lengths
+            raise ValueError(team_shape_error(team, expected, 'a ragged sequence', batched='num_envs x ',
+                                              alternative=(num_envs, 2 * count))) from None
+        raise ValueError(f'{team} actions are not numeric: {exc}') from None
+    if tuple(array.shape) != expected:
+        if tuple(array.shape) != (num_envs, 2 * count):   # (B, 2N), documented, is the only other form accepted
+            raise ValueError(team_shape_error(team, expected, tuple(array.shape), batched='num_envs x ',
+                                              alternative=(num_envs, 2 * count)))
+        array = array.reshape(expected)
+    finite = np.isfinite(array) if isinstance(array, np.ndarray) else array.isfinite()   # (the host's hot path)
+    if not bool(finite.all()):
+        xp = array_namespace(array)
+        rows = xp.all(xp.reshape(finite, (num_envs, -1)), axis=1)
+        bad = np.flatnonzero(~np.asarray(rows if isinstance(rows, np.ndarray) else rows.cpu()))
+        raise ValueError(f'{team} actions contain NaN or inf (envs {env_listing(bad)}); every entry must be '
+                         f'finite (bounds {box.low.tolist()}..{box.high.tolist()}; larger values are clipped)')
+    return array
 
 
 def env_listing(indices: np.ndarray, limit: int = 10) -> str:

@@ -286,3 +286,19 @@ def test_make_vec_arguments():
     envs = mate.make_vec('MATE-2v4-0-v0', num_envs=2, max_episode_steps=5)
     assert (envs.num_cameras, envs.num_targets, envs.num_obstacles, envs.max_episode_steps) == (2, 4, 0, 5)
     assert 'num_envs=2' in repr(envs)
+
+
+@pytest.mark.parametrize('seed, message', [
+    (-1, 'seed must be a non-negative integer or None, got -1'),
+    ('x', "seed must be a non-negative integer, a list of 2 seeds or None, got 'x'"),
+    (True, 'seed must be a non-negative integer, a list of 2 seeds or None, got True'),
+    ([1, -3], r'each seed must be a non-negative integer or None, got \[1, -3\]'),
+    ([1, 'a'], "each seed must be a non-negative integer or None"),
+    ([1, 2, 3], 'got 3 seeds for num_envs=2'),
+])
+def test_a_bad_seed_is_refused_in_one_line_naming_the_valid_forms(seed, message):
+    """The CPU env's refusals are the device env's (`mate.vector_contract.row_seeds_of`, one rule for both)."""
+    envs = mate.make_vec('MultiAgentTracking-v0', 2, config='MATE-2v4-0')
+    with pytest.raises(ValueError, match=message):
+        envs.reset(seed=seed)
+    envs.reset(seed=[3, None])                         # a list with Nones: those games' streams go on
