@@ -29,7 +29,7 @@ except ImportError:  # gymnasium 1.0 has next-step autoreset only, and no enum f
 ADDED_FIELDS = frozenset({'target_reward_parts', 'camera_reward_parts', 'coverage_rate_sum',
                           'real_coverage_rate_sum'})
 """World arrays an earlier version did not have: a state saved by it still loads (they start at zero; the
-episode sums of coverage then count from the resume, unless the caller has them: `TeamVecEnv` restores its own)."""
+episode sums of coverage then count from the resume, unless the caller has them: `TrainingEnv` restores its own)."""
 INFO_KEYS = ('coverage_rate', 'real_coverage_rate', 'mean_transport_rate', 'num_delivered_cargoes', 'episode_step',
              *EPISODE_STATISTICS)
 """The (B,) arrays of a vector step's infos: World fields of the same names, and the episode so far

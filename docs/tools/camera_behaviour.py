@@ -18,14 +18,14 @@ import argparse
 import numpy as np
 
 from mate.constants import PRESERVED_DIM
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv
+from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.learn.memory import camera_sightings
 from mate.learn.policy import LoadedPolicy, load_policy
 from mate.teams import GreedyTeam
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 
 
-def record(env: TeamVecEnv) -> dict:
+def record(env: TrainingEnv) -> dict:
     """Wrap `env.vec.step` so that every raw step's camera statistics are appended to the returned lists."""
     stats = {'coverage': [], 'seeing nothing': [], 'seen twice or more': [], 'viewing angle': [], 'targets per camera': []}
     step = env.vec.step
@@ -45,7 +45,7 @@ def record(env: TeamVecEnv) -> dict:
     return stats
 
 
-def greedy_actions(env: TeamVecEnv, seed: int, period: int):
+def greedy_actions(env: TrainingEnv, seed: int, period: int):
     """The greedy camera rule, asked once per decision, its action snapped to the nearest of the grid's moves."""
     greedy = GreedyTeam('camera', env.num_envs, env.counts, seed=seed, memory_period=period)
     greedy.reset(env.raw_observations, np.ones(env.num_envs, dtype=bool))
@@ -72,7 +72,7 @@ def policy_actions(policy: LoadedPolicy, argmax: bool, seed: int):
     return act
 
 
-def measure(name: str, env: TeamVecEnv, make_actions, seed: int) -> None:
+def measure(name: str, env: TrainingEnv, make_actions, seed: int) -> None:
     stats = record(env)
     obs, _ = env.reset(seed=seed)
     act = make_actions(env)
@@ -103,7 +103,7 @@ def main() -> None:
             raise SystemExit(f'{path}: a {policy.spec.network} policy talks through messages; this script plays '
                              'policies without communication')
         for argmax in (False, True):
-            env = TeamVecEnv(policy.spec, num_envs=args.envs, horizon=2500, seed=args.seed)
+            env = TrainingEnv(policy.spec, num_envs=args.envs, horizon=2500, seed=args.seed)
             measure(f"{path} ({'argmax' if argmax else 'sampled'}, held {policy.spec.frame_skip})", env,
                     lambda env: policy_actions(policy, argmax, args.seed), args.seed)
 

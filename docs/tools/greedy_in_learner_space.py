@@ -24,27 +24,27 @@ import argparse
 import numpy as np
 
 from mate.constants import PRESERVED_DIM
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv
+from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.messages import Team
 from mate.spaces import observation_indices_of
 from mate.teams import GreedyTeam
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 
 
-def camera_env(num_envs: int, horizon: int, frame_skip: int = 5, hrl: bool = False) -> TeamVecEnv:
+def camera_env(num_envs: int, horizon: int, frame_skip: int = 5, hrl: bool = False) -> TrainingEnv:
     """The camera learners' training envs on MATE-4v8-9: grid moves, or (hrl) one keep/ignore bit per target slot."""
     config = TeamEnvConfig(team='camera', config='MATE-4v8-9', num_envs=num_envs, frame_skip=frame_skip,
                            horizon=horizon, hrl=hrl, seed=0)
     return config.make_env(config.policy_spec(action='hrl' if hrl else 'grid'))
 
 
-def play(env: TeamVecEnv, policy, decisions: int, seed: int) -> float:
+def play(env: TrainingEnv, policy, decisions: int, seed: int) -> float:
     env.reset(seed=seed)
     coverage = [env.step(policy(env.raw_observations))[5]['coverage'].mean() for _ in range(decisions)]
     return float(np.mean(coverage))
 
 
-def snapped_greedy(env: TeamVecEnv, seed: int):
+def snapped_greedy(env: TrainingEnv, seed: int):
     greedy = GreedyTeam('camera', env.num_envs, env.counts, seed=seed)
     grid = square_grid(env.spec.levels)
     first = True
@@ -58,7 +58,7 @@ def snapped_greedy(env: TeamVecEnv, seed: int):
     return policy
 
 
-def selections(env: TeamVecEnv):
+def selections(env: TrainingEnv):
     """Scripted HRL selections, (B, Nc, Nt) bits from raw camera observations."""
     nc, nt, no = env.counts
     starts = observation_indices_of(Team.CAMERA, nc, nt, no)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    'PolicySpec': 'spec', 'TeamEnvConfig': 'envs', 'TeamVecEnv': 'envs', 'Run': 'run',
+    'PolicySpec': 'spec', 'TeamEnvConfig': 'envs', 'TrainingEnv': 'envs', 'TeamVecEnv': 'envs', 'Run': 'run',
     'CheckpointError': 'checkpoint', 'save_checkpoint': 'checkpoint', 'load_checkpoint': 'checkpoint',
     'PolicyCameraAgent': 'policy', 'PolicyTargetAgent': 'policy', 'PolicyTeam': 'policy', 'load_agent': 'policy',
     'load_policy': 'policy', 'pretrained_path': 'policy', 'export_policy': 'policy',

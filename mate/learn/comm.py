@@ -52,7 +52,7 @@ decision a mask (B, N receivers, N senders) of the deliveries that happen, passe
 `delivered`; a lost delivery reads as zeros (TarMAC: the sender's key and value in that receiver's attention;
 I2C: the asked teammate's slot), which is what the deployment agents read when a message does not arrive.
 
-Units: observations are the processed ones of `TeamVecEnv` (rescaled to [-1, 1]); messages are in [-1, 1]
+Units: observations are the processed ones of `TrainingEnv` (rescaled to [-1, 1]); messages are in [-1, 1]
 (TarMAC) or unbounded (I2C); Q-values are in the critic's normalised return units.
 """
 
@@ -523,7 +523,7 @@ class Channel:
       probability (1 - P)^2, as through the wrapper.
     * `range_limit` R: a delivery happens only if sender and receiver are at most R world units apart
       (`within_range`, the test of `RestrictedCommunicationRange`), on `positions` (B, N, 2) of the
-      decision (`TeamVecEnv.positions`).
+      decision (`TrainingEnv.positions`).
 
     The draws come from `generator` (torch); P = 0 draws nothing.
     """

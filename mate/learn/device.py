@@ -1,7 +1,7 @@
 """Where a trainer computes: `--device auto|cpu|cuda[:N]` (networks, rollout buffers, updates) and `--threads`.
 
 The games run on the CPU (numba) unless a trainer plays them on the GPU (`--game-device`,
-`TeamVecEnv(..., device='cuda')`); on the CPU a trainer moves each decision's observations to the device
+`TrainingEnv(..., device='cuda')`); on the CPU a trainer moves each decision's observations to the device
 once and the chosen actions back once. `auto` takes the first GPU when PyTorch sees one, else the CPU.
 """
 

@@ -1,6 +1,6 @@
-"""The training view of B games for one team: `TeamEnvConfig` (the options every trainer takes) -> `TeamVecEnv`.
+"""The training view of B games for one team: `TeamEnvConfig` (the options every trainer takes) -> `TrainingEnv`.
 
-A `TeamVecEnv` steps the public single-team env, `mate.SingleTeamVecEnv` (the games and the opponent, which a
+A `TrainingEnv` steps the public single-team env, `mate.SingleTeamVecEnv` (the games and the opponent, which a
 researcher's own algorithm steps too), and adds what mate's learners need on top: the policy spec's features and
 action decoding, frame skip, the team's reward kinds and episode sums in decisions.
 
@@ -69,7 +69,7 @@ from .memory import SightingMemory
 from .spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'GAME_DEVICES', 'GameDeviceConfig', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS',
-           'TeamEnvConfig', 'TeamVecEnv',
+           'TeamEnvConfig', 'TeamVecEnv', 'TrainingEnv',
            'compress', 'device_game_available', 'device_unsupported', 'game_of', 'mixed_camera_reward',
            'team_positions']
 
@@ -151,10 +151,10 @@ class TeamEnvConfig:
                                    activation=activation, lstm=lstm, algo=algo, deterministic=deterministic)
 
     def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage',
-                 device: str | None = None) -> TeamVecEnv:
-        """The training envs of this config for a policy of `spec` (the one place a `TeamVecEnv` is made), with the
+                 device: str | None = None) -> TrainingEnv:
+        """The training envs of this config for a policy of `spec` (the one place a `TrainingEnv` is made), with the
         games on `device` (None: the CPU)."""
-        return TeamVecEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
+        return TrainingEnv(spec, num_envs=self.num_envs, horizon=self.resolved_horizon, seed=self.seed,
                           credit=self.credit, camera_reward=camera_reward, opponent=opponent, device=device)
 
 
@@ -164,7 +164,7 @@ GAME_DEVICES = ('auto', 'cpu', 'cuda')
 
 @dataclasses.dataclass
 class GameDeviceConfig:
-    """`--game-device`, an option of the trainers that train in a `TeamVecEnv` (PPO's family, IQL, QMIX, MA-TD3):
+    """`--game-device`, an option of the trainers that train in a `TrainingEnv` (PPO's family, IQL, QMIX, MA-TD3):
     where the games and the greedy opponent run, and the training envs made there (`make_env`)."""
 
     game_device: Literal['auto', 'cpu', 'cuda'] = option(
@@ -201,7 +201,7 @@ class GameDeviceConfig:
                              'machine with an NVIDIA GPU); use --game-device cpu')
         return 'cuda'
 
-    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage') -> TeamVecEnv:
+    def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage') -> TrainingEnv:
         """The training envs (`TeamEnvConfig.make_env`), their games on the CPU or on the GPU where
         `resolved_game_device` says cuda (the networks' GPU: numba's current device)."""
         if self.resolved_game_device(spec, opponent, camera_reward) == 'cpu':
@@ -276,7 +276,7 @@ def device_game_available() -> bool:
     return bool(cuda.is_available())
 
 
-class TeamVecEnv:
+class TrainingEnv:
     """B games in which a policy of `spec` plays its team against a batched opponent (module docstring), on the CPU
     (numpy arrays in and out) or on a CUDA device (`device='cuda'`: torch tensors on it in and out; only the
     decision's episode records come to the host).
@@ -598,3 +598,7 @@ class TeamVecEnv:
         vec_state = games.get('vec', {})
         if 'world' in vec_state and 'coverage_rate_sum' not in vec_state['world'] and 'coverage' in sums:
             self.vec.world.coverage_rate_sum[...] = sums['coverage']      # an earlier version's state
+
+
+TeamVecEnv = TrainingEnv
+"""The earlier name of `TrainingEnv` (until 2026-12-02), kept for code written against it."""

@@ -1,7 +1,7 @@
 """I2C on MAPPO for MATE: each agent asks the teammates its prior selects, in one file (`mate train i2c`).
 
     config  ->  PolicySpec (network 'i2c': one network per agent, an LSTM of `lstm` cells; flat grid actions)
-            ->  `TeamVecEnv`, and the channel requests and replies go through in training (`Channel`: ideal by
+            ->  `TrainingEnv`, and the channel requests and replies go through in training (`Channel`: ideal by
                 default)
             ->  networks: the `I2CActor`s, a feed-forward critic on the global state (MAPPO), and I2C's training
                 signals (`I2CTraining`: a joint action-value network per agent and the labels' KL buffer)
@@ -44,7 +44,7 @@ import torch
 from ..options import option
 from . import ppo_loop
 from .comm import I2C_REGULARISER, Channel, I2CTraining, check_channel
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .ppo import PPOConfig
 from .run import Run
 from .spec import PolicySpec
@@ -138,10 +138,10 @@ class I2CSignals(I2CTraining):
 
 # ============================================================================ training
 
-def train(config: I2CConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: I2CConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/ALGO-TEAM-seedN); resume from its checkpoint
     unless `config.fresh` (a checkpoint trained under another channel is refused). `envs` replaces the training envs
-    (anything with `TeamVecEnv`'s attributes, `spec` and reset/step; `positions()` with a `communication_range`);
+    (anything with `TrainingEnv`'s attributes, `spec` and reset/step; `positions()` with a `communication_range`);
     `callback(row)` sees every log row. Returns the `Run`. The loop is `mate.learn.ppo_loop`'s, with I2C's
     signals (`I2CSignals`) and the channel of the requests and replies."""
     channel = Channel(config.message_dropout, config.communication_range, legs=2)   # the request, then the reply

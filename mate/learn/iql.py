@@ -2,7 +2,7 @@
 reads top to bottom (`mate train iql`).
 
     config  ->  PolicySpec (grid moves, or HRL target selections: `--hrl`, `--selection joint|per-target`)
-            ->  batched training envs (`TeamVecEnv`: B games, the other team the greedy rules)
+            ->  batched training envs (`TrainingEnv`: B games, the other team the greedy rules)
             ->  networks: the agents' dueling Q-network and its target copy
             ->  loop: at every decision each agent acts epsilon-greedily (one forward pass for B x N agents) and the
                 B x N agent transitions enter the replay ring; once `learning_starts` decision steps are stored,
@@ -41,7 +41,7 @@ import torch
 from torch import nn
 
 from ..options import option
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .offpolicy_loop import train_off_policy
 from .policy import make_actor
 from .qlearning import QLearner, QLearningConfig, action_kind, allowed_choices, double_q_targets
@@ -139,8 +139,8 @@ class IQLLearner(QLearner):
         self.target_net.load_state_dict(self.q_net.state_dict())
 
 
-def train(config: IQLConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: IQLConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/iql-TEAM-seedN); resume from its checkpoint
-    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TrainingEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
     return train_off_policy(config, 'iql', policy_spec(config, envs), IQLLearner, envs, callback, console)

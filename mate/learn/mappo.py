@@ -1,6 +1,6 @@
 """MAPPO and IPPO for MATE, feed-forward, in one file that reads top to bottom (`mate train mappo|ippo`).
 
-    config  ->  PolicySpec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games,
+    config  ->  PolicySpec (what the policy sees and does)  ->  batched training envs (`TrainingEnv`: B games,
                 the other team a batched opponent, the greedy rules by default)
             ->  networks: one actor shared by every agent of the team (full parameter sharing, as in the paper),
                 a critic on the global state (MAPPO, `critic='state'`), on each agent's observation (IPPO,
@@ -23,7 +23,7 @@ from typing import ClassVar, Literal
 
 from ..options import option
 from . import ppo_loop
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .ppo import PAPER_HELP, PAPER_HYPERPARAMETERS, PPOConfig
 from .run import Run
 from .spec import PolicySpec
@@ -81,9 +81,9 @@ def policy_spec(config: MAPPOConfig, envs=None) -> PolicySpec:
 
 # ============================================================================ training
 
-def train(config: MAPPOConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: MAPPOConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/ALGO-TEAM-seedN); resume from its checkpoint
-    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TrainingEnv`'s attributes, `spec`
     and reset/step: PSRO's mixtures, tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`
     (`last_row`, `interrupted`, counters). The loop is `mate.learn.ppo_loop`'s."""
     return ppo_loop.train(config, policy_spec(config, envs), envs, callback, console, critic=config.critic)

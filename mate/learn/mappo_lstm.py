@@ -1,6 +1,6 @@
 """Recurrent MAPPO and IPPO for MATE: the paper's actor, MLP -> LSTM -> head, in one file (`mate train mappo-lstm`).
 
-    config  ->  PolicySpec (the 'mlp' or 'per-target' network with an LSTM of `lstm` cells)  ->  `TeamVecEnv`
+    config  ->  PolicySpec (the 'mlp' or 'per-target' network with an LSTM of `lstm` cells)  ->  `TrainingEnv`
             ->  networks: one recurrent actor shared by the team (`RecurrentActor`: the feed-forward actor's body, an
                 LSTM, the head on [body features, LSTM output]), a feed-forward critic on the global state (MAPPO,
                 `critic='state'`), on each agent's observation (IPPO, `critic='local'`) or on both (MAPPO-AS,
@@ -30,7 +30,7 @@ from typing import ClassVar, Literal
 
 from ..options import option
 from . import ppo_loop
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .ppo import PAPER_HELP, PAPER_HYPERPARAMETERS, PPOConfig
 from .run import Run
 from .spec import PolicySpec
@@ -79,9 +79,9 @@ def policy_spec(config: RecurrentConfig, envs=None) -> PolicySpec:
 
 # ============================================================================ training
 
-def train(config: RecurrentConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: RecurrentConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/ALGO-TEAM-seedN); resume from its checkpoint
-    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TrainingEnv`'s attributes, `spec`
     and reset/step); `callback(row)` sees every log row. Returns the `Run`. The loop is `mate.learn.ppo_loop`'s,
     which reads from the actor (`RecurrentActor.recurrent`) that it carries a memory."""
     return ppo_loop.train(config, policy_spec(config, envs), envs, callback, console, critic=config.critic)

@@ -2,7 +2,7 @@
 in one file that reads top to bottom (`mate train matd3`, alias `mate train maddpg`).
 
     config  ->  PolicySpec (continuous actions: each agent's share of its own action bounds, in [-1, 1]^2)
-            ->  batched training envs (`TeamVecEnv`: B games, the other team the greedy rules)
+            ->  batched training envs (`TrainingEnv`: B games, the other team the greedy rules)
             ->  networks, per agent (no sharing): an actor (local observation -> action) and twin critics (global
                 state and the team's joint action -> Q), all agents' networks evaluated at once (`AgentwiseMLP`),
                 and their target copies
@@ -22,7 +22,7 @@ networks (the original routed the second through the first, so its clipped doubl
 of each agent's action bounds (actions live in [-1, 1]); the next actions of the target are every agent's target
 actor's (the textbook MADDPG), not the behaviour data's; one update per 128 decision steps instead of per 3,200.
 
-Actions in [-1, 1] are each agent's share of its own bounds (`TeamVecEnv` scales them: cameras' rotation and zoom
+Actions in [-1, 1] are each agent's share of its own bounds (`TrainingEnv` scales them: cameras' rotation and zoom
 steps, targets' step size). Rewards: the team's (repeated for every agent) or each camera's own with `--credit
 difference`; the critic of agent i learns agent i's return. Horizon cuts are truncations.
 
@@ -44,7 +44,7 @@ import torch
 from torch import nn
 
 from ..options import option
-from .envs import GameDeviceConfig, TeamEnvConfig, TeamVecEnv
+from .envs import GameDeviceConfig, TeamEnvConfig, TrainingEnv
 from .networks import AgentwiseMLP
 from .offpolicy_loop import OffPolicyLearner, train_off_policy
 from .policy import make_actor
@@ -251,9 +251,9 @@ class MATD3Learner(OffPolicyLearner):
         return row
 
 
-def train(config: MATD3Config, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: MATD3Config, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/matd3-TEAM-seedN); resume from its checkpoint
-    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TrainingEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks with continuous actions); `callback(row)` sees every log row. Returns the
     `Run`."""
     return train_off_policy(config, 'matd3', policy_spec(config, envs), MATD3Learner, envs, callback, console)

@@ -1,6 +1,6 @@
 """The one off-policy loop of `mate.learn`: IQL, QMIX and MA-TD3 train here, each bringing what is its own.
 
-    spec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games, the other team a
+    spec (what the policy sees and does)  ->  batched training envs (`TrainingEnv`: B games, the other team a
             batched opponent; with `--game-device cuda` the games on a GPU, their arrays brought to the host once
             per decision for the replay)
         ->  the learner (`OffPolicyLearner`, one per algorithm file): its networks, optimisers and replay
@@ -104,7 +104,7 @@ def on_host(values):
 def train_off_policy(config, name: str, spec, make_learner, envs=None, callback=None, console=None) -> Run:
     """Train `make_learner(config, spec, envs, device, rng)`'s learner as `config` says (in `config.run_dir`,
     default runs/NAME-TEAM-seedN); resume from its checkpoint unless `config.fresh` (module docstring). `envs`
-    replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec` and reset/step: tests' toy tasks);
+    replaces the training envs (anything with `TrainingEnv`'s attributes, `spec` and reset/step: tests' toy tasks);
     `callback(row)` sees every log row. Returns the `Run`."""
     device = resolve_device(config.device)
     run = Run.of(config, name, spec, callback, console)

@@ -1,6 +1,6 @@
 """The one PPO loop of `mate.learn`: MAPPO, IPPO, MAPPO-AS, their recurrent versions, TarMAC and I2C all train here.
 
-    spec (what the policy sees and does)  ->  batched training envs (`TeamVecEnv`: B games, the other team a
+    spec (what the policy sees and does)  ->  batched training envs (`TrainingEnv`: B games, the other team a
             batched opponent; with `--game-device cuda` the games on a GPU, torch tensors in and out)
         ->  networks: the actor the spec names (`make_actor`), one critic (`critic_inputs`: the global state, each
             agent's observation, or both; TarMAC's messages appended), the value normaliser, and an algorithm's own
@@ -147,7 +147,7 @@ def train(config: PPOConfig, spec: PolicySpec, envs=None, callback=None, console
           auxiliary: Callable[[int, int, int], Auxiliary] | None = None) -> Run:
     """Train `spec`'s policy as `config` says (in `config.run_dir`, default runs/ALGO-TEAM-seedN); resume from its
     checkpoint unless `config.fresh` (one trained under another `channel` is refused). `envs` replaces the training
-    envs (anything with `TeamVecEnv`'s attributes, `spec` and reset/step; `positions()` with a channel's range
+    envs (anything with `TrainingEnv`'s attributes, `spec` and reset/step; `positions()` with a channel's range
     limit: PSRO's mixtures, tests' toy tasks); `callback(row)` sees every log row.
 
     `critic`: what the critic reads (`critic_inputs`: 'state', 'local' or 'agent'); `channel`: the lossy channel a
@@ -209,8 +209,8 @@ def train(config: PPOConfig, spec: PolicySpec, envs=None, callback=None, console
     elif config.init_from:
         warm_start(config.init_from, spec, actor, dict(critic=value_net, value_norm=value_norm), config.algo,
                    config.credit)
-    # the envs' arrays: numpy on the host (`TeamVecEnv`), or torch tensors where the games run on a device
-    # (`TeamVecEnv.tensors`: nothing crosses to the host but the decision's episode records)
+    # the envs' arrays: numpy on the host (`TrainingEnv`), or torch tensors where the games run on a device
+    # (`TrainingEnv.tensors`: nothing crosses to the host but the decision's episode records)
     to_envs = (lambda x: x) if getattr(envs, 'tensors', False) else (lambda x: x.cpu().numpy())
     here = lambda x: torch.as_tensor(x, device=device)   # noqa: E731  (numpy: no copy on the CPU)
     obs, state = map(here, run.first_observations(envs, saved))

@@ -2,7 +2,7 @@
 global state, in one file that reads top to bottom (`mate train qmix`).
 
     config  ->  PolicySpec (grid moves, or HRL target selections: `--hrl`, `--selection joint|per-target`)
-            ->  batched training envs (`TeamVecEnv`: B games, the other team the greedy rules)
+            ->  batched training envs (`TrainingEnv`: B games, the other team the greedy rules)
             ->  networks: the GRU agent network, the mixer (`QMixer`), and their target copies
             ->  loop: at every decision each agent acts epsilon-greedily from its GRU state (one forward pass for
                 B x N agents) and the team's decision enters the replay (`SequenceReplay`: chunks of
@@ -45,7 +45,7 @@ import torch
 from torch import nn
 
 from ..options import option
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .offpolicy_loop import train_off_policy
 from .policy import make_actor
 from .qlearning import QLearner, QLearningConfig, action_kind, allowed_choices, double_q_values
@@ -207,8 +207,8 @@ class QMIXLearner(QLearner):
         self.target_mixer.load_state_dict(self.mixer.state_dict())
 
 
-def train(config: QMIXConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: QMIXConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/qmix-TEAM-seedN); resume from its checkpoint
-    unless `config.fresh`. `envs` replaces the training envs (anything with `TeamVecEnv`'s attributes, `spec`
+    unless `config.fresh`. `envs` replaces the training envs (anything with `TrainingEnv`'s attributes, `spec`
     and reset/step: tests' toy tasks); `callback(row)` sees every log row. Returns the `Run`."""
     return train_off_policy(config, 'qmix', policy_spec(config, envs), QMIXLearner, envs, callback, console)

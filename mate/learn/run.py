@@ -46,7 +46,7 @@ import numpy as np
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
 from ..protocol import EVALUATION_SEEDS, training_reset_seed
 from .evaluation import Evaluator
-from .run_config import RunConfig, default_run_dir, run_name
+from .run_config import RunConfig, default_run_dir
 from .spec import PolicySpec
 
 __all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'config_hash', 'default_run_dir',
@@ -235,7 +235,7 @@ class Run:
         return saved is not None and 'envs' in saved
 
     def first_observations(self, envs, saved: dict | None):
-        """The first decision of this session in `envs` (a `TeamVecEnv`): `(features (B, N, D), state (B, S))`.
+        """The first decision of this session in `envs` (a `TrainingEnv`): `(features (B, N, D), state (B, S))`.
 
         A checkpoint with the batch's state (`saved['envs']`, what `resume` returned) continues the very episodes
         it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x

@@ -2,7 +2,7 @@
 
 A spec is saved in every checkpoint and policy file. It says which game and team the policy plays, how a
 raw observation becomes the network's input (`features`), what the network's outputs mean and how they
-become env actions (`choose`, `decode`), and which network reads them. Training envs (`TeamVecEnv`),
+become env actions (`choose`, `decode`), and which network reads them. Training envs (`TrainingEnv`),
 batched evaluation (`PolicyTeam`) and the deployment agents all go through these methods, so the three
 cannot drift apart.
 

@@ -1,7 +1,7 @@
 """TarMAC on MAPPO or IPPO for MATE: learned messages read through attention, in one file (`mate train tarmac`).
 
     config  ->  PolicySpec (network 'tarmac': the MLP body, an LSTM of `lstm` cells, a head of [logits | message])
-            ->  `TeamVecEnv`, and the channel the messages go through in training (`Channel`: ideal by default)
+            ->  `TrainingEnv`, and the channel the messages go through in training (`Channel`: ideal by default)
             ->  networks: one `TarMACActor` shared by the team; a feed-forward critic on the global state (MAPPO,
                 `critic='state'`), on each agent's observation (IPPO, `critic='local'`) or on both (MAPPO-AS,
                 `critic='agent'`, as `mappo.py`), the messages appended
@@ -25,7 +25,7 @@ sent (those the episode's next decision would read); the rollout's last value th
 
 The lossy channel of training (`message_dropout`, `communication_range`): at every decision of the rollout a mask
 (B, N receivers, N senders) of the deliveries that happen (each lost with the dropout's probability, or between
-agents farther apart than the range, read from `TeamVecEnv.positions`); a lost message reads as zeros in the
+agents farther apart than the range, read from `TrainingEnv.positions`); a lost message reads as zeros in the
 receiver's attention, as at deployment. The masks are stored with the rollout and the update's unroll replays them;
 they are drawn from a generator of their own (on the CPU), so the actions drawn are those of an unperturbed run. The
 critic still reads every message sent (centralised, like the state). `message_delay` K: teammates' messages are read
@@ -41,7 +41,7 @@ from typing import Literal
 from ..options import option
 from . import ppo_loop
 from .comm import Channel, TarMACActor, check_channel
-from .envs import TeamVecEnv
+from .envs import TrainingEnv
 from .policy import make_actor
 from .ppo import PPOConfig
 from .run import Run
@@ -94,10 +94,10 @@ def policy_spec(config: TarMACConfig, envs=None) -> PolicySpec:
 
 # ============================================================================ training
 
-def train(config: TarMACConfig, envs: TeamVecEnv | None = None, callback=None, console=None) -> Run:
+def train(config: TarMACConfig, envs: TrainingEnv | None = None, callback=None, console=None) -> Run:
     """Train as `config` says (in `config.run_dir`, default runs/ALGO-TEAM-seedN); resume from its checkpoint
     unless `config.fresh` (a checkpoint trained under another channel is refused). `envs` replaces the training envs
-    (anything with `TeamVecEnv`'s attributes, `spec` and reset/step; `positions()` with a `communication_range`);
+    (anything with `TrainingEnv`'s attributes, `spec` and reset/step; `positions()` with a `communication_range`);
     `callback(row)` sees every log row. Returns the `Run`. The loop is `mate.learn.ppo_loop`'s: it carries the
     actor's (h, c, messages), replays the channel's deliveries and gives the critic the messages (`heard`)."""
 

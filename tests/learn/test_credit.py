@@ -6,7 +6,7 @@ import pytest
 
 from mate.learn import CheckpointError, load_checkpoint
 import mate
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv
+from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.learn.mappo import MAPPOConfig, train
 from mate.messages import Team
 from mate.spaces import observation_indices_of
@@ -161,13 +161,13 @@ def test_difference_credit_checkpoint_and_validation(tmp_path):
         TeamEnvConfig(team='target', num_envs=2, credit='difference')
     target_spec = TeamEnvConfig(team='target').policy_spec()
     with pytest.raises(ValueError, match='cameras only'):
-        TeamVecEnv(target_spec, num_envs=2, credit='difference')
+        TrainingEnv(target_spec, num_envs=2, credit='difference')
     with pytest.raises(ValueError, match='targets only'):
-        TeamVecEnv(TeamEnvConfig(team='camera').policy_spec(), num_envs=2, credit='own')
+        TrainingEnv(TeamEnvConfig(team='camera').policy_spec(), num_envs=2, credit='own')
     with pytest.raises(ValueError, match='targets only'):
         TeamEnvConfig(team='camera', credit='own')
     with pytest.raises(ValueError, match="credit must be one of"):
-        TeamVecEnv(target_spec, num_envs=2, credit='mine')
+        TrainingEnv(target_spec, num_envs=2, credit='mine')
 
 
 def test_resuming_with_another_credit_is_refused(tmp_path):

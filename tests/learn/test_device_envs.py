@@ -1,4 +1,4 @@
-"""The training env with its games on a device (`TeamVecEnv(..., device='cuda')`): the spec's pipeline gives on torch
+"""The training env with its games on a device (`TrainingEnv(..., device='cuda')`): the spec's pipeline gives on torch
 tensors the numbers it gives on numpy arrays (one body, `mate.arrays`); under numba's CUDA simulator the env on the
 device plays the CPU env's games (with the device team's host twin as the CPU env's opponent) number for number, and
 a PPO run over it logs the rows of a run over the CPU env and resumes exactly."""
@@ -15,7 +15,7 @@ import torch
 from conftest import needs_extra, run_simulated
 
 from mate.agents.utils import normalize_observation
-from mate.learn.envs import TeamVecEnv, compress, device_unsupported
+from mate.learn.envs import TrainingEnv, compress, device_unsupported
 from mate.learn.memory import SightingMemory
 from mate.learn.mappo import MAPPOConfig, policy_spec
 from mate.learn.spec import PolicySpec
@@ -98,7 +98,7 @@ def test_what_the_device_does_not_play_is_named_and_auto_keeps_it_on_the_cpu(tmp
         ["the 'mixed' camera reward", 'an opponent other than the greedy rules']
     config = MAPPOConfig(hrl=True, memory=25, device='cpu', run_dir=str(tmp_path), num_envs=2)
     assert config.resolved_game_device(policy_spec(config)) == 'cpu'            # auto: the networks are on the CPU
-    assert isinstance(config.make_env(policy_spec(config)), TeamVecEnv)
+    assert isinstance(config.make_env(policy_spec(config)), TrainingEnv)
     config = MAPPOConfig(device='cpu', game_device='cuda', run_dir=str(tmp_path))
     with pytest.raises(ValueError, match=r"^--game-device cuda: the 'mixed' camera reward is not played on the device "
                                          r'yet; use --game-device cpu$'):
@@ -116,7 +116,7 @@ from pathlib import Path
 import numpy as np, torch
 sys.path.insert(0, sys.argv[1])
 from resume import assert_same_run, stopped_and_resumed
-from mate.learn.envs import TeamVecEnv
+from mate.learn.envs import TrainingEnv
 from mate.learn.mappo import MAPPOConfig, policy_spec, train
 from mate.learn.run import TIMING_COLUMNS
 from mate.learn.spec import PolicySpec
@@ -132,8 +132,8 @@ for team, preset, action, credit in (('camera', 'MATE-4v8-9', 'hrl', 'difference
     columns = dict(memory=4, velocity=True, full_observability=True) if team == 'camera' else \
         dict(full_observability=True)
     spec = PolicySpec.for_game(team, preset + '-v0', frame_skip=3, action=action, **columns)
-    cpu = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, opponent=host_twin(team))
-    dev = TeamVecEnv(spec, 2, horizon=10, seed=4, credit=credit, device='cuda', block=2)
+    cpu = TrainingEnv(spec, 2, horizon=10, seed=4, credit=credit, opponent=host_twin(team))
+    dev = TrainingEnv(spec, 2, horizon=10, seed=4, credit=credit, device='cuda', block=2)
     differing, episodes = [], 0
     def compare(tag, a, b):
         b = b.numpy() if isinstance(b, torch.Tensor) else b
@@ -169,7 +169,7 @@ for hrl in (True, False):
     made = device_config.make_env(policy_spec(device_config))
     made = f'{type(made).__name__} tensors={made.tensors}'
     train(device_config)
-    train(cpu_config, envs=TeamVecEnv(policy_spec(cpu_config), 2, horizon=10, seed=1, credit=cpu_config.credit,
+    train(cpu_config, envs=TrainingEnv(policy_spec(cpu_config), 2, horizon=10, seed=1, credit=cpu_config.credit,
                                       opponent=host_twin(cpu_config.team)))
     rows = []
     for run_dir in (device_config.run_dir, cpu_config.run_dir):
@@ -201,7 +201,7 @@ def test_the_simulated_device_env_trains_as_the_cpu_env():
         if name.startswith('env'):
             assert found['differing'] == [] and found['episodes'] >= 2, (name, found)
         else:
-            assert found['env'] == 'TeamVecEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
+            assert found['env'] == 'TrainingEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
             assert found['episodes'] >= 2, (name, found)
     assert report['train hrl=True']['resumed']
 
@@ -212,7 +212,7 @@ from pathlib import Path
 sys.path.insert(0, sys.argv[1])
 from resume import assert_same_run, stopped_and_resumed
 from mate.learn import iql, matd3, qmix
-from mate.learn.envs import TeamVecEnv
+from mate.learn.envs import TrainingEnv
 from mate.learn.run import TIMING_COLUMNS
 from mate.teams.device import HostTeam
 
@@ -232,7 +232,7 @@ for name, (module, config_of) in TRAINERS.items():
     other = 'target' if cpu_config.team == 'camera' else 'camera'
     twin = lambda n, counts, seed: HostTeam('greedy', other, n, counts, seed=seed)
     module.train(device_config)
-    module.train(cpu_config, envs=TeamVecEnv(module.policy_spec(cpu_config), 2, horizon=10, seed=1,
+    module.train(cpu_config, envs=TrainingEnv(module.policy_spec(cpu_config), 2, horizon=10, seed=1,
                                              credit=cpu_config.credit, opponent=twin))
     rows = []
     for run_dir in (device_config.run_dir, cpu_config.run_dir):
@@ -262,6 +262,6 @@ def test_the_off_policy_trainers_play_on_the_simulated_device_as_on_the_cpu():
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert sorted(report) == ['iql', 'matd3', 'qmix'], report
     for name, found in report.items():
-        assert found['env'] == 'TeamVecEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
+        assert found['env'] == 'TrainingEnv tensors=True' and found['same'] and found['rows'] == 3, (name, found)
         assert found['episodes'] >= 2 and float(found['loss']) == float(found['loss']), (name, found)   # updated
     assert report['qmix']['resumed']

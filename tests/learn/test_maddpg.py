@@ -1,5 +1,5 @@
 """MADDPG as MA-TD3 (mate.learn.matd3): the critic target by hand, really two critics, per-agent networks, the actor
-update's inputs, learning a continuous toy task, continuous TeamVecEnv actions, checkpoints that resume,
+update's inputs, learning a continuous toy task, continuous TrainingEnv actions, checkpoints that resume,
 `mate train maddpg`."""
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ import torch
 import mate
 from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
-from mate.learn.envs import TeamEnvConfig, TeamVecEnv
+from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.learn.mappo import MAPPOConfig, train
 from mate.learn.memory import MEMORY_FEATURES, SightingMemory
 from mate.learn.networks import PerTargetActor
@@ -208,7 +208,7 @@ def test_a_training_env_checkpoint_of_the_earlier_layout_resumes_exactly():
     spec = PolicySpec.for_game('camera', 'MATE-4v8-9-v0', frame_skip=2, action='hrl', memory=5, velocity=True)
     rng = np.random.default_rng(0)
     actions = rng.integers(0, 2, size=(12, 3, spec.num_agents, spec.heads))
-    envs = TeamVecEnv(spec, 3, horizon=8, seed=2)
+    envs = TrainingEnv(spec, 3, horizon=8, seed=2)
     envs.reset()
     for step in range(6):
         envs.step(actions[step])
@@ -219,7 +219,7 @@ def test_a_training_env_checkpoint_of_the_earlier_layout_resumes_exactly():
     del old['games_on']
     expected = [envs.step(actions[step]) for step in range(6, 12)]
     for saved in (dict(state, games=games), old):
-        again = TeamVecEnv(spec, 3, horizon=8, seed=2)
+        again = TrainingEnv(spec, 3, horizon=8, seed=2)
         again.load_state_dict(saved)
         for step, (features, world_state, reward, done, truncated, info) in zip(range(6, 12), expected):
             found = again.step(actions[step])

@@ -94,7 +94,7 @@ def test_another_algorithm_or_spec_is_refused(tmp_path):
 
 
 class _RecordingEnvs:
-    """What `Run.first_observations` asks of a TeamVecEnv, recorded."""
+    """What `Run.first_observations` asks of a TrainingEnv, recorded."""
 
     num_envs = 4
 

@@ -1,4 +1,4 @@
-"""Trivial batched tasks for the learners (the TeamVecEnv interface): cues to match, remember or exchange, a
+"""Trivial batched tasks for the learners (the TrainingEnv interface): cues to match, remember or exchange, a
 matrix game, continuous targets. Each has a `spec` (`toy_spec`): what its policy sees and does, for the trainers
 (which replace its network settings with their own)."""
 
@@ -9,7 +9,7 @@ from mate.learn.spec import PolicySpec
 
 class ToyTask:
     """What every toy task shares: its `spec` (abstract discrete choices, or continuous actions) and the
-    attributes of `TeamVecEnv` that the trainers read."""
+    attributes of `TrainingEnv` that the trainers read."""
 
     team = 'camera'
     frame_skip = 1
@@ -105,7 +105,7 @@ class CueExchange(CueMatching):
 
 
 class OwnCueMatching(CueMatching):
-    """CueMatching with each agent paid for its own match only: rewards (B, N), as `TeamVecEnv` gives
+    """CueMatching with each agent paid for its own match only: rewards (B, N), as `TrainingEnv` gives
     them with `credit='difference'`."""
 
     credit = 'difference'
