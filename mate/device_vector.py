@@ -254,13 +254,6 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         return (torch.as_tensor(uniform_actions(rng, self.camera_action_space, (B, nc, 2)), device=device),
                 torch.as_tensor(uniform_actions(rng, self.target_action_space, (B, nt, 2)), device=device))
 
-    def restart(self, mask) -> None:
-        """The games of `mask` (B,) bool (host) start their next episode now, their streams going on (what a
-        partial reset of TorchRL asks for); no game waits for a restart after it."""
-        mask = np.asarray(mask, bool)
-        self.core.reset(mask)
-        self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))
-
     def state(self):
         """(B, S) tensor: every game's global state (`mate.make_vec(...).state()`'s values, in the observations'
         dtype), e.g. for a centralised critic; one buffer on the device, overwritten by the next call."""

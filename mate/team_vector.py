@@ -369,7 +369,7 @@ class SingleTeamVecEnv(VectorEnv):
         zero = xp.zeros_like(game['episode_step'])
         stats = {'r': xp.where(ended, self._sums['r'], 0.0),
                  'l': xp.astype(xp.where(ended, game['episode_step'], zero), xp.int64),
-                 'camera_return': -target_return, 'target_return': target_return,
+                 'camera_return': xp.where(ended, -game['episode_target_return'], 0.0), 'target_return': target_return,
                  'normalized_target_return': target_return / self._max_reward,
                  'transport_rate': xp.where(ended, game['mean_transport_rate'], 0.0),
                  'delivered_cargoes': xp.astype(xp.where(ended, game['num_delivered_cargoes'],
