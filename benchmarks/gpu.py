@@ -22,7 +22,7 @@ CPU core's.
    or targets, against the greedy device team, a 256-256 MLP deciding every 5 env steps on the GPU): the trainers'
    collection without their learning step.
 6. **Training end to end.** Decisions/s of `mate train mappo` with `--device cuda --game-device cuda`
-   (`TeamVecEnv(..., device='cuda')`: the games, the greedy opponent, the features and the HRL executor on the
+   (`TrainingEnv(..., device='cuda')`: the games, the greedy opponent, the features and the HRL executor on the
    GPU): HRL-MAPPO cameras on MATE-4v8-9 and MAPPO targets on MATE-2v4-0, at 2,048 and 16,384 envs, timed between the
    end of the first iteration (compilation, warm-up) and the first one `--train-seconds` later (the run then stops
    as at Ctrl-C), and the minutes 10 M decisions take at that rate.
