@@ -20,7 +20,8 @@ import numpy as np
 from array_api_compat import device as device_of
 from array_api_compat import is_numpy_array
 
-__all__ = ['array_namespace', 'copied', 'device_of', 'float64_copy', 'is_host', 'maybe_any', 'on_device_of']
+__all__ = ['array_namespace', 'as_kind_of', 'copied', 'device_of', 'float64_copy', 'host_copy', 'is_host', 'maybe_any',
+           'on_device_of']
 
 
 def array_namespace(*arrays):
@@ -67,6 +68,23 @@ def on_device_of(constant: np.ndarray, like):
     """`constant` (a numpy array that lives as long as its owner: a cached layout, a pipeline's field) as an array of
     `like`'s kind: itself for a numpy `like`, a tensor on `like`'s device otherwise (converted once per device)."""
     return _CONSTANTS.get(constant, like)
+
+
+def as_kind_of(array: np.ndarray, like):
+    """A host array as an array of `like`'s kind: itself for a numpy `like`, a tensor on `like`'s device otherwise
+    (a state the caller keeps, unlike `on_device_of`'s shared constants)."""
+    if is_numpy_array(like):
+        return array
+    import torch
+
+    return torch.as_tensor(array, device=like.device)
+
+
+def host_copy(x):
+    """A numpy copy of the array or tensor `x` (None stays None): plain data for a state_dict."""
+    if x is None:
+        return None
+    return x.copy() if is_numpy_array(x) else x.detach().cpu().numpy().copy()
 
 
 def copied(x):

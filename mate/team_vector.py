@@ -68,7 +68,7 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from .arrays import array_namespace, copied, is_host, maybe_any
+from .arrays import array_namespace, as_kind_of, copied, host_copy, is_host, maybe_any
 from .messages import Team
 from .protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
 from .teams.protocol import as_team
@@ -217,20 +217,11 @@ class SingleTeamVecEnv(VectorEnv):
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
         like = self.vec.world.target_reward          # an array of the games' kind, on their device
         self._host = is_host(like)
-        self._sums = {'r': self._like(np.zeros(self.num_envs), like)}  # the learner's reward (the game's: the core's)
+        self._sums = {'r': as_kind_of(np.zeros(self.num_envs), like)}  # the learner's reward (the game's: the core's)
         self._other_obs = None
-        self._pending = self._like(np.zeros(self.num_envs, dtype=bool), like)   # next_step: rows restarting next
-        self._every = self._like(np.ones(self.num_envs, dtype=bool), like)
+        self._pending = as_kind_of(np.zeros(self.num_envs, dtype=bool), like)   # next_step: rows restarting next
+        self._every = as_kind_of(np.ones(self.num_envs, dtype=bool), like)
         self._no_episode = None        # step_games' mate_episode of a step where no game ended (the host: made once)
-
-    @staticmethod
-    def _like(array: np.ndarray, like):
-        """A host array as an array of `like`'s kind (a tensor on its device)."""
-        if is_host(like):
-            return array
-        import torch
-
-        return torch.as_tensor(array, device=like.device)
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None, opponent_seed: int | None = None):
@@ -260,7 +251,7 @@ class SingleTeamVecEnv(VectorEnv):
         mask = np.asarray(mask, bool)
         observations, _ = self.vec.reset(options={'reset_mask': mask})
         self._other_obs = observations[1 - self._own]
-        restarted = self._like(mask, self._pending)
+        restarted = as_kind_of(mask, self._pending)
         self.opponent.reset(self._other_obs, restarted)
         self._pending = self._pending & ~restarted
         self._sums['r'] = array_namespace(restarted).where(restarted, 0.0, self._sums['r'])
@@ -388,9 +379,8 @@ class SingleTeamVecEnv(VectorEnv):
         if not hasattr(self.opponent, 'state_dict'):
             raise TypeError(f'the opponent {type(self.opponent).__name__} has no state_dict(): its state cannot be '
                             'saved')
-        host = lambda x: x.copy() if is_host(x) else x.cpu().numpy().copy()   # noqa: E731
-        return dict(vec=self.vec.state_dict(), opponent=self.opponent.state_dict(), pending=host(self._pending),
-                    sums={key: host(values) for key, values in self._sums.items()})
+        return dict(vec=self.vec.state_dict(), opponent=self.opponent.state_dict(), pending=host_copy(self._pending),
+                    sums={key: host_copy(values) for key, values in self._sums.items()})
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from an env of the same game, size and opponent kind;
@@ -399,10 +389,10 @@ class SingleTeamVecEnv(VectorEnv):
         self.opponent.load_state_dict(state['opponent'])
         self._other_obs = self.vec.observations[1 - self._own]
         like = self._pending
-        self._pending = self._like(np.broadcast_to(np.asarray(state.get('pending', False)), (self.num_envs,)).copy(),
+        self._pending = as_kind_of(np.broadcast_to(np.asarray(state.get('pending', False)), (self.num_envs,)).copy(),
                                    like)
         sums = state.get('sums', {})
-        self._sums['r'] = self._like(np.broadcast_to(np.asarray(sums.get('r', 0.0), np.float64),
+        self._sums['r'] = as_kind_of(np.broadcast_to(np.asarray(sums.get('r', 0.0), np.float64),
                                                      (self.num_envs,)).copy(), like)
         for key in ('coverage_rate', 'real_coverage_rate'):   # a state of an earlier version kept these sums here
             if f'{key}_sum' not in state['vec']['world'] and key in sums:

@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from ..agents.utils import box_scaling, scale_in_place
-from ..arrays import array_namespace, copied, float64_copy, is_host, maybe_any
+from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_copy, is_host, maybe_any
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..options import option
@@ -355,18 +355,10 @@ class TrainingEnv:
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
         like = self.vec.world.target_reward                # an array of the games' kind, on their device
         self.device = getattr(like, 'device', None) if self.tensors else None
-        self._zeros = lambda *shape, dtype=np.float64: self._like(np.zeros(shape, dtype=dtype))   # noqa: E731
+        self._zeros = lambda *shape, dtype=np.float64: as_kind_of(np.zeros(shape, dtype=dtype), like)   # noqa: E731
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory, like=like) if spec.memory else None
         self._return = self._zeros(self.num_envs)      # the learner's reward summed (the game's statistics: the core's)
         self._raw = self._before = None                # the team's raw observations now and one env step before
-
-    def _like(self, array: np.ndarray):
-        """A host array as an array of the games' kind (a tensor on their device)."""
-        if not self.tensors:
-            return array
-        import torch
-
-        return torch.as_tensor(array, device=self.device)
 
     # ------------------------------------------------------------------ helpers
     def _enhanced(self, raw):
@@ -570,10 +562,10 @@ class TrainingEnv:
         """Everything the batch's future depends on, as host arrays (see the module docstring): the games and the
         opponent (the single-team env's `state_dict`), the sighting memory, the observations of the env step
         before and the episodes' sums; `games_on` says where the games were played."""
-        host = lambda x: None if x is None else (x.copy() if is_host(x) else x.cpu().numpy().copy())  # noqa: E731
-        memory = None if self.memory is None else dict(location=host(self.memory.location), age=host(self.memory.age))
+        memory = None if self.memory is None else dict(location=host_copy(self.memory.location),
+                                                       age=host_copy(self.memory.age))
         return dict(games=self.envs.state_dict(), games_on='cuda' if self.tensors else 'cpu', memory=memory,
-                    before=host(self._before), sums=dict(returns=host(self._return)))
+                    before=host_copy(self._before), sums=dict(returns=host_copy(self._return)))
 
     def load_state_dict(self, state: dict) -> None:
         """Continue from `state_dict()`'s output (taken from envs of the same spec, size and opponent kind; a state of
@@ -588,13 +580,13 @@ class TrainingEnv:
                                            pending=state.get('pending', False))   # (older: none pending)
         self.envs.load_state_dict(games)
         if self.memory is not None:
-            self.memory.location = self._like(np.array(state['memory']['location']))
-            self.memory.age = self._like(np.array(state['memory']['age']))
+            self.memory.location = as_kind_of(np.array(state['memory']['location']), self._return)
+            self.memory.age = as_kind_of(np.array(state['memory']['age']), self._return)
         self._raw = copied(self._enhanced(self.vec.observations[0 if self.team is Team.CAMERA else 1]))
-        self._before = None if state['before'] is None or not self.spec.velocity else self._like(
-            np.array(state['before']))
+        self._before = None if state['before'] is None or not self.spec.velocity else as_kind_of(
+            np.array(state['before']), self._return)
         sums = state['sums']
-        self._return = self._like(np.array(sums['returns'], dtype=np.float64))
+        self._return = as_kind_of(np.array(sums['returns'], dtype=np.float64), self._return)
         vec_state = games.get('vec', {})
         if 'world' in vec_state and 'coverage_rate_sum' not in vec_state['world'] and 'coverage' in sums:
             self.vec.world.coverage_rate_sum[...] = sums['coverage']      # an earlier version's state

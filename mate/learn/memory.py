@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import array_namespace, is_host
+from ..arrays import array_namespace, as_kind_of
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
@@ -70,10 +70,8 @@ class SightingMemory:
         nt = self.counts[1]
         self.period = int(period)
         location, age = np.zeros((num_envs, nt, 2)), np.full((num_envs, nt), self.period, dtype=np.int64)
-        if like is not None and not is_host(like):
-            import torch
-
-            location, age = torch.as_tensor(location, device=like.device), torch.as_tensor(age, device=like.device)
+        if like is not None:
+            location, age = as_kind_of(location, like), as_kind_of(age, like)
         self.location, self.age = location, age
         self.scale = target_record_scale(*self.counts)
 
