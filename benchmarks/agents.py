@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 import mate
-from mate import evaluate
-from mate.bench import machine_facts
+from mate.evaluation import evaluate
+from mate.tools.bench import machine_facts
 
 PRESET = 'MATE-4v8-9-v0'
 MAX_STEPS = 2000
@@ -39,7 +39,7 @@ PAIRINGS = {
 
 
 def play_episode(camera_class, target_class, seed: int, max_steps: int = MAX_STEPS) -> dict:
-    """One episode of the protocol (`mate.evaluate.play_episode`); steps, loop seconds, coverage."""
+    """One episode of the protocol (`mate.evaluation.evaluate.play_episode`); steps, loop seconds, coverage."""
     result = evaluate.play_episode(mate.make(PRESET), camera_class, target_class, seed, max_steps)
     return {'seed': seed, 'steps': result.episode_length,
             'seconds': result.episode_length / result.steps_per_second, 'coverage_rate': result.coverage_rate}

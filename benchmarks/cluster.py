@@ -369,8 +369,8 @@ def main(argv=None) -> int:
         return 0
     import ray
 
-    from mate.bench import machine_facts
-    from mate.runners import RayRunner
+    from mate.tools.bench import machine_facts
+    from mate.tools.runners import RayRunner
 
     os.environ.setdefault('MATE_COMPILE_NOTICE', '0')
     results = dict(machine=machine_facts(), load=list(os.getloadavg()), nodes=args.nodes,

@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mate.bench import machine_facts
+from mate.tools.bench import machine_facts
 
 FIRST_STEP = ("import mate; env = mate.make('MultiAgentTracking-v0'); env.reset(seed=0); "
               "env.step(env.action_space.sample())")
@@ -33,7 +33,7 @@ FIRST_STEP = ("import mate; env = mate.make('MultiAgentTracking-v0'); env.reset(
 def mate_command() -> list[str]:
     """The `mate` console script of this Python (or the CLI through `python -c`)."""
     script = shutil.which('mate', path=str(Path(sys.executable).parent))
-    return [script] if script else [sys.executable, '-c', 'import sys; from mate.cli import main; sys.exit(main())']
+    return [script] if script else [sys.executable, '-m', 'mate']
 
 
 CASES = {

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mate.bench import machine_facts
+from mate.tools.bench import machine_facts
 from mate.config import read_config
 from mate.teams import GreedyTeam, play_batch
 from mate.teams.device import HostTeam

@@ -1,5 +1,5 @@
 """Evaluation benchmark: env-steps per second of batched policy-vs-policy play (`mate.teams.play_batch` with
-`mate.learn.policy.PolicyTeam` and the batched teams of `mate.teams`),
+`mate.policies.policy.PolicyTeam` and the batched teams of `mate.teams`),
 beside the single-env deployment agents that `mate evaluate` drives one episode at a time.
 
     python benchmarks/evaluation.py [--episodes 100] [--single-seconds 20] [--json benchmarks/results/evaluation.json]
@@ -7,7 +7,7 @@ beside the single-env deployment agents that `mate evaluate` drives one episode 
 Protocol: for each pairing, `play_batch` plays `--episodes` games in one batch (row i seeded with i) to
 the end of each row's first episode; env-steps/s counts the steps of those episodes over the whole
 call's wall time (rows that finished early keep being stepped and are not counted). The single-env
-figure plays seeds 0, 1, ... with `mate.evaluate.play_episode` and the deployment agents (the agents'
+figure plays seeds 0, 1, ... with `mate.evaluation.evaluate.play_episode` and the deployment agents (the agents'
 time included) for about `--single-seconds`. One warm-up batch of 4 episodes first (compilation and
 the first torch calls excluded). Pairings:
 
@@ -32,9 +32,9 @@ import numpy as np
 import torch
 
 import mate
-from mate.bench import machine_facts
-from mate.evaluate import play_episode
-from mate.learn.policy import (
+from mate.tools.bench import machine_facts
+from mate.evaluation.evaluate import play_episode
+from mate.policies.policy import (
     AGENT_CLASSES,
     LoadedPolicy,
     PolicyTeam,
@@ -43,7 +43,7 @@ from mate.learn.policy import (
     make_team,
     pretrained_path,
 )
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 from mate.teams import play_batch
 
 MAX_STEPS = {'MATE-4v8-9': 2000, 'MATE-2v4-0': 5000}

@@ -63,8 +63,8 @@ def ppo_unit(name: str):
     from mate.learn.i2c import policy_spec as i2c_spec
     from mate.learn.mappo_lstm import RecurrentConfig
     from mate.learn.mappo_lstm import policy_spec as lstm_spec
-    from mate.learn.networks import Critic
-    from mate.learn.policy import make_actor
+    from mate.policies.networks import Critic
+    from mate.policies.policy import make_actor
     from mate.learn.ppo import UpdateStats, action_distribution, minibatch_rows, ppo_update
     from mate.learn.tarmac import TarMACConfig
     from mate.learn.tarmac import policy_spec as tarmac_spec
@@ -118,7 +118,7 @@ def ppo_unit(name: str):
 
 def offpolicy_unit(name: str):
     """(work, decisions): one off-policy update and the acting between two updates, random data."""
-    from mate.learn.policy import make_actor
+    from mate.policies.policy import make_actor
 
     torch.manual_seed(0)
     if name.startswith('iql'):
@@ -274,7 +274,7 @@ def main(argv=None) -> int:
               f"{row['ceiling_decisions_per_second']:,.0f} | {row['gflop_per_unit']:.1f} | "
               f"{row['gflop_per_second']:.1f} |", flush=True)
     if args.json:
-        from mate.bench import machine_facts
+        from mate.tools.bench import machine_facts
 
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(dict(machine=machine_facts(), threads=args.threads, bf16=args.bf16,

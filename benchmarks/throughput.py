@@ -5,7 +5,7 @@
 
 import sys
 
-from mate.cli import main
+from mate.cli.main import main
 
 if __name__ == '__main__':
     args = sys.argv[1:]

@@ -10,9 +10,9 @@ the environment, messages, spaces helpers, agents, group helpers and wrappers.
 """
 # ruff: noqa: F401  (this module re-exports the public API)
 
-from .reproducible import pin_kernels as _pin_kernels
+from .tools.reproducible import pin_kernels as _pin_kernels
 
-_pin_kernels()   # MATE_REPRODUCIBLE=1: before anything imports torch (mate.reproducible)
+_pin_kernels()   # MATE_REPRODUCIBLE=1: before anything imports torch (mate.tools.reproducible)
 
 from . import constants, spaces
 from .agents import (AgentBase, CameraAgentBase, CameraStatePrivate, CameraStatePublic, GreedyCameraAgent,
@@ -24,16 +24,16 @@ from .agents import (AgentBase, CameraAgentBase, CameraStatePrivate, CameraState
 from .config import ConfigError, list_presets, read_config
 from .constants import *  # noqa: F403  (the original re-exports its constants at package level)
 from .core.snapshot import SnapshotError
-from .env import MultiAgentTracking
+from .envs.multi_agent_tracking import MultiAgentTracking
 from .messages import Message, MessageChannel, Team
-from .protocol import PolicyScore, score_policy
-from .registration import WrapperSpec, make, make_environment, registered_ids
-from .team_vector import AgentsAsEnvs, SingleTeamVecEnv, make_team_vec
+from .evaluation.protocol import PolicyScore, score_policy
+from .envs.registration import WrapperSpec, make, make_environment, registered_ids
+from .envs.single_team_vector import AgentsAsEnvs, SingleTeamVecEnv, make_team_vec
 from .spaces import (camera_coordinate_mask_of, camera_observation_indices_of, camera_observation_slices_of,
                      camera_observation_space_of, coordinate_mask_of, observation_indices_of, observation_slices_of,
                      observation_space_of, state_space_of, target_coordinate_mask_of, target_observation_indices_of,
                      target_observation_slices_of, target_observation_space_of)
-from .vector import MultiAgentTrackingVectorEnv, TeamReward, make_vec
+from .envs.vector import MultiAgentTrackingVectorEnv, TeamReward, make_vec
 from .wrappers import (AuxiliaryCameraRewards, AuxiliaryTargetRewards, DiscreteCamera, DiscreteTarget,
                        EnhancedObservation, ExtraCommunicationDelays, MateWrapper, MessageFilter,
                        MoreTrainingInformation, MultiCamera, MultiTarget, NoCommunication, RandomMessageDropout,

@@ -2,6 +2,6 @@
 
 import sys
 
-from mate.cli import main
+from mate.cli.main import main
 
 sys.exit(main())

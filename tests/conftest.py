@@ -14,8 +14,8 @@ import os
 import tempfile
 
 os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # before mate and torch load: the kernels the golden runs were recorded with
-# no test reads a cache outside the repository (mate.protocol's reference cache, ~/.cache/mate by default): a fresh
-# folder of this session's, inherited by the subprocesses the tests start
+# no test reads a cache outside the repository (mate.evaluation.protocol's reference cache, ~/.cache/mate by default):
+# a fresh folder of this session's, inherited by the subprocesses the tests start
 os.environ['MATE_CACHE_DIR'] = tempfile.mkdtemp(prefix='mate-test-cache-')
 
 import pytest  # noqa: E402

@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from mate import bench, cli
+from mate.cli import main as cli
+from mate.tools import bench
 
 
 def test_plan_covers_single_env_batches_float32_and_the_vector_env():

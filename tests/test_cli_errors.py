@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from mate import cli
+from mate.cli import main as cli
 from mate.learn import CheckpointError, load_checkpoint
 
 os.environ.setdefault('SDL_VIDEODRIVER', 'dummy')
@@ -202,9 +202,9 @@ def test_version(capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('module', ['mate', 'mate.cli'])
+@pytest.mark.parametrize('module', ['mate', 'mate.cli.main'])
 def test_python_dash_m_is_the_mate_command(module, tmp_path):
-    """`python -m mate ...` (and `python -m mate.cli ...`) parse, report and exit exactly as `mate ...`."""
+    """`python -m mate ...` (and `python -m mate.cli.main ...`) parse, report and exit exactly as `mate ...`."""
     result = subprocess.run([sys.executable, '-m', module, 'evaluate', '--config', 'MATE-9v9-9', '--no-render'],
                             capture_output=True, text=True, cwd=tmp_path)
     assert result.returncode == 2 and 'Traceback' not in result.stderr

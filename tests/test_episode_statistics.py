@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 import mate
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 from mate.teams import GreedyTeam
 from mate.teams.play import play_batch
 

@@ -10,8 +10,8 @@ import pytest
 from PIL import Image
 
 import mate
-from mate import evaluate as ev
-from mate.cli import main
+from mate.evaluation import evaluate as ev
+from mate.cli.main import main
 from mate.messages import Team
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.generator import generate_config, place_cameras, write_config
+from mate.tools.generator import generate_config, place_cameras, write_config
 
 
 def test_one_camera_sits_in_the_centre():

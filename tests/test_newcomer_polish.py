@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.cli import build_parser, main
+from mate.cli.main import build_parser, main
 
 
 def test_the_spaces_print_in_a_line_or_two():

@@ -13,7 +13,7 @@ import pytest
 
 import mate
 from mate.config.loader import read_config
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 from mate.teams import GreedyTeam, play_batch
 
 from conftest import needs_extra

@@ -1,4 +1,4 @@
-"""Config dataclasses as command lines (mate.options): a field's range is checked on the command line and, for
+"""Config dataclasses as command lines (mate.cli.options): a field's range is checked on the command line and, for
 a config made in Python, by `check_ranges` in the config's own checks, with the same words."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from mate.options import RANGE_KEYS, check_ranges, flag_of
+from mate.cli.options import RANGE_KEYS, check_ranges, flag_of
 
 
 def _trainer_configs():

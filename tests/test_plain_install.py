@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from mate.extras import EXTRAS
+from mate.cli.extras import EXTRAS
 
 OPTIONAL = sorted({module for modules in EXTRAS.values() for module in modules} | {'tensorboard', 'hypothesis'})
 
@@ -17,7 +17,7 @@ RUN_WITHOUT_EXTRAS = f"""
 import sys
 for name in {OPTIONAL!r}:
     sys.modules[name] = None
-from mate.cli import main
+from mate.cli.main import main
 status = main(sys.argv[1:])
 for name in {OPTIONAL!r}:          # nothing imported them behind the block's back
     assert sys.modules[name] is None, name

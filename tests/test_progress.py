@@ -1,4 +1,4 @@
-"""The progress bar of `mate evaluate` / `mate train` (mate.progress): the count never passes the total, and
+"""The progress bar of `mate evaluate` / `mate train` (mate.cli.progress): the count never passes the total, and
 the count and the remaining time stay visible in a narrow terminal (the status text is cut first); the log
 readers read whole lines from a file's end."""
 
@@ -7,7 +7,7 @@ import io
 import pytest
 from rich.console import Console
 
-from mate.progress import ProgressLine, displayed_count, last_lines, progress_bar
+from mate.cli.progress import ProgressLine, displayed_count, last_lines, progress_bar
 
 STATUS = '2,345 steps/s  coverage 0.575  return 123.4  entropy 1.23'
 
@@ -55,7 +55,7 @@ def test_a_wide_terminal_shows_the_whole_status():
 
 def test_plain_lines_when_the_output_is_not_a_terminal(monkeypatch):
     """A log file gets a line at the start, every `interval` seconds, and at the end; no bar escape codes."""
-    from mate import progress as progress_module
+    from mate.cli import progress as progress_module
 
     now = [100.0]
     monkeypatch.setattr(progress_module.time, 'perf_counter', lambda: now[0])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate import protocol
+from mate.evaluation import protocol
 from mate.teams import GreedyTeam, play_batch
 
 

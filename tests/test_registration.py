@@ -105,15 +105,15 @@ def test_the_default_ids_keep_their_meaning_in_both_spellings():
     """'MATE-v0' and 'MultiAgentTracking-v0' have no preset of their own in `mate.make` (overrides start empty, as in
     the original); as a config name they stand for the default game, MATE-4v8-9."""
     for name in ('MATE-v0', 'mate-v0', 'MultiAgentTracking-v0'):
-        assert mate.registration.resolve_config(name) is None
+        assert mate.envs.registration.resolve_config(name) is None
         assert mate.read_config(name) == mate.read_config('MATE-4v8-9')
-    assert mate.registration.resolve_config('MATE') == 'MATE'
+    assert mate.envs.registration.resolve_config('MATE') == 'MATE'
     with pytest.raises(ValueError):
         mate.make('mate-v0', reward_type='sparse')      # the empty start, whatever the case
 
 
 def test_config_names_take_env_ids_everywhere(capsys):
-    from mate.cli import main
+    from mate.cli.main import main
     from mate.integrations import pettingzoo as mate_pz
 
     expected = mate.read_config('MATE-2v4-0')

@@ -1,4 +1,4 @@
-"""Rendering (`mate.render`, `env.render()`) and the GIF/video writers (`mate.video`), spec §8.
+"""Rendering (`mate.envs.render`, `env.render()`) and the GIF/video writers (`mate.tools.video`), spec §8.
 
 The scene tests load a hand-made world with `set_world` and check the colours of single
 pixels: the frame must show the right things in the right places, not only have a shape.
@@ -24,9 +24,9 @@ import pygame  # noqa: E402,F401  (part of the test extra: a missing renderer mu
 
 import mate
 from mate.constants import WAREHOUSE_RADIUS, WAREHOUSES
-from mate.evaluate import FrameRecorder
-from mate.render import MIN_TARGET_PIXELS, WAREHOUSE_COLORS, Renderer, hud_line, sector_polygon, visible_region
-from mate.video import save_gif, save_video
+from mate.evaluation.evaluate import FrameRecorder
+from mate.envs.render import MIN_TARGET_PIXELS, WAREHOUSE_COLORS, Renderer, hud_line, sector_polygon, visible_region
+from mate.tools.video import save_gif, save_video
 
 SIZE = 800
 BOUND = 1050.0

@@ -1,5 +1,5 @@
-"""Seeds that never cross: every use of env seeds has its own range (`mate.protocol.SEED_RANGES`), and no iteration,
-resume or population run leaves it."""
+"""Seeds that never cross: every use of env seeds has its own range (`mate.evaluation.protocol.SEED_RANGES`), and no
+iteration, resume or population run leaves it."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mate import protocol
+from mate.evaluation import protocol
 
 
 def test_the_ranges_are_disjoint_and_the_protocol_fits_in_them():
@@ -124,7 +124,7 @@ def test_mate_train_and_psro_refuse_what_would_leave_their_seeds():
     responses stay in their run seed's block (the next run seed trains from seed x 1,000 + 1,000)."""
     from mate.learn.population.psro import PSROError, PSROSettings
     from mate.learn.ppo import PPOConfig
-    from mate.protocol import MAX_EVAL_EPISODES, SEED_BLOCK
+    from mate.evaluation.protocol import MAX_EVAL_EPISODES, SEED_BLOCK
 
     with pytest.raises(ValueError, match=f'--eval-episodes must be an integer >= 1 and <= {MAX_EVAL_EPISODES}'):
         PPOConfig(eval_episodes=MAX_EVAL_EPISODES + 1)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.vector import INFO_KEYS, AutoresetMode
+from mate.envs.vector import INFO_KEYS, AutoresetMode
 
 ID = 'MATE-4v8-9-v0'
 SHORT = 9  # max_episode_steps of the autoreset tests: a few episodes in a few dozen steps
@@ -297,7 +297,7 @@ def test_make_vec_arguments():
     ([1, 2, 3], 'got 3 seeds for num_envs=2'),
 ])
 def test_a_bad_seed_is_refused_in_one_line_naming_the_valid_forms(seed, message):
-    """The CPU env's refusals are the device env's (`mate.vector_contract.row_seeds_of`, one rule for both)."""
+    """The CPU env's refusals are the device env's (`mate.envs.vector_contract.row_seeds_of`, one rule for both)."""
     envs = mate.make_vec('MultiAgentTracking-v0', 2, config='MATE-2v4-0')
     with pytest.raises(ValueError, match=message):
         envs.reset(seed=seed)

@@ -19,8 +19,8 @@ import numpy as np
 
 from mate.constants import PRESERVED_DIM
 from mate.learn.envs import TeamEnvConfig, TrainingEnv
-from mate.learn.memory import camera_sightings
-from mate.learn.policy import LoadedPolicy, load_policy
+from mate.policies.memory import camera_sightings
+from mate.policies.policy import LoadedPolicy, load_policy
 from mate.teams import GreedyTeam
 from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
 

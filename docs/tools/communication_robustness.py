@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 import mate
-from mate.cli import ArgumentParser
-from mate.evaluate import play_episode, resolve_agent
+from mate.cli.main import ArgumentParser
+from mate.evaluation.evaluate import play_episode, resolve_agent
 from mate.messages import Team
 
 METRIC = {'camera': 'coverage_rate', 'target': 'normalized_target_return'}

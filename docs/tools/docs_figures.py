@@ -28,8 +28,8 @@ if str(ROOT) not in sys.path:  # run from a checkout without installing
 os.environ.setdefault('SDL_VIDEODRIVER', 'dummy')
 
 import mate  # noqa: E402
-from mate.render import Renderer  # noqa: E402
-from mate.video import save_gif  # noqa: E402
+from mate.envs.render import Renderer  # noqa: E402
+from mate.tools.video import save_gif  # noqa: E402
 
 IMAGES = ROOT / 'docs' / 'images'
 SEED = 0

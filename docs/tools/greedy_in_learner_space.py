@@ -8,7 +8,7 @@ training episode (2500 raw steps) and prints the mean coverage rate of:
 * flat:  the greedy camera rule (`mate.teams.GreedyTeam`, asked once per decision), its action snapped to
          the 5-level grid (25 actions) and held for the frame skip (1 and 5), i.e. the flat learner's
          action space;
-* HRL:   scripted target selections through the rule executor (`mate.learn.hrl`), held for 5 steps:
+* HRL:   scripted target selections through the rule executor (`mate.policies.hrl`), held for 5 steps:
          select every visible target / the nearest visible one / nothing (sweep) / the visible targets
          no other camera's sector contains (sweep when there are none) / every visible target when one
          of them is in no other camera's sector (else sweep).

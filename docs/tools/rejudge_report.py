@@ -26,7 +26,7 @@ from mate.benchmark.figures import plot_curves, plot_intervals
 from mate.benchmark.report import REPORT_HEADER, _jsonable, _weigh, markdown
 from mate.benchmark.results import Results, TrainingRun
 from mate.benchmark.verdicts import decide
-from mate.protocol import ABSOLUTE_SEEDS, TEAM_METRIC
+from mate.evaluation.protocol import ABSOLUTE_SEEDS, TEAM_METRIC
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -28,7 +28,7 @@ import pygame.freetype  # noqa: E402
 
 import mate  # noqa: E402
 from mate.constants import WAREHOUSES  # noqa: E402
-from mate.render import Renderer  # noqa: E402
+from mate.envs.render import Renderer  # noqa: E402
 
 RENDER_SIZE = 1600
 """Pixels of the rendered frame the crops are cut from."""

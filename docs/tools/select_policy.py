@@ -30,8 +30,8 @@ from rich.console import Console
 from rich.progress import track
 
 import mate
-from mate.evaluate import play_episode, resolve_agent
-from mate.learn.policy import PRETRAINED_DIR, export_policy, load_agent, load_policy
+from mate.evaluation.evaluate import play_episode, resolve_agent
+from mate.policies.policy import PRETRAINED_DIR, export_policy, load_agent, load_policy
 from mate.messages import Team
 
 METRIC = {'camera': ('coverage_rate', 'episode_coverage'),

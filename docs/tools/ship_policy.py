@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from mate.learn.checkpoint import load_checkpoint, read_spec, save_checkpoint
-from mate.learn.policy import PRETRAINED_DIR
+from mate.policies.checkpoint import load_checkpoint, read_spec, save_checkpoint
+from mate.policies.policy import PRETRAINED_DIR
 
 
 def main(argv=None) -> int:

@@ -24,8 +24,8 @@ import numpy as np
 
 import mate
 from mate.constants import WAREHOUSE_RADIUS, WAREHOUSES
-from mate.cli import ArgumentParser
-from mate.evaluate import FrameRecorder, play_episode, resolve_agent
+from mate.cli.main import ArgumentParser
+from mate.evaluation.evaluate import FrameRecorder, play_episode, resolve_agent
 from mate.messages import Team
 
 FEATURES = {
@@ -322,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
           f'(seeds {args.seed}..{args.seed + args.episodes - 1}); per target index: mean ± std over episodes\n')
     print(markdown(per_episode, analysis))
     if recorder is not None:
-        from mate.video import save_gif
+        from mate.tools.video import save_gif
         recorder.close()
         print(f'\nfirst episode ({len(recorder.frames)} frames) saved to '
               f'{save_gif(recorder.frames, args.gif, fps=max(1, round(30 / args.frame_every)))}')

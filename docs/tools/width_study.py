@@ -72,7 +72,7 @@ def value_at(steps, values, fraction: float) -> float:
 
 def evaluate(folder: Path, team: str, metric: str, episodes: int = 100) -> float:
     import mate
-    from mate.learn.policy import PolicyTeam, load_policy
+    from mate.policies.policy import PolicyTeam, load_policy
     from mate.teams import GreedyTeam, play_batch
 
     policy = load_policy(folder / 'final.pt')

@@ -6,7 +6,7 @@
 - `mate.benchmark.user`: experiments of the user's files (.py, .yaml, .json) and the jobs of their command-line and
   function settings;
 - `mate.benchmark.jobs`: an experiment's jobs (references, training runs, PSRO runs) for run seeds and a budget;
-- `mate.benchmark.runner`: the jobs run, resumable, in local processes or on Ray (`mate.runners`);
+- `mate.benchmark.runner`: the jobs run, resumable, in local processes or on Ray (`mate.tools.runners`);
 - `mate.benchmark.directory`: a benchmark directory's manifest, the reuse of another's jobs, each job's status;
 - `mate.benchmark.report`: `results.md`, `results.json`, figures and `marl_eval.json` from benchmark directories
   (`results` reads the runs, `verdicts` judges the claims, `figures` draws);

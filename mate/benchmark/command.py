@@ -10,7 +10,7 @@ import os
 import signal
 from pathlib import Path
 
-from ..arguments import CommandError, number, positive_int
+from ..cli.arguments import CommandError, number, positive_int
 from .jobs import add_job_arguments
 
 __all__ = ['add_arguments', 'run']
@@ -216,7 +216,7 @@ def _list(say) -> int:
 
 
 def _run(args: argparse.Namespace, say) -> int:
-    from ..runners import RayRunner, RunnerError, ThreadRunner
+    from ..tools.runners import RayRunner, RunnerError, ThreadRunner
     from .directory import extend_jobs, reuse_jobs, write_manifest
     from .jobs import parse_presets, parse_seeds, parse_settings, plan
     from .runner import run_jobs, stop_children

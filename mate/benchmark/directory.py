@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..progress import last_lines, last_logged_row, training_rate
+from ..cli.progress import last_lines, last_logged_row, training_rate
 from .experiments import Experiment, experiment_of
 from .identity import JOB_CONFIG, ran_config, wanted_config
 from .jobs import SEED_STRIDE, Job, horizon_of, plan

@@ -32,7 +32,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from ..protocol import check_eval_episodes
+from ..evaluation.protocol import check_eval_episodes
 from .verdicts import ALPHA, runs_for_a_decisive_verdict
 
 __all__ = ['Claim', 'EXPERIMENTS', 'Experiment', 'REFERENCE_NAMES', 'Reference', 'Setting', 'UndecidableClaimWarning',
@@ -361,8 +361,8 @@ class Experiment:
 
     def _check_counts(self) -> None:
         """ValueError unless the budget and counts are positive integers (`horizon` and, for a population
-        experiment, `iterations` may be left out) and `eval_episodes` is at most `mate.protocol.MAX_EVAL_EPISODES`
-        (its absolute metric's seeds stay in their range)."""
+        experiment, `iterations` may be left out) and `eval_episodes` is at most
+        `mate.evaluation.protocol.MAX_EVAL_EPISODES` (its absolute metric's seeds stay in their range)."""
         counts = dict(steps=self.steps, eval_every=self.eval_every, eval_episodes=self.eval_episodes, seeds=self.seeds)
         counts.update({} if self.horizon is None else dict(horizon=self.horizon))
         counts.update(dict(iterations=self.iterations) if self.population else {})

@@ -43,8 +43,8 @@ def plot_intervals(summary: dict, path, width: float = 8.0, dpi: int = 90) -> Pa
     settings' colours are those of the curves. None when no task has a run."""
     import textwrap
 
-    from ..plotting import pyplot, save_figure
-    from ..protocol import TEAM_METRIC
+    from ..tools.plotting import pyplot, save_figure
+    from ..evaluation.protocol import TEAM_METRIC
     from .verdicts import p_value
 
     population = summary['team'] == 'both'
@@ -141,7 +141,7 @@ def plot_curves(results: Results, path, reps: int = 50_000) -> Path | None:
     """Periodic evaluations against decision steps: IQM with its 95 % CI band (`reps` bootstrap replications) per
     setting, one panel per task, the references' evaluation scores as dashed lines. None when no run has an
     evaluation."""
-    from ..plotting import pyplot, save_figure
+    from ..tools.plotting import pyplot, save_figure
 
     experiment = results.experiment
     presets = [p for p in experiment.presets if any(r.preset == p and r.evaluations for r in results.runs)]
@@ -187,7 +187,7 @@ def _legend_below(ax) -> None:
 def plot_exploitability(results: Results, summary: dict, path) -> Path | None:
     """Population experiments: the exploitability (mean of both terms) per iteration, IQM with its 95 % CI band over
     the runs of each setting (`summarise`'s `exploitability_by_iteration`, drawn from `summary`)."""
-    from ..plotting import pyplot, save_figure
+    from ..tools.plotting import pyplot, save_figure
 
     experiment = results.experiment
     if not results.populations:
@@ -217,7 +217,7 @@ def plot_meta_strategies(results: Results, path) -> Path | None:
     """Population experiments (Fig. 8): every run's meta-strategies, iteration x policy heat maps; a row per
     (task, setting, team), a column per run."""
     from ..learn.population.plots import draw_meta_strategies
-    from ..plotting import pyplot, save_figure
+    from ..tools.plotting import pyplot, save_figure
 
     runs = sorted((key, state) for key, state in results.populations.items() if state['iterations'])
     if not runs:

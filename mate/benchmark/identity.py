@@ -121,13 +121,13 @@ def ran_config(folder) -> list[dict] | None:
 @functools.cache
 def _parser(words: tuple[str, ...]):
     """(parser, name) of the command a job's command line starts with: `mate evaluate`, `mate psro`, `mate
-    rllib-train` or `mate benchmark job` (each command's own arguments, as `mate.cli` builds them)."""
-    from ..arguments import ArgumentParser
+    rllib-train` or `mate benchmark job` (each command's own arguments, as `mate.cli.main` builds them)."""
+    from ..cli.arguments import ArgumentParser
 
     name = 'benchmark job' if words == ('benchmark', 'job') else words[0]
     parser = ArgumentParser(prog=f'mate {name}')
     if name == 'evaluate':
-        from ..evaluate_command import add_arguments
+        from ..evaluation.command import add_arguments
     elif name == 'psro':
         from ..learn.population.command import add_arguments
     elif name == 'rllib-train':

@@ -22,8 +22,8 @@ A job is one command line of the package (`python -m mate ...`) whose output goe
 
 Run seeds: seed k trains with `mate train --seed k * SEED_STRIDE`, so no two runs share a training env (the rows
 of a run are seeded `seed + row`, at most SEED_STRIDE of them: `plan` refuses a setting with more; a session resumed
-without its batch's state resets inside the run's block, `mate.protocol.training_reset_seed`) and every run stays
-below the evaluation seeds; a population run with `mate psro --seed k`, which spaces its best responses' seeds by
+without its batch's state resets inside the run's block, `mate.evaluation.protocol.training_reset_seed`) and every run
+stays below the evaluation seeds; a population run with `mate psro --seed k`, which spaces its best responses' seeds by
 1,000 itself (`PSROSettings.best_response_seed`: seed k x 1,000 + 2 x iteration + side, each with its envs' rows,
 which `plan` keeps within the 1,000).
 """
@@ -36,18 +36,18 @@ import json
 from collections.abc import Iterable
 from pathlib import Path
 
-from ..arguments import positive_int
+from ..cli.arguments import positive_int
 from ..learn.envs import PAPER_SETTINGS
 from ..learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
-from ..protocol import SEED_BLOCK
+from ..evaluation.protocol import SEED_BLOCK
 from .experiments import Experiment, Reference, Setting
 
 __all__ = ['MAX_SEED', 'PSRO_ENVS', 'SEED_STRIDE', 'Job', 'add_job_arguments', 'by_setting', 'check_run_seeds',
            'horizon_of', 'job_name', 'job_values', 'parse_presets', 'parse_seeds', 'parse_settings', 'plan']
 
 SEED_STRIDE = SEED_BLOCK
-"""Run seed k trains with `--seed k * SEED_STRIDE` (1,000; `mate.protocol.SEED_BLOCK`) on at most SEED_STRIDE envs: the
-training env rows of different runs never share a seed."""
+"""Run seed k trains with `--seed k * SEED_STRIDE` (1,000; `mate.evaluation.protocol.SEED_BLOCK`) on at most
+SEED_STRIDE envs: the training env rows of different runs never share a seed."""
 PSRO_ENVS = 16
 """`mate psro`'s envs per best response when a setting does not say (`--num-envs`)."""
 MAX_SEED = EVALUATION_SEEDS // SEED_STRIDE - 1

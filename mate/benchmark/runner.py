@@ -1,11 +1,11 @@
 """`mate benchmark run`: the jobs of an experiment (`mate.benchmark.jobs`) run as independent processes, on this
-machine (`mate.runners.ThreadRunner`) or as Ray tasks (`RayRunner`), one line per finished job.
+machine (`mate.tools.runners.ThreadRunner`) or as Ray tasks (`RayRunner`), one line per finished job.
 
     from mate.benchmark.directory import write_manifest
     from mate.benchmark.experiments import experiment
     from mate.benchmark.jobs import plan
     from mate.benchmark.runner import run_jobs
-    from mate.runners import ThreadRunner
+    from mate.tools.runners import ThreadRunner
 
     smoke = experiment('smoke')                 # or mate.benchmark.user.load_experiment('my_experiment.py')
     jobs = plan(smoke, seeds=[0], out='bench/smoke')
@@ -192,7 +192,7 @@ def locked(path: Path, wait: bool = True):
 
 
 def run_jobs(jobs: list[Job], runner, say: Callable[[str], None] = print) -> list[Job]:
-    """Run every job of `jobs` not yet done on `runner` (`mate.runners.ThreadRunner` or `RayRunner`), saying one
+    """Run every job of `jobs` not yet done on `runner` (`mate.tools.runners.ThreadRunner` or `RayRunner`), saying one
     line when each finishes; returns the jobs that did not complete here: failed (their log names why) or
     interrupted. A job another runner is running is skipped (`BUSY`), not failed: the last line says how many of
     those are still running there."""

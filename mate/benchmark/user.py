@@ -37,7 +37,7 @@ by a job of its own too (`run_user_reference`), once per game, on the evaluation
 
 The seed a run gets is what a mate trainer gets (`seed x SEED_STRIDE`, rows below the evaluation seeds); its
 training games must stay in seed .. seed + SEED_STRIDE - 1 (its run seed's block: the next run seed trains from
-there), below `EVALUATION_SEEDS` (`mate.protocol`). The benchmark directory's manifest keeps the
+there), below `EVALUATION_SEEDS` (`mate.evaluation.protocol`). The benchmark directory's manifest keeps the
 whole experiment, so `mate benchmark report` and `status` need nothing but the directory.
 """
 
@@ -185,8 +185,8 @@ class RunProtocol:
         """One periodic evaluation at `env_steps` decision steps, appended to the run's `evaluations.jsonl`: the
         policy (observations (B, N, D) -> actions (B, N, 2), or a team factory `f(num_envs, counts, seed)` as
         `team_factory`) on the benchmark's `eval_episodes` evaluation games cut at `horizon` env steps, against the
-        greedy opponent (`mate.protocol.evaluate`). Returns one dict per episode."""
-        from ..protocol import evaluate
+        greedy opponent (`mate.evaluation.protocol.evaluate`). Returns one dict per episode."""
+        from ..evaluation.protocol import evaluate
 
         return evaluate(policy, self.team, self.config, team_factory=team_factory, episodes=self.eval_episodes,
                         max_episode_steps=self.horizon, run_dir=self.run_dir, env_steps=int(env_steps))
@@ -243,7 +243,7 @@ def run_user_job(setting: Setting | Reference, values: dict, episodes: int, say=
                 'run files: mate.score_policy(..., run_dir=...) writes them)')
             return 1
         return status
-    from ..protocol import score_policy
+    from ..evaluation.protocol import score_policy
 
     try:
         train = _function(setting.call)
@@ -274,7 +274,8 @@ def run_user_reference(reference: Reference, values: dict, episodes: int, say=pr
     `ABSOLUTE_SEEDS`), cut at the horizon, against the greedy opponent; writes `evaluation.json` and
     `absolute.json` (`{'metric', 'mean', 'seeds', 'episodes'}`: the episodes as `mate evaluate --json` writes those
     of a rule team), each replaced whole. Returns the exit status."""
-    from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC, play_policy_episodes
+    from ..evaluation.protocol import (ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC,
+                                       play_policy_episodes)
 
     try:
         team = _function(reference.call)

@@ -56,7 +56,7 @@ def preset_name(name: object) -> str | None:
     (``'MATE-4v8-9-v0'``; ``'MATE-v0'`` is the preset ``'MATE'`` and ``'MultiAgentTracking-v0'`` the default,
     ``'MATE-4v8-9'``), case-insensitive. The one place where names are resolved: `read_config` (hence
     `mate.make_team_vec`, `mate.score_policy`, the PettingZoo adapters and the command line) and `mate.make` /
-    `mate.make_vec` (`mate.registration.resolve_config`) all ask it.
+    `mate.make_vec` (`mate.envs.registration.resolve_config`) all ask it.
     """
     if not isinstance(name, str):
         return None

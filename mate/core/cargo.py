@@ -75,7 +75,8 @@ def transport_cargoes(p, w, b):
     (dense, sparse) rewards: dense = -1 per tracked target with bounty left + (freight +
     bounty) per delivery; sparse = freight + 2 bounty - full bounty per delivery. Each target's part of the
     reward (the dense one, or the sparse one with `sparse_reward`) is kept in `target_reward_parts` (they sum to
-    the team's): the one place the reward's rule lives, which per-target rewards (`mate.team_vector`, 'own') read.
+    the team's): the one place the reward's rule lives, which per-target rewards (`mate.envs.single_team_vector`,
+    'own') read.
     """
     dense, sparse = 0.0, 0.0
     for t in range(p.num_targets):

@@ -105,7 +105,7 @@ EPISODE_STATISTICS = ('episode_coverage_rate', 'episode_real_coverage_rate', 'ep
 
 def episode_statistics(params: Params, world: World, row: int | None = None) -> dict:
     """Every row's episode so far, as the core counted it, (B,) float64 arrays (numpy, or torch tensors where
-    `world`'s fields are tensors: a device's world, `mate.device_vector`; or, for one `row`, Python floats:
+    `world`'s fields are tensors: a device's world, `mate.envs.device_vector`; or, for one `row`, Python floats:
     the single env's infos at every step, without numpy's per-call cost): the coverage and real coverage rates
     averaged over its steps (the reset not counted; 0 before the first step) and the target team's raw return
     (dense or sparse, as the config pays; the cameras' is its negative). Every consumer (the envs' infos,

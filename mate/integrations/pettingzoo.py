@@ -48,7 +48,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from ..env import MultiAgentTracking, agent_action
+from ..envs.multi_agent_tracking import MultiAgentTracking, agent_action
 from ..messages import Team
 
 __all__ = ['MateParallelEnv', 'parallel_env', 'env', 'raw_env']
@@ -167,9 +167,9 @@ class _Opponent:
     own agents' rewards of the chosen kind."""
 
     def __init__(self, env: MultiAgentTracking, opponent, team, reward: str) -> None:
-        from ..protocol import checked_reward
-        from ..team_vector import opponent_factory
-        from ..teams.protocol import as_team
+        from ..evaluation.protocol import checked_reward
+        from ..envs.single_team_vector import opponent_factory
+        from ..teams.interface import as_team
 
         self.env, self.team, self.reward = env, as_team(team), checked_reward(team, reward)
         self.counts = (env.num_cameras, env.num_targets, env.num_obstacles)
@@ -194,7 +194,7 @@ class _Opponent:
     def observed(self, camera_obs, target_obs, team_reward: float, infos) -> np.ndarray:
         """The own agents' rewards (N,) of the step just played (`team_reward`: the own team's), as
         `mate.SingleTeamVecEnv` gives them; keeps the opponents' observations."""
-        from ..team_vector import step_rewards
+        from ..envs.single_team_vector import step_rewards
 
         self._other_obs = self._other(camera_obs, target_obs)
         own_infos = infos[0] if self.team is Team.CAMERA else infos[1]

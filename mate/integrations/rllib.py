@@ -27,8 +27,8 @@ from gymnasium import spaces
 from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
-from ..env import MultiAgentTracking, agent_action
-from ..learn.spec import PolicySpec, SpecError
+from ..envs.multi_agent_tracking import MultiAgentTracking, agent_action
+from ..policies.spec import PolicySpec, SpecError
 
 __all__ = ['ENV_NAME', 'MateMultiAgentEnv', 'MateMetricsCallback', 'register', 'ppo_config', 'policy_mapping_fn',
            'train']
@@ -655,7 +655,7 @@ def train_run(config, console=None, callback=None):
     import ray
     import torch
 
-    from ..learn.checkpoint import CheckpointError
+    from ..policies.checkpoint import CheckpointError
     from ..learn.run import Run
     from .rllib_export import actor_state_of_module
 

@@ -4,7 +4,7 @@
     export_module(algo.get_module('camera'), spec, 'camera.pt')                  # a live module
     export_run_checkpoint('runs/rllib-ppo-camera-seed0/checkpoint.pt', 'camera.pt')       # a run's checkpoint
 
-The policy file is the one `mate train` writes (`mate.learn.checkpoint`, format `mate.learn/2`: the spec, the actor's
+The policy file is the one `mate train` writes (`mate.policies.checkpoint`, format `mate.learn/2`: the spec, the actor's
 weights, the config, the step count, a note), so `load_policy(path)`, `mate evaluate --camera-agent checkpoint:PATH`
 and `mate.learn.evaluation.Evaluator` play it.
 
@@ -12,7 +12,7 @@ What is converted. RLlib's default PPO module (new API stack, `DefaultPPOTorchRL
 of `fcnet_hiddens` H and `fcnet_activation` a, and no `head_fcnet_hiddens`) computes its action logits as
 `pi(encoder(obs))`: the encoder is Linear(D, H1), a, Linear(H1, H2), a, ... (its actor tower, `actor_encoder`, when
 the value function has its own layers, `vf_share_layers=False`; the shared `encoder` otherwise) and `pi` is one
-Linear(H_last, A). `mate.learn.networks.Actor(D, A, H, a)` is the same computation: `body` = the Linear/activation
+Linear(H_last, A). `mate.policies.networks.Actor(D, A, H, a)` is the same computation: `body` = the Linear/activation
 stack, `head` = the last Linear. Its softmax is the policy RLlib samples from (a `TorchCategorical` over the same
 logits), so the exported policy acts as the RLlib policy does, given the same observations: the env of the run shows
 RLlib `spec.features(raw)` and decodes its actions with `spec.decode` (`MateMultiAgentEnv` with a `'spec'`), which
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import torch
 
-from ..learn.checkpoint import save_checkpoint
-from ..learn.spec import PolicySpec, SpecError
+from ..policies.checkpoint import save_checkpoint
+from ..policies.spec import PolicySpec, SpecError
 
 __all__ = ['ENCODER_PREFIXES', 'actor_state', 'actor_state_of_module', 'export_module', 'export_run_checkpoint',
            'module_state_of']
@@ -65,7 +65,7 @@ def _linears(state: dict, prefix: str, what: str) -> list[tuple[torch.Tensor, to
 
 
 def actor_state(module_state: dict, spec: PolicySpec) -> dict[str, torch.Tensor]:
-    """The state dict of `mate.learn.policy.make_actor(spec)` (an MLP `Actor`) holding the policy of an RLlib PPO
+    """The state dict of `mate.policies.policy.make_actor(spec)` (an MLP `Actor`) holding the policy of an RLlib PPO
     module's state dict `module_state` (module docstring); SpecError (one line) when they do not match."""
     if spec.network != 'mlp' or spec.lstm:
         raise SpecError(f"an RLlib PPO module exports to an MLP actor (network 'mlp', no LSTM); the spec has network "
@@ -134,7 +134,7 @@ def export_run_checkpoint(checkpoint, out, *, note: str = '') -> Path:
     """The policy of a `mate rllib-train` run's `checkpoint.pt` (the RLlib algorithm's state kept there) as a
     `mate` policy file `out`; returns its path. The file is read with mate's safe loader (tensors and plain data:
     RLlib's own checkpoint directories, which are pickles, are never read)."""
-    from ..learn.checkpoint import load_checkpoint, read_spec
+    from ..policies.checkpoint import load_checkpoint, read_spec
 
     data = load_checkpoint(checkpoint)
     spec = read_spec(data)

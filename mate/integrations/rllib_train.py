@@ -23,13 +23,13 @@ import argparse
 import dataclasses
 from typing import Literal
 
-from ..arguments import CommandError, resolving_arguments
+from ..cli.arguments import CommandError, resolving_arguments
 from ..learn.envs import TeamEnvConfig
 from ..learn.evaluation import EVALUATION_SEEDS
 from ..learn.run_config import RunConfig
 from ..learn.schedules import check_network_options
-from ..options import add_options, option
-from ..protocol import check_eval_episodes
+from ..cli.options import add_options, option
+from ..evaluation.protocol import check_eval_episodes
 
 __all__ = ['ALGO', 'RLlibPPOConfig', 'add_arguments', 'config_of', 'run']
 
@@ -99,7 +99,8 @@ class RLlibPPOConfig(RunConfig, TeamEnvConfig):
                                  f'got {points[0][0]:g}')
         if self.seed + self.num_envs > EVALUATION_SEEDS:       # rows play seed + row (mate.integrations.rllib)
             raise ValueError(f'--seed {self.seed} with --num-envs {self.num_envs} would train on evaluation seeds: '
-                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} (mate.protocol.SEED_RANGES)')
+                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} '
+                             '(mate.evaluation.protocol.SEED_RANGES)')
         check_eval_episodes(self.eval_episodes, '--eval-episodes')
         if self.num_env_runners and self.num_envs % self.num_env_runners:
             raise ValueError(f'--num-envs {self.num_envs} must be a multiple of --num-env-runners '

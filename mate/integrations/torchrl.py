@@ -31,7 +31,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from ..team_vector import make_team_vec
+from ..envs.single_team_vector import make_team_vec
 
 __all__ = ['MateTorchRLEnv']
 

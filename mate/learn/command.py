@@ -1,7 +1,7 @@
 """`mate train ALGORITHM [OPTIONS]`: one command per trainer, its options generated from the trainer's config.
 
 `mate train -h` lists the trainers; `mate train ALGORITHM -h` its options, each with its default and help, read
-from the config dataclass of the algorithm's file (`mate.options`). An option of another trainer is not on the
+from the config dataclass of the algorithm's file (`mate.cli.options`). An option of another trainer is not on the
 parser, so it is refused. The trainer's module (and torch) is imported only once a trainer is named.
 """
 
@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..arguments import ArgumentParser, CommandError, resolving_arguments
+from ..cli.arguments import ArgumentParser, CommandError, resolving_arguments
 from .run_config import default_run_dir, run_name  # (no torch: `mate train -h` works without it)
 
 __all__ = ['TRAINERS', 'add_arguments', 'run', 'trainer_config']
@@ -65,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def trainer_parser(name: str):
     """(parser, module, config class) of `mate train NAME` (imports the trainer's module, and torch)."""
-    from ..options import add_options
+    from ..cli.options import add_options
 
     trainer = TRAINERS[name]
     try:
@@ -85,7 +85,7 @@ def trainer_config(name: str, options: list[str]):
     """(module, config) of the command line `mate train NAME OPTIONS...`: the options (over a `--config-file`'s)
     parsed by the trainer's parser into its config, every field resolved (`run_dir` None when not given). A mistake
     exits as the command would (CommandError, or argparse's SystemExit)."""
-    from ..options import config_from, file_arguments
+    from ..cli.options import config_from, file_arguments
 
     parser, module, config_class = trainer_parser(name)
     parsed = parser.parse_args(options)
@@ -97,13 +97,13 @@ def trainer_config(name: str, options: list[str]):
 
 def run(args: argparse.Namespace, console) -> int:
     """Train as `args` say; 0 when done (or already done), 130 when stopped by a signal (resumable)."""
-    from .checkpoint import CheckpointError, load_checkpoint
+    from ..policies.checkpoint import CheckpointError, load_checkpoint
 
     module, config = trainer_config(args.algo, args.options)
     if config.run_dir is None:
         config = dataclasses.replace(config, run_dir=default_run_dir(args.algo, config))
     if config.wandb:
-        from ..extras import require
+        from ..cli.extras import require
 
         require('wandb', '--wandb')
     resuming = resumes(config, console)
@@ -116,7 +116,7 @@ def run(args: argparse.Namespace, console) -> int:
             raise CommandError(f'--init-from: {exc}') from None
     with resolving_arguments():
         spec = module.policy_spec(config)
-        from .device import resolve_device
+        from ..policies.device import resolve_device
 
         device = resolve_device(config.device)
         games = config.resolved_game_device(spec) if hasattr(config, 'resolved_game_device') else 'cpu'
@@ -133,7 +133,7 @@ def run(args: argparse.Namespace, console) -> int:
 def train_and_report(train: Callable, config, console, resuming: bool) -> int:
     """Run `train(config, console=console)` (a trainer's `train`, or RLlib's for `mate rllib-train`) and say how it
     ended; the command's exit status: 0 when done (or stopped by `--iterations`), 130 when stopped by a signal."""
-    from .checkpoint import CheckpointError
+    from ..policies.checkpoint import CheckpointError
 
     checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     if resuming:
@@ -181,7 +181,7 @@ def resumes(config, console) -> bool | None:
     """Whether the run of `config` (its `run_dir` set) goes on from its checkpoint; None when the checkpoint's run is
     already done (said on `console`, and a missing absolute metric played). CommandError for an unreadable
     checkpoint."""
-    from .checkpoint import CheckpointError, load_checkpoint
+    from ..policies.checkpoint import CheckpointError, load_checkpoint
 
     checkpoint_path = Path(config.run_dir) / 'checkpoint.pt'
     if not checkpoint_path.exists() or config.fresh:
@@ -204,7 +204,7 @@ def _absolute_metric(config, console) -> None:
     run_dir = Path(config.run_dir)
     if not config.eval_every or (run_dir / 'absolute.json').exists() or not (run_dir / 'best-eval.pt').exists():
         return
-    from .checkpoint import load_checkpoint, read_spec
+    from ..policies.checkpoint import load_checkpoint, read_spec
     from .evaluation import Evaluator
 
     path = run_dir / 'best-eval.pt'

@@ -59,14 +59,14 @@ from ..agents.utils import box_scaling, scale_in_place
 from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_copy, is_host, maybe_any
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
-from ..options import option
-from ..protocol import EPISODE_INFO, PAPER_SETTINGS
-from ..registration import resolve_config
-from ..team_vector import make_team_vec
+from ..cli.options import option
+from ..evaluation.protocol import EPISODE_INFO, PAPER_SETTINGS
+from ..envs.registration import resolve_config
+from ..envs.single_team_vector import make_team_vec
 from ..teams import GreedyTeam
 from ..core.observability import empty_warehouses, enhance_observations
-from .memory import SightingMemory
-from .spec import PolicySpec, as_team
+from ..policies.memory import SightingMemory
+from ..policies.spec import PolicySpec, as_team
 
 __all__ = ['CAMERA_REWARDS', 'CREDITS', 'GAME_DEVICES', 'GameDeviceConfig', 'OPPONENT_SEED_OFFSET', 'PAPER_SETTINGS',
            'TeamEnvConfig', 'TeamVecEnv', 'TrainingEnv',
@@ -87,7 +87,7 @@ def game_of(config: str | None, team: str) -> tuple[str, str | None]:
     if config is None:
         return PAPER_SETTINGS[team]['env_id'], None
     from ..config import read_config
-    from ..registration import registered_ids
+    from ..envs.registration import registered_ids
 
     name = str(config).removesuffix('-v0')
     if f'{name}-v0' in registered_ids():
@@ -187,7 +187,7 @@ class GameDeviceConfig:
         cuda is asked for and a setting is not played on the device or numba sees no CUDA device."""
         if self.game_device == 'cpu':
             return 'cpu'
-        from .device import resolve_device
+        from ..policies.device import resolve_device
 
         unsupported = device_unsupported(spec, camera_reward, opponent)
         if self.game_device == 'auto':
@@ -206,7 +206,7 @@ class GameDeviceConfig:
         `resolved_game_device` says cuda (the networks' GPU: numba's current device)."""
         if self.resolved_game_device(spec, opponent, camera_reward) == 'cpu':
             return TeamEnvConfig.make_env(self, spec, opponent, camera_reward)
-        from .device import resolve_device
+        from ..policies.device import resolve_device
 
         index = resolve_device(self.device).index if self.device.startswith('cuda') else None
         if index:                  # the games on the networks' GPU (numba's current device; the first by default)

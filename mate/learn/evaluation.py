@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
-from .spec import PolicySpec
+from ..evaluation.protocol import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS, TEAM_METRIC
+from ..policies.spec import PolicySpec
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'EVALUATION_SEEDS', 'Evaluator', 'TEAM_METRIC', 'evaluate_policy',
            'read_evaluations']
@@ -44,7 +44,7 @@ def evaluate_policy(policy, episodes: int, first_seed: int, max_episode_steps: i
     `first_seed`); the opponent's row i is seeded first_seed + i, as the env. Returns one dict per episode
     (`mate.teams.BatchEpisode` fields: coverage_rate, normalized_target_return, episode_length, ...)."""
     from ..teams import make_team, play_batch
-    from .policy import PolicyTeam
+    from ..policies.policy import PolicyTeam
 
     spec: PolicySpec = policy.spec
     counts = spec.counts
@@ -106,7 +106,7 @@ class Evaluator:
 
     def __call__(self, actor_state: dict, iteration: int, env_steps: int) -> dict:
         """Evaluate the policy of `actor_state` (its spec's network) now; returns the evaluation's record."""
-        from .policy import LoadedPolicy, make_actor
+        from ..policies.policy import LoadedPolicy, make_actor
 
         actor = make_actor(self.spec)
         actor.load_state_dict(actor_state)
@@ -126,7 +126,7 @@ class Evaluator:
     def absolute(self) -> dict | None:
         """The absolute metric: `best-eval.pt` played on ABSOLUTE_FACTOR x `episodes` held-out episodes; written to
         `absolute.json` and returned (None when no evaluation has kept a policy)."""
-        from .policy import load_policy
+        from ..policies.policy import load_policy
 
         path = self.dir / 'best-eval.pt'
         if not path.exists():

@@ -11,7 +11,7 @@
 
 I2C ("individually inferred communication", Ding et al. 2020; docs/training.md, "I2C"): at every decision each
 agent's prior network decides, from its own observation, which teammates to ask; it attends to the current
-observations of those it asked, and the message joins its observation in an MLP -> LSTM -> head (`mate.learn.comm`
+observations of those it asked, and the message joins its observation in an MLP -> LSTM -> head (`mate.policies.comm`
 has the computation). No delay, peer to peer, no shared weights. The memory rules are `mappo_lstm.py`'s: zeroed where
 an episode starts (`starting`), the rollout's first memory and start flags kept so that the update unrolls each env
 sequence again.
@@ -41,13 +41,13 @@ import dataclasses
 
 import torch
 
-from ..options import option
+from ..cli.options import option
 from . import ppo_loop
-from .comm import I2C_REGULARISER, Channel, I2CTraining, check_channel
+from ..policies.comm import I2C_REGULARISER, Channel, I2CTraining, check_channel
 from .envs import TrainingEnv
 from .ppo import PPOConfig
 from .run import Run
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['I2CConfig', 'I2CSignals', 'policy_spec', 'train']
 

@@ -40,14 +40,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..options import option
+from ..cli.options import option
 from .envs import TrainingEnv
 from .offpolicy_loop import train_off_policy
-from .policy import make_actor
+from ..policies.policy import make_actor
 from .qlearning import QLearner, QLearningConfig, action_kind, allowed_choices, double_q_targets
 from .replay import ReplayBuffer
 from .run import Run
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['IQLConfig', 'IQLLearner', 'iql_loss', 'policy_spec', 'train']
 

@@ -21,12 +21,12 @@ from __future__ import annotations
 import dataclasses
 from typing import ClassVar, Literal
 
-from ..options import option
+from ..cli.options import option
 from . import ppo_loop
 from .envs import TrainingEnv
 from .ppo import PAPER_HELP, PAPER_HYPERPARAMETERS, PPOConfig
 from .run import Run
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['HRL_CAMERA_HIDDEN', 'MAPPOConfig', 'policy_spec', 'train']
 

@@ -43,15 +43,15 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..options import option
+from ..cli.options import option
 from .envs import GameDeviceConfig, TeamEnvConfig, TrainingEnv
-from .networks import AgentwiseMLP
+from ..policies.networks import AgentwiseMLP
 from .offpolicy_loop import OffPolicyLearner, train_off_policy
-from .policy import make_actor
+from ..policies.policy import make_actor
 from .replay import TransitionRing
 from .run import Run, RunConfig, mean_or_nan
 from .schedules import check_network_options
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['MATD3Config', 'MATD3Learner', 'TwinCritics', 'actor_inputs', 'critic_inputs', 'critic_targets',
            'policy_spec', 'smoothed_actions', 'train']

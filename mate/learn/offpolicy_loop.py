@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from ..arrays import is_host
-from .device import resolve_device, update_threads
+from ..policies.device import resolve_device, update_threads
 from .run import Run
 
 __all__ = ['OffPolicyLearner', 'on_host', 'train_off_policy']

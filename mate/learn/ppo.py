@@ -21,8 +21,8 @@ from typing import ClassVar
 import torch
 from torch import nn
 
-from ..options import option
-from .checkpoint import CheckpointError, load_checkpoint, read_spec
+from ..cli.options import option
+from ..policies.checkpoint import CheckpointError, load_checkpoint, read_spec
 from .envs import GameDeviceConfig, TeamEnvConfig
 from .run import RunConfig
 from .schedules import check_network_options, piecewise, resolve_schedule

@@ -37,11 +37,11 @@ from typing import Protocol
 import torch
 from torch import nn
 
-from .checkpoint import CheckpointError
-from .comm import Channel, channel_difference
-from .device import resolve_device, update_threads
-from .networks import Critic, restarted
-from .policy import make_actor
+from ..policies.checkpoint import CheckpointError
+from ..policies.comm import Channel, channel_difference
+from ..policies.device import resolve_device, update_threads
+from ..policies.networks import Critic, restarted
+from ..policies.policy import make_actor
 from .ppo import (
     PPOConfig,
     Schedules,
@@ -56,7 +56,7 @@ from .ppo import (
     warm_start,
 )
 from .run import Run
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['Auxiliary', 'Rollout', 'critic_input_dim', 'critic_inputs', 'critic_outputs', 'heard', 'per_agent',
            'train']

@@ -23,12 +23,12 @@ from typing import ClassVar, Literal
 import numpy as np
 import torch
 
-from ..options import option
+from ..cli.options import option
 from .envs import GameDeviceConfig, TeamEnvConfig
 from .offpolicy_loop import OffPolicyLearner
 from .run import RunConfig, mean_or_nan
 from .schedules import check_network_options, piecewise, resolve_schedule
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['QLearner', 'QLearningConfig', 'SELECTIONS', 'action_kind', 'allowed_choices', 'double_q_targets',
            'double_q_values', 'epsilon_greedy', 'masked_argmax']

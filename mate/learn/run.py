@@ -43,11 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
-from ..protocol import EVALUATION_SEEDS, training_reset_seed
+from ..policies.checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
+from ..evaluation.protocol import EVALUATION_SEEDS, training_reset_seed
 from .evaluation import Evaluator
 from .run_config import RunConfig, default_run_dir
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['EPISODE_WINDOW', 'Run', 'RunConfig', 'TENSORBOARD_MISSING', 'config_hash', 'default_run_dir',
            'episode_reward_phrase', 'mean_or_nan', 'write_run_config']
@@ -177,10 +177,11 @@ class Run:
         run_dir = config.run_dir or default_run_dir(algo, config)
         if config.seed + config.num_envs > EVALUATION_SEEDS:
             raise ValueError(f'--seed {config.seed} with --num-envs {config.num_envs} would train on evaluation seeds: '
-                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} (mate.protocol.SEED_RANGES)')
+                             f'seed + num_envs must be at most {EVALUATION_SEEDS:,} '
+                             '(mate.evaluation.protocol.SEED_RANGES)')
         evaluator = None
         if config.eval_every:
-            from .device import resolve_device
+            from ..policies.device import resolve_device
 
             evaluator = Evaluator(run_dir, spec, config.eval_every, config.eval_episodes, config.resolved_horizon,
                                   resolve_device(config.device))
@@ -240,7 +241,7 @@ class Run:
         A checkpoint with the batch's state (`saved['envs']`, what `resume` returned) continues the very episodes
         it stopped in (an exact resume); otherwise the batch is reset with seed `config.seed + RESET_SEED_STRIDE x
         iteration` wrapped into the run's own 1,000-seed block(s) of the training seeds
-        (`mate.protocol.training_reset_seed`), the config's seed for a
+        (`mate.evaluation.protocol.training_reset_seed`), the config's seed for a
         fresh run and other seeds for each later session of an older checkpoint."""
         if self.continues_episodes(saved):
             envs.load_state_dict(saved['envs'])
@@ -262,7 +263,7 @@ class Run:
         write_run_config(self.dir, self.algo, self.config, self.spec)
         self._open_logs()
         if self.show_progress:
-            from ..progress import ProgressLine
+            from ..cli.progress import ProgressLine
 
             self._line = ProgressLine('training', total=self.total_steps, completed=self.env_steps,
                                       console=self.console)
@@ -442,7 +443,8 @@ class Run:
             state=state))
 
     def save_policy(self, path, actor_state: dict, note: str = '') -> Path:
-        """Write a policy file (the acting part: spec and actor weights; `mate.learn.policy.load_policy` reads it)."""
+        """Write a policy file (the acting part: spec and actor weights; `mate.policies.policy.load_policy` reads
+        it)."""
         return save_checkpoint(self.dir / path if not Path(path).is_absolute() else path, dict(
             spec=self.spec.to_dict(), algo=self.algo, actor=actor_state, config=_config_dict(self.config),
             env_steps=self.env_steps, note=note or f'iteration {self.iteration}'))

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..options import check_ranges, option
-from ..protocol import MAX_EVAL_EPISODES
+from ..cli.options import check_ranges, option
+from ..evaluation.protocol import MAX_EVAL_EPISODES
 
 __all__ = ['RunConfig', 'default_run_dir', 'run_name']
 
@@ -39,7 +39,7 @@ class RunConfig:
     wandb_project: str = option('mate', 'the Weights & Biases project of --wandb')
 
     def __post_init__(self) -> None:
-        from .device import parse_device
+        from ..policies.device import parse_device
 
         parse_device(self.device)          # a bad name is refused now, with the valid forms
         check_ranges(self)                 # the options' ranges, as the command line checks them

@@ -11,7 +11,7 @@
             ->  `Run`: logs, checkpoints, best.pt, final.pt
 
 At every decision each agent sends a message (key 32 + value 32) and every agent of the env, the sender included,
-reads all N messages at the next decision through soft attention (`mate.learn.comm` has the computation). The
+reads all N messages at the next decision through soft attention (`mate.policies.comm` has the computation). The
 messages are part of the state the actor carries, `(h, c, messages)`, so the memory rules are `mappo_lstm.py`'s:
 zeroed where an episode starts (`starting`; nothing is heard at an episode's first decision), the rollout's first
 memory and its start flags kept so that the update unrolls each env sequence again, bitwise as in the rollout. The
@@ -38,14 +38,14 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-from ..options import option
+from ..cli.options import option
 from . import ppo_loop
-from .comm import Channel, TarMACActor, check_channel
+from ..policies.comm import Channel, TarMACActor, check_channel
 from .envs import TrainingEnv
-from .policy import make_actor
+from ..policies.policy import make_actor
 from .ppo import PPOConfig
 from .run import Run
-from .spec import PolicySpec
+from ..policies.spec import PolicySpec
 
 __all__ = ['TarMACConfig', 'policy_spec', 'train']
 

@@ -23,7 +23,7 @@ Teams here:
 Seeds and streams (`streams`): row b of a team seeded with the integer s plays draw for draw as the
 Python agents `Cls(seed=s + b).spawn(N)` (a sequence gives each row its seed), so
 `play_batch(config, GreedyTeam('camera', B, counts, s), GreedyTeam('target', B, counts, s), B, s)`
-plays, row by row, the episodes `mate.evaluate.play_episode` plays with seeds s, ..., s + B - 1. A row
+plays, row by row, the episodes `mate.evaluation.evaluate.play_episode` plays with seeds s, ..., s + B - 1. A row
 that restarts (`reset` with it in `rows`) goes on with its agents' streams, as reused agents do.
 
 `play_batch(config, camera_team, target_team, episodes, seed)` plays B games at once in one vector env.
@@ -33,7 +33,7 @@ from ..messages import Team
 from .greedy import GREEDY_OPTIONS, GreedyCameraTeam, GreedyTargetTeam, GreedyTeam
 from .mixture import MixtureTeam
 from .play import BatchEpisode, play_batch
-from .protocol import BatchedTeam, action_high, as_team, idle
+from .interface import BatchedTeam, action_high, as_team, idle
 from .random import RandomTeam
 from .streams import TeamStreams, row_seeds, spawned_seeds
 from .upper_bound import UPPER_BOUND_OPTIONS, UpperBoundTeam

@@ -18,7 +18,7 @@ the CPU teams with other random numbers: their results agree in distribution, no
 (benchmarks/gpu.py and the tests compare coverage over many seeds). A row that restarts goes on with its streams.
 
 HRL executor: `hrl_actions(observation, selection, begin, out)` aims every camera at the centroid of the selected
-visible targets (`mate.teams.rules.centroid_aim_row`, the rule `mate.learn.hrl` runs on the host).
+visible targets (`mate.teams.rules.centroid_aim_row`, the rule `mate.policies.hrl` runs on the host).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from ..core.rng import mix64, uniform
 from ..messages import Team
 from ..spaces import observation_indices_of
 from . import rules
-from .protocol import as_team
+from .interface import as_team
 from .streams import AGENT_BLOCK, SPACE_BLOCK, row_seeds
 
 __all__ = ['CameraSettings', 'CameraState', 'DeviceRuleTeam', 'DeviceTeam', 'HostTeam', 'RandomSettings',
@@ -578,6 +578,6 @@ def compile_hrl_ptx(observation_dtype=np.float64, cc: tuple[int, int] = (9, 0)) 
 
 def hrl_actions(observation, keep, begin: int, out, block: int = BLOCK) -> None:
     """Device arrays: the HRL executor's actions (R, 2) into `out` from camera observations (R, D) and keep bits
-    (R, Nt) bool (R = B x Nc rows), one thread a camera (`mate.learn.hrl.executor_actions` on the host)."""
+    (R, Nt) bool (R = B x Nc rows), one thread a camera (`mate.policies.hrl.executor_actions` on the host)."""
     count = out.shape[0]
     _hrl_kernel()[(count + block - 1) // block, block](*launch_arguments(HRLArrays(observation, keep, out)), begin)

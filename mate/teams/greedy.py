@@ -17,7 +17,7 @@ import numpy as np
 from ..messages import Team
 from ..spaces import observation_indices_of
 from . import rules
-from .protocol import action_high, as_team
+from .interface import action_high, as_team
 from .streams import TeamStreams, row_seeds
 
 __all__ = ['GreedyCameraTeam', 'GreedyTargetTeam', 'GreedyTeam', 'GREEDY_OPTIONS']

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .protocol import idle
+from .interface import idle
 
 __all__ = ['MixtureTeam']
 

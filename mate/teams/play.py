@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..messages import Team
-from ..vector import make_vec
-from .protocol import idle
+from ..envs.vector import make_vec
+from .interface import idle
 
 __all__ = ['BatchEpisode', 'EpisodeSummary', 'play_batch']
 
@@ -48,7 +48,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
     finished episodes, `seconds` and `env_steps_per_second`).
 
     With the greedy or random teams of this package seeded like the env (`GreedyTeam(team, episodes,
-    counts, seed)` for both teams), row i is the episode `mate.evaluate.play_episode` plays with seed
+    counts, seed)` for both teams), row i is the episode `mate.evaluation.evaluate.play_episode` plays with seed
     `seed + i`.
     """
     if episodes < 1:

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import rules
 from .greedy import RuleTeam
-from .protocol import as_team
+from .interface import as_team
 
 __all__ = ['RandomTeam']
 

@@ -176,7 +176,7 @@ class TeamObservationWrapper(ObservationMateWrapper):
 
 def assert_mate_environment(env: Any, wrapper: str) -> None:
     """TypeError unless `env` is a `MultiAgentTracking`, possibly wrapped."""
-    from mate.env import MultiAgentTracking
+    from mate.envs.multi_agent_tracking import MultiAgentTracking
 
     if not isinstance(getattr(env, 'unwrapped', None), MultiAgentTracking):
         raise TypeError(f'{wrapper} wraps a MATE environment (mate.MultiAgentTracking, possibly wrapped); '

@@ -16,7 +16,7 @@ from gymnasium.utils.env_checker import check_env
 
 import mate
 import mate.agents
-from mate.learn.policy import PolicyCameraAgent, PolicyTargetAgent, load_agent
+from mate.policies.policy import PolicyCameraAgent, PolicyTargetAgent, load_agent
 
 STEPS = 45          # greedy/heuristic agents act at random with probability 0.01 per step; random ones redraw every 20
 

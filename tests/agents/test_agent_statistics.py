@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 
 SEEDS = range(20)
 MAX_STEPS = 2000
@@ -28,7 +28,7 @@ RANDOM = {'coverage_rate': (0.2858, 0.0322), 'real_coverage_rate': (0.1881, 0.04
 
 
 def play(camera_class, target_class, seed: int, max_steps: int = MAX_STEPS, record: bool = False) -> dict:
-    """One episode of the groundtruth.md protocol (`mate.evaluate.play_episode`); with `record`,
+    """One episode of the groundtruth.md protocol (`mate.evaluation.evaluate.play_episode`); with `record`,
     also every step's joint action, flattened."""
     actions = []
 

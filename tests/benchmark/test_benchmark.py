@@ -20,10 +20,10 @@ from mate.benchmark.identity import JOB_CONFIG, command_config, job_config, ran_
 from mate.benchmark.jobs import MAX_SEED, SEED_STRIDE, by_setting, parse_presets, parse_seeds, parse_settings, plan
 from mate.benchmark.results import collect
 from mate.benchmark.stats import iqm
-from mate.cli import build_parser, main
+from mate.cli.main import build_parser, main
 from mate.learn.evaluation import ABSOLUTE_FACTOR, ABSOLUTE_SEEDS, EVALUATION_SEEDS
 from mate.learn.population.psro import PSROSettings
-from mate.protocol import FRESH_SEEDS
+from mate.evaluation.protocol import FRESH_SEEDS
 
 from conftest import needs_extra
 
@@ -141,7 +141,7 @@ def test_a_job_another_runner_holds_is_skipped_not_run_twice(tmp_path):
     import fcntl
 
     from mate.benchmark.runner import BUSY, JOB_LOCK, run_job, run_jobs
-    from mate.runners import ThreadRunner
+    from mate.tools.runners import ThreadRunner
     planned = plan(experiment('smoke'), [0], tmp_path)[0]
     job = dataclasses.replace(planned, commands=(('--version',),), outputs=(planned.dir / 'version.txt',))
     log = job.dir / 'job.log'
@@ -662,7 +662,7 @@ def test_population_smoke_run_and_report(tmp_path):
     for state in states:
         last = state['iterations'][-1]
         fresh = last['exploitability_fresh']
-        assert fresh['seeds'] == FRESH_SEEDS                 # its own range (mate.protocol.SEED_RANGES)
+        assert fresh['seeds'] == FRESH_SEEDS                 # its own range (mate.evaluation.protocol.SEED_RANGES)
         assert fresh['mean'] == pytest.approx(0.5 * (fresh['camera'] + fresh['target']))
     entry = json.loads((report / 'results.json').read_text())['smoke-psro']['tasks']['MATE-2v4-0']['settings'][
         'PSRO-Nash']
@@ -772,7 +772,7 @@ def test_minutes_stops_the_benchmark_at_its_budget_and_the_same_command_resumes(
 
 @pytest.mark.parametrize('minutes', ['0', '-1', 'nan', 'soon'])
 def test_minutes_must_be_a_positive_number(minutes, capsys):
-    from mate.cli import main
+    from mate.cli.main import main
 
     with pytest.raises(SystemExit) as stop:
         main(['benchmark', 'run', 'smoke', '--minutes', minutes])

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mate.cli import main
+from mate.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 REPORT = ROOT / 'docs' / 'results' / 'fig5-targets-comm'          # a committed report: results.json, no run

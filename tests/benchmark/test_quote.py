@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from mate.benchmark.quote import END, START, quote_blocks, quote_files
-from mate.cli import main
+from mate.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 QUOTING = [ROOT / 'README.md', *sorted((ROOT / 'docs').rglob('*.md'))]

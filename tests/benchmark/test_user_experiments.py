@@ -11,7 +11,7 @@ import pytest
 
 from mate.benchmark.experiments import Claim, Experiment, Setting, experiment_of
 from mate.benchmark.user import load_experiment
-from mate.cli import main
+from mate.cli.main import main
 
 TINY = "('--num-envs', '2', '--rollout-length', '5', '--hidden', '8', '8')"
 PYTHON_EXPERIMENT = f'''

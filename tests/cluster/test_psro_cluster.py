@@ -31,11 +31,11 @@ from . import faults
 ray = needs_extra('ray')        # the rllib extra (CI installs it)
 torch = needs_extra('torch')
 
-from mate.learn.checkpoint import load_checkpoint          # noqa: E402  (needs torch)
+from mate.policies.checkpoint import load_checkpoint          # noqa: E402  (needs torch)
 from mate.learn.population import jobs as psro_jobs         # noqa: E402
 from mate.learn.population.psro import JOB_LOG, LocalRunner, PSROSettings, load_state, run_psro  # noqa: E402
-from mate.protocol import PAYOFF_SEEDS  # noqa: E402
-from mate.runners import JobFailed, RayRunner, RunnerError  # noqa: E402
+from mate.evaluation.protocol import PAYOFF_SEEDS  # noqa: E402
+from mate.tools.runners import JobFailed, RayRunner, RunnerError  # noqa: E402
 
 SETTINGS = dict(solver='nash', iterations=1, br_steps=2000, num_envs=4, eval_episodes=3, eval_steps=120)
 """A run of seconds: 20 training iterations per best response (a checkpoint every 5), 3 episodes per entry."""
@@ -221,7 +221,7 @@ import faults
 from mate.learn.population import jobs
 for name, job in faults.stand_ins(sys.argv[2]).items():
     setattr(jobs, name, job)
-from mate.cli import main
+from mate.cli.main import main
 sys.exit(main(sys.argv[3:]))
 """
 """`mate psro ARGS` as a driver whose jobs are the stand-ins of `faults` (recording in the folder argv[2])."""

@@ -1,5 +1,5 @@
-"""The local runners keep the contract of `mate.runners` that the Ray runner keeps on a cluster: every finished job
-reported once, a job that raises named in one line at the end after the others have run, its timings kept."""
+"""The local runners keep the contract of `mate.tools.runners` that the Ray runner keeps on a cluster: every finished
+job reported once, a job that raises named in one line at the end after the others have run, its timings kept."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from conftest import needs_extra
 
 from mate.benchmark.jobs import parse_seeds
-from mate.runners import STOP, JobFailed, LocalRunner, ThreadRunner, describe_error
+from mate.tools.runners import STOP, JobFailed, LocalRunner, ThreadRunner, describe_error
 
 
 @pytest.mark.parametrize('make', [lambda: LocalRunner(1), lambda: LocalRunner(2), lambda: ThreadRunner(2)],
@@ -81,7 +81,7 @@ def test_a_stop_on_ray_cancels_the_jobs_still_pending(tmp_path):
     """On a one-CPU Ray instance: after `done` returns STOP for the first job, the third (queued behind the second)
     never starts nor is reported, and `run` returns without an error; the second, started as the first ended, is
     asked to stop (a KeyboardInterrupt), and reported only if it finished anyway."""
-    from mate.runners import RayRunner
+    from mate.tools.runners import RayRunner
 
     ray = needs_extra('ray')
     if ray.is_initialized():     # an instance an earlier test left: this test needs one CPU, so that jobs queue

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from mate.learn.policy import PRETRAINED_DIR
+from mate.policies.policy import PRETRAINED_DIR
 
 from .markdown_blocks import ROOT
 

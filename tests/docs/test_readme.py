@@ -10,7 +10,7 @@ import shlex
 
 import pytest
 
-from mate.cli import build_parser
+from mate.cli.main import build_parser
 
 from .markdown_blocks import ROOT
 
@@ -64,7 +64,7 @@ def test_every_mate_command_of_the_readme_parses(argv):
 
         experiment(args.name)
     if args.command == 'evaluate':
-        from mate.evaluate import resolve_agent
+        from mate.evaluation.evaluate import resolve_agent
         from mate.messages import Team
 
         for agent, team in ((args.camera_agent, Team.CAMERA), (args.target_agent, Team.TARGET)):

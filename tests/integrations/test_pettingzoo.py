@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip('pettingzoo', reason="needs pettingzoo, from the pettingzoo extra: pip install -e '.[pettingzoo]'")
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
-from mate.env import MultiAgentTracking  # noqa: E402
+from mate.envs.multi_agent_tracking import MultiAgentTracking  # noqa: E402
 from mate.integrations import pettingzoo as mate_pz  # noqa: E402
 
 SMALL = {'config': 'MATE-2v4-9', 'max_episode_steps': 60}

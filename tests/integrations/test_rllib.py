@@ -13,9 +13,9 @@ from conftest import needs_extra
 needs_extra('ray.rllib')
 from ray.rllib.utils.pre_checks.env import check_multiagent_environments  # noqa: E402
 
-from mate.env import MultiAgentTracking  # noqa: E402
+from mate.envs.multi_agent_tracking import MultiAgentTracking  # noqa: E402
 from mate.integrations import rllib as mate_rllib  # noqa: E402
-from mate.learn.spec import PolicySpec, SpecError  # noqa: E402
+from mate.policies.spec import PolicySpec, SpecError  # noqa: E402
 
 SMALL = {'config': 'MATE-2v4-9', 'overrides': {'max_episode_steps': 12}}
 

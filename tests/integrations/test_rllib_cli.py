@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from conftest import needs_extra
-from mate import cli
+from mate.cli import main as cli
 from mate.integrations import rllib_train
 
 

@@ -15,17 +15,17 @@ needs_extra('ray.rllib')
 from mate.integrations import rllib as mate_rllib  # noqa: E402
 from mate.integrations import rllib_train  # noqa: E402
 from mate.integrations.rllib_export import actor_state, export_module, export_run_checkpoint  # noqa: E402
-from mate.learn.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
+from mate.policies.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from mate.learn.evaluation import evaluate_policy  # noqa: E402
-from mate.learn.policy import load_policy  # noqa: E402
-from mate.learn.spec import SpecError  # noqa: E402
+from mate.policies.policy import load_policy  # noqa: E402
+from mate.policies.spec import SpecError  # noqa: E402
 
 HORIZON = 60
 
 
 def witness(team: str, *options: str) -> tuple:
     """(config, spec, PPOConfig) of `mate rllib-train --team TEAM` on MATE-2v4-0 with a small MLP."""
-    from mate import cli
+    from mate.cli import main as cli
 
     args = cli.build_parser().parse_args(['rllib-train', '--team', team, '--config', 'MATE-2v4-0', '--hidden', '32',
                                           '16', '--horizon', str(HORIZON), '--num-envs', '2', '--minibatch-size', '25',

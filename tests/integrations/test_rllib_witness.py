@@ -15,11 +15,11 @@ from conftest import needs_extra
 
 needs_extra('ray.rllib')
 
-from mate import cli  # noqa: E402
+from mate.cli import main as cli  # noqa: E402
 from mate.integrations.rllib_export import export_run_checkpoint  # noqa: E402
-from mate.learn.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
+from mate.policies.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from mate.learn.evaluation import ABSOLUTE_SEEDS, EVALUATION_SEEDS, evaluate_policy, read_evaluations  # noqa: E402
-from mate.learn.policy import load_policy  # noqa: E402
+from mate.policies.policy import load_policy  # noqa: E402
 
 pytestmark = pytest.mark.slow
 TINY = ['--config', 'MATE-2v4-0', '--num-envs', '2', '--rollout-length', '10', '--epochs', '1', '--minibatch-size',

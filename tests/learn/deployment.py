@@ -1,7 +1,7 @@
 """The set-up of the tests that check deployed communicating agents against their training network."""
 
 import mate
-from mate.learn.policy import load_agent, load_policy
+from mate.policies.policy import load_agent, load_policy
 
 
 def policy_targets_against_greedy(path, wrappers=(), frame_skip=3, seed=3):

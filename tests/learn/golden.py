@@ -10,7 +10,7 @@ be shown to reproduce them exactly, or said to change them on purpose.
     ... --data DIR                                     another folder of recordings: record a baseline in a
                                                        scratch folder before a refactor, check against it after
 
-The runs go through the command line (`mate.cli.main(argv)`, in this process), whose flags outlive the
+The runs go through the command line (`mate.cli.main.main(argv)`, in this process), whose flags outlive the
 Python API. What is compared (`run_variant`):
 
 * `logs`: every log row of `progress.csv` (and, for PSRO, of each best response's `progress.csv`), without the
@@ -23,7 +23,7 @@ Python API. What is compared (`run_variant`):
   and the best responses' summaries, without their `seconds`.
 
 Everything runs with one torch thread (`torch.set_num_threads(1)` and `--threads 1`) on the CPU, with
-`MATE_REPRODUCIBLE=1` (`mate.reproducible`: MKL and ATen kernels pinned).
+`MATE_REPRODUCIBLE=1` (`mate.tools.reproducible`: MKL and ATen kernels pinned).
 
 How a rerun is judged (`judge`): a recording keeps the `fingerprint` of the machine it was made on (CPU vendor,
 family, model and ISA, ATen's capability, Python, torch, numpy and numba, the kernel variables). On a machine with
@@ -52,7 +52,7 @@ import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # recorded and checked with the kernels pinned (mate.reproducible)
+os.environ.setdefault('MATE_REPRODUCIBLE', '1')   # recorded and checked with kernels pinned (mate.tools.reproducible)
 import mate  # noqa: E402,F401  (first: it pins the kernels before anything imports torch)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -102,7 +102,7 @@ VARIANTS: dict[str, list[str]] = {
     'psro': ['psro', '--iterations', '1', '--br-steps', '150', '--eval-episodes', '2', '--eval-steps', '20',
              '--num-envs', '2', '--workers', '1', '--seed', '1', '--out', RUN_DIR],
 }
-"""Variant name -> the arguments of `mate.cli.main` (RUN_DIR: the run directory)."""
+"""Variant name -> the arguments of `mate.cli.main.main` (RUN_DIR: the run directory)."""
 
 TIMING_COLUMNS = frozenset({'wall_seconds', 'steps_per_second', 'collect_share', 'seconds',
                             'env_steps_per_second'})
@@ -121,7 +121,7 @@ def run_variant(name: str, folder) -> dict:
     {'logs': {file: {'columns', 'rows'}}, 'weights': {file: {entry: {'sha256', 'tensors'}}}[, 'state']}."""
     import torch
 
-    from mate.cli import main
+    from mate.cli.main import main
 
     torch.set_num_threads(1)
     folder = Path(folder)
@@ -210,8 +210,8 @@ def versions() -> dict:
     import numpy
     import torch
 
-    from mate.bench import machine_facts
-    from mate.reproducible import KERNEL_PINS
+    from mate.tools.bench import machine_facts
+    from mate.tools.reproducible import KERNEL_PINS
 
     return dict(python=platform.python_version(), torch=torch.__version__, numpy=numpy.__version__,
                 machine=platform.machine(), processor=machine_facts()['processor'],

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import torch
 
-from mate.learn.checkpoint import load_checkpoint
+from mate.policies.checkpoint import load_checkpoint
 from mate.learn.run import TIMING_COLUMNS
 
 

@@ -1,4 +1,4 @@
-"""Batched play of two teams (`mate.teams.play_batch`): batched policies (`mate.learn.policy.PolicyTeam`) act as
+"""Batched play of two teams (`mate.teams.play_batch`): batched policies (`mate.policies.policy.PolicyTeam`) act as
 the deployment agents do."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import torch
 
 import mate
 from mate.constants import camera_observation_dim, target_observation_dim
-from mate.evaluate import play_episode
-from mate.learn.memory import MEMORY_FEATURES
-from mate.learn.policy import AGENT_CLASSES, LoadedPolicy, PolicyTeam, make_actor, make_team
-from mate.learn.spec import PolicySpec
-from mate.learn.velocity import VELOCITY_FEATURES
+from mate.evaluation.evaluate import play_episode
+from mate.policies.memory import MEMORY_FEATURES
+from mate.policies.policy import AGENT_CLASSES, LoadedPolicy, PolicyTeam, make_actor, make_team
+from mate.policies.spec import PolicySpec
+from mate.policies.velocity import VELOCITY_FEATURES
 from mate.teams import GreedyCameraTeam, GreedyTeam, MixtureTeam, RandomTeam, play_batch
 
 COUNTS = (2, 4, 0)          # MATE-2v4-0
@@ -125,7 +125,7 @@ def test_batched_policy_acts_as_the_deployment_agents(variant):
 def test_play_batch_rows_equal_single_env_episodes(opponent):
     """Deterministic batched HRL cameras against still targets, or against the batched greedy targets seeded like
     the env (row i plays as `GreedyTargetAgent(seed=4 + i)`, the agents `play_episode` builds for seed 4 + i):
-    every row's summary equals `mate.evaluate.play_episode` of the deployment agents with the row's seed."""
+    every row's summary equals `mate.evaluation.evaluate.play_episode` of the deployment agents with the row's seed."""
     policy = _policy('camera', hrl=True, frame_skip=5)
     targets = StillTargets() if opponent == 'still' else GreedyTeam('target', 3, COUNTS, seed=4)
     results, timing = play_batch('MATE-2v4-0', PolicyTeam(policy, 'camera', 3, COUNTS, deterministic=True),
@@ -239,7 +239,7 @@ def test_make_team_names_the_batched_agents():
 def test_make_team_reads_a_checkpoint_path_as_load_agent_does(tmp_path, monkeypatch):
     import shutil
 
-    from mate.learn.policy import load_agent, pretrained_path
+    from mate.policies.policy import load_agent, pretrained_path
     shutil.copy(pretrained_path('mappo-target-2v4-0'), tmp_path / 'targets.pt')
     monkeypatch.setenv('HOME', str(tmp_path))
     team = make_team('checkpoint:~/targets.pt', 'target', 2, COUNTS, frame_skip=4, deterministic=False)
@@ -248,7 +248,7 @@ def test_make_team_reads_a_checkpoint_path_as_load_agent_does(tmp_path, monkeypa
 
 
 def test_mate_evaluate_batched(tmp_path, capsys):
-    from mate import cli
+    from mate.cli import main as cli
     out = tmp_path / 'batched.json'
     assert cli.main(['evaluate', '--batched', '--camera-agent', 'pretrained:hrl-mappo-camera-4v8-9', '--episodes', '3',
                      '--max-episode-steps', '40', '--no-render', '--json', str(out)]) == 0

@@ -19,7 +19,7 @@ from mate.learn import (
     save_checkpoint,
 )
 from mate.learn import mappo, mappo_lstm
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 
 
 def _camera_config(run_dir, **changes) -> mappo.MAPPOConfig:
@@ -42,7 +42,7 @@ def test_round_trip_and_agent_plays(tmp_path):
     policy = load_policy(path, 'camera')
     assert policy.spec == PolicySpec.from_dict(data['spec']) and policy.spec.algo == 'mappo'
     x = torch.randn(3, 56)
-    from mate.learn.networks import Actor
+    from mate.policies.networks import Actor
     actor = Actor(56, 25, (16,))
     actor.load_state_dict(data['actor'])
     assert np.allclose(policy.outputs(x.numpy()), actor(x).detach().numpy())
@@ -144,7 +144,7 @@ def test_spec_differences_name_the_setting_in_the_words_of_the_command_line():
 def _train_options(algo, argv):
     """The config `mate train ALGO ARGV` trains with (the trainer's generated parser)."""
     from mate.learn.command import TRAINERS, trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     parser, _, config_class = trainer_parser(algo)
     return config_from(parser, config_class, parser.parse_args(argv), **TRAINERS[algo].fixed)
@@ -159,7 +159,7 @@ def _refused(algo, argv, capsys) -> str:
 
 
 def test_cli_train_parser():
-    from mate.cli import build_parser
+    from mate.cli.main import build_parser
     args = build_parser().parse_args(['train', 'ippo', '--team', 'target', '--steps', '1e4'])
     assert args.algo == 'ippo' and args.options == ['--team', 'target', '--steps', '1e4']
     config = _train_options(args.algo, args.options)
@@ -237,7 +237,7 @@ def test_recurrent_and_per_target_policies_round_trip_as_agents(tmp_path, varian
 def _camera_views(steps: int = 60, seed: int = 0):
     """(processed camera observations (S, Nc, D), world snapshots) of random play on MATE-2v4-0, with
     the cameras' viewing angles opened wide so that they often see each other and the same targets."""
-    from mate.learn.spec import preprocess_observation
+    from mate.policies.spec import preprocess_observation
     env = mate.make('MATE-2v4-0-v0')
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
@@ -260,7 +260,7 @@ def _camera_views(steps: int = 60, seed: int = 0):
 
 
 def test_per_target_actor_scores_every_slot_with_one_scorer():
-    from mate.learn.networks import PerTargetActor
+    from mate.policies.networks import PerTargetActor
     torch.manual_seed(0)
     obs, _ = _camera_views(steps=4)
     obs, perm = obs.reshape(-1, obs.shape[-1]), [2, 0, 3, 1]
@@ -279,7 +279,7 @@ def test_per_target_actor_scores_every_slot_with_one_scorer():
 
 
 def test_flat_per_target_head_ignores_slot_order_and_unseen_slots():
-    from mate.learn.networks import PerTargetActor
+    from mate.policies.networks import PerTargetActor
     torch.manual_seed(1)
     obs, _ = _camera_views(steps=4)
     obs = obs.reshape(-1, obs.shape[-1])
@@ -304,7 +304,7 @@ def test_flat_per_target_head_ignores_slot_order_and_unseen_slots():
 
 
 def test_per_target_actor_slot_features_match_the_world():
-    from mate.learn.networks import PerTargetActor
+    from mate.policies.networks import PerTargetActor
     obs, worlds = _camera_views()
     actor = PerTargetActor(obs.shape[-1], (2, 4, 0), hidden=(8,))
     features = actor.slot_features(obs).numpy()                              # (S, Nc, Nt, 13)

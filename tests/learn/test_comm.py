@@ -1,4 +1,4 @@
-"""TarMAC (mate.learn.comm, mate.learn.tarmac): attention over the team's messages, one-decision delay, gradients
+"""TarMAC (mate.policies.comm, mate.learn.tarmac): attention over the team's messages, one-decision delay, gradients
 through the messages, sequences equal to steps, a toy task that needs communication, the critic reading the
 messages, checkpoints, the command line, and deployed agents (batched and single, through the env's channel)."""
 
@@ -10,10 +10,10 @@ import torch
 
 import mate
 from mate.learn import mappo_lstm, tarmac
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.comm import TarMACActor
-from mate.learn.policy import make_actor
-from mate.learn.spec import PolicySpec, SpecError
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.comm import TarMACActor
+from mate.policies.policy import make_actor
+from mate.policies.spec import PolicySpec, SpecError
 
 from .toy import CueExchange
 
@@ -128,7 +128,7 @@ def test_tarmac_checkpoints_resume_and_refuse_another_trainer(tmp_path):
 
 
 def test_tarmac_policies_play_batched_and_as_agents(tmp_path):
-    from mate.learn.policy import PolicyTargetAgent, PolicyTeam, load_agent, load_policy
+    from mate.policies.policy import PolicyTargetAgent, PolicyTeam, load_agent, load_policy
     from mate.teams import make_team, play_batch
 
     tarmac.train(_targets(tmp_path))
@@ -163,7 +163,7 @@ def test_the_spec_builds_tarmac_and_the_config_defaults():
 
 def _command_error(capsys, *arguments) -> str:
     """The first line of what `mate train ARGUMENTS` says on stderr when it refuses them (exit status 2)."""
-    from mate.cli import main
+    from mate.cli.main import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(['train', *arguments])
@@ -178,13 +178,13 @@ def test_tarmac_is_a_trainer_of_its_own(algo, capsys):
 
 def test_mate_train_tarmac(tmp_path, capsys):
     from mate.learn.command import trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     parser, _, config_class = trainer_parser('tarmac')
     config = config_from(parser, config_class, parser.parse_args(['--team', 'target', '--critic', 'local']))
     assert (config.algo, config.critic, config.lstm) == ('ippo-tarmac', 'local', 256)
     assert 'unrecognized arguments: --actor per-target' in _command_error(capsys, 'tarmac', '--actor', 'per-target')
-    from mate.cli import main
+    from mate.cli.main import main
 
     run_dir = tmp_path / 'run'
     assert main(['train', 'tarmac', '--team', 'target', '--config', 'MATE-2v4-0', '--lstm', '8', '--steps', '8',
@@ -304,7 +304,7 @@ def test_a_late_message_is_read_at_the_first_decision_after_it_arrives(target_po
 
 
 def test_tarmac_messages_compare_by_value(target_policy):
-    from mate.learn.policy import load_agent
+    from mate.policies.policy import load_agent
 
     agent = load_agent(f'checkpoint:{target_policy}', 'target')(seed=0)
     env = mate.make('MATE-2v4-0-v0')

@@ -1,4 +1,4 @@
-"""Training under a perturbed channel (mate.learn.comm.Channel; the `message_dropout` / `communication_range` /
+"""Training under a perturbed channel (mate.policies.comm.Channel; the `message_dropout` / `communication_range` /
 `message_delay` options of mate.learn.tarmac and mate.learn.i2c): what a receiver reads when a delivery is lost, the
 masks' draws, the update's replay of the rollout's masks, the range test on positions, the settings in the
 checkpoint and the command's errors."""
@@ -11,8 +11,8 @@ import torch
 
 from mate.constants import PRESERVED_DIM
 from mate.learn import i2c, tarmac
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.comm import Channel, I2CActor, TarMACActor, channel_difference, check_channel, cyclic_teammates
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.comm import Channel, I2CActor, TarMACActor, channel_difference, check_channel, cyclic_teammates
 from mate.learn.mappo import MAPPOConfig
 
 from .toy import CueExchange
@@ -273,7 +273,7 @@ def test_bad_settings_are_refused(tmp_path):
 
 def _command_error(capsys, *arguments) -> str:
     """The first line of what `mate train ARGUMENTS` says on stderr when it refuses them (exit status 2)."""
-    from mate.cli import main
+    from mate.cli.main import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(['train', *arguments])
@@ -294,7 +294,7 @@ def test_command_errors(arguments, message, capsys):
 
 def test_command_options_reach_the_config():
     from mate.learn.command import trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     def config_of(algo, argv):
         parser, _, config_class = trainer_parser(algo)
@@ -307,7 +307,7 @@ def test_command_options_reach_the_config():
 
 
 def test_mate_train_under_a_perturbed_channel(tmp_path, capsys):
-    from mate.cli import main
+    from mate.cli.main import main
 
     run_dir = tmp_path / 'run'
     assert main(['train', 'tarmac', '--team', 'target', '--config', 'MATE-2v4-0', '--lstm', '8', '--steps', '8',
@@ -353,7 +353,7 @@ def test_a_delay_makes_teammates_read_older_messages_and_the_own_message_the_las
     # delay 0 is the plain actor; sequences with episode starts inside equal the steps (the queue restarts too)
     torch.testing.assert_close(_delayed(0)(obs, plain.initial_state(2, 3), torch.zeros(4, 2, dtype=torch.bool)),
                                plain(obs, plain.initial_state(2, 3), torch.zeros(4, 2, dtype=torch.bool)))
-    from mate.learn.networks import restarted
+    from mate.policies.networks import restarted
 
     starts = torch.tensor([[False, False], [False, True], [True, False], [False, False]])
     start_state = tuple(torch.randn_like(part) for part in actor.initial_state(2, 3))

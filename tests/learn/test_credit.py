@@ -208,7 +208,7 @@ def test_a_first_format_checkpoint_is_refused_in_one_line(tmp_path):
 
 def test_cli_credit_option(capsys):
     from mate.learn.command import trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     parser, _, config_class = trainer_parser('mappo')
 

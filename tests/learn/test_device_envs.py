@@ -16,10 +16,10 @@ from conftest import needs_extra, run_simulated
 
 from mate.agents.utils import normalize_observation
 from mate.learn.envs import TrainingEnv, compress, device_unsupported
-from mate.learn.memory import SightingMemory
+from mate.policies.memory import SightingMemory
 from mate.learn.mappo import MAPPOConfig, policy_spec
-from mate.learn.spec import PolicySpec
-from mate.vector import make_vec
+from mate.policies.spec import PolicySpec
+from mate.envs.vector import make_vec
 
 
 def _played(preset: str, steps: int = 12, seed: int = 0):
@@ -119,7 +119,7 @@ from resume import assert_same_run, stopped_and_resumed
 from mate.learn.envs import TrainingEnv
 from mate.learn.mappo import MAPPOConfig, policy_spec, train
 from mate.learn.run import TIMING_COLUMNS
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 from mate.teams.device import HostTeam
 
 def host_twin(team):

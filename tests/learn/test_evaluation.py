@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from mate.learn.checkpoint import load_checkpoint
+from mate.policies.checkpoint import load_checkpoint
 from mate.learn.evaluation import ABSOLUTE_SEEDS, EVALUATION_SEEDS, evaluate_policy, read_evaluations
 from mate.learn.mappo import MAPPOConfig, train
-from mate.learn.policy import load_policy, pretrained_path
+from mate.policies.policy import load_policy, pretrained_path
 
 from .resume import assert_same_run, stopped_and_resumed
 

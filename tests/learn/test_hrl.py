@@ -5,7 +5,7 @@ import mate
 from mate.agents.greedy import desired_viewing_angle
 from mate.learn import PolicyCameraAgent
 from mate.learn.envs import TeamEnvConfig
-from mate.learn.hrl import executor_actions
+from mate.policies.hrl import executor_actions
 from mate.learn.mappo import MAPPOConfig, train
 
 
@@ -93,8 +93,8 @@ def test_joint_selections_never_keep_an_unseen_target():
     """`PolicySpec.choose` of an 'hrl-joint' policy (one head of 2^Nt subsets): argmax and samples only ever pick a
     subset of the targets the camera sees, however large the masked-out logits; decode aims as the per-target
     selection of the same bits does."""
-    from mate.learn.hrl import selection_bits
-    from mate.learn.spec import PolicySpec
+    from mate.policies.hrl import selection_bits
+    from mate.policies.spec import PolicySpec
 
     joint = PolicySpec.for_game('camera', 'MATE-4v8-0-v0', frame_skip=5, action='hrl-joint', network='mlp')
     per_target = joint.replace(action='hrl')
@@ -118,7 +118,7 @@ def test_joint_selections_never_keep_an_unseen_target():
 def test_joint_allowed_is_the_bit_by_bit_subset_test(shape):
     """`joint_allowed` (one integer test per choice against the visibility word) gives what testing every choice's
     Nt bits against the flags one by one gives: the selections whose kept targets are all visible."""
-    from mate.learn.hrl import joint_allowed, selection_bits
+    from mate.policies.hrl import joint_allowed, selection_bits
 
     visible = np.random.default_rng(len(shape)).random(shape) < 0.4
     bits = selection_bits(shape[-1]).astype(bool)                              # (2^Nt, Nt)

@@ -1,4 +1,4 @@
-"""I2C (mate.learn.comm, mate.learn.i2c): causal-influence labels and their median threshold on hand-made Q-values,
+"""I2C (mate.policies.comm, mate.learn.i2c): causal-influence labels and their median threshold on hand-made Q-values,
 the prior's mask, the regulariser over actions, training, checkpoints and what the trainer refuses, the command
 line, and deployed agents (batched, and single agents that ask and answer through the env's channel computing what
 the training network computes)."""
@@ -12,12 +12,12 @@ import torch
 
 import mate
 from mate.learn import tarmac
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.comm import (I2CActor, I2CTraining, InfluenceThreshold, JointActionValue, causal_influence,
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.comm import (I2CActor, I2CTraining, InfluenceThreshold, JointActionValue, causal_influence,
                              cyclic_teammates, policy_correlation)
 from mate.learn.i2c import I2CConfig, policy_spec, train
-from mate.learn.policy import make_actor
-from mate.learn.spec import PolicySpec
+from mate.policies.policy import make_actor
+from mate.policies.spec import PolicySpec
 
 
 # ---------------------------------------------------------------------------- labels and threshold
@@ -155,7 +155,7 @@ def test_the_unrolled_lstm_computes_what_indexing_each_decision_computes_forward
     """`I2CActor.forward` takes the sequence's input gates apart with `unbind` (one gradient stacked at the end);
     its logits and every parameter's gradient are bitwise those of the unroll that indexed `gates[t]` at each
     decision (whose backward added T zero-padded gradients of the whole sequence)."""
-    from mate.learn.networks import restarted
+    from mate.policies.networks import restarted
 
     actor = _actor(seed=2)
     obs = torch.randn(6, 3, 3, 5)
@@ -244,7 +244,7 @@ def test_i2c_checkpoints_resume_and_refuse_another_trainer(tmp_path):
 
 
 def test_i2c_policies_play_batched_and_as_agents(tmp_path):
-    from mate.learn.policy import PolicyTeam, load_policy
+    from mate.policies.policy import PolicyTeam, load_policy
     from mate.teams import make_team, play_batch
 
     train(_config(tmp_path))
@@ -258,7 +258,7 @@ def test_i2c_policies_play_batched_and_as_agents(tmp_path):
     assert [r.episode_length for r in results] == [30, 30]
     assert targets.memory[0].shape == (2, 4, 16) and targets.memory[0].abs().sum() > 0
 
-    from mate.cli import main      # `mate evaluate` plays it: single agents through the channel, and batched
+    from mate.cli.main import main      # `mate evaluate` plays it: single agents through the channel, and batched
     for batched in ([], ['--batched']):
         assert main(['evaluate', '--config', 'MATE-2v4-0', '--target-agent', f'checkpoint:{tmp_path / "final.pt"}',
                      '--episodes', '1', '--max-episode-steps', '12', '--no-render', *batched]) == 0
@@ -288,7 +288,7 @@ def test_i2c_refuses_what_it_does_not_support(tmp_path):
 
 def _command_error(capsys, *arguments) -> str:
     """The first line of what `mate train ARGUMENTS` says on stderr when it refuses them (exit status 2)."""
-    from mate.cli import main
+    from mate.cli.main import main
 
     with pytest.raises(SystemExit) as exit_info:
         main(['train', *arguments])
@@ -297,7 +297,7 @@ def _command_error(capsys, *arguments) -> str:
 
 
 def test_mate_train_i2c(tmp_path, capsys):
-    from mate.cli import main
+    from mate.cli.main import main
 
     run_dir = tmp_path / 'run'
     assert main(['train', 'i2c', '--team', 'target', '--config', 'MATE-2v4-0', '--lstm', '8', '--steps', '8',

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from mate.cli import main
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.hrl import joint_allowed, selection_bits
+from mate.cli.main import main
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.hrl import joint_allowed, selection_bits
 from mate.learn.iql import IQLConfig, train
-from mate.learn.networks import DuelingQNetwork
+from mate.policies.networks import DuelingQNetwork
 from mate.learn.qlearning import double_q_targets, epsilon_greedy
 from mate.learn.replay import ReplayBuffer
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 
 from .toy import CueMatching
 
@@ -124,7 +124,7 @@ def test_iql_checkpoints_resume_and_refuse_another_experiment(tmp_path):
 
 def test_iql_keeps_snapshots_that_load_as_policies(tmp_path):
     """`--snapshot-every` is the run's (`RunConfig`), not PPO's: every trainer keeps its policy every N iterations."""
-    from mate.learn.policy import load_policy
+    from mate.policies.policy import load_policy
 
     train(IQLConfig(**SMALL, snapshot_every=2, run_dir=str(tmp_path)))          # 3 iterations of 80 decision steps
     assert sorted(p.name for p in (tmp_path / 'snapshots').iterdir()) == ['policy-0000000160.pt']
@@ -133,7 +133,7 @@ def test_iql_keeps_snapshots_that_load_as_policies(tmp_path):
 
 
 def test_iql_policy_plays_in_mate_evaluate(tmp_path):
-    from mate.learn.policy import PolicyTeam, load_policy, make_team
+    from mate.policies.policy import PolicyTeam, load_policy, make_team
     from mate.teams import play_batch
 
     train(IQLConfig(**SMALL, run_dir=str(tmp_path)))
@@ -180,9 +180,9 @@ def test_hrl_joint_selection_trains_one_of_2_to_the_nt_choices(tmp_path):
 
 def test_hrl_joint_iql_plays_only_selections_of_visible_targets(tmp_path):
     import mate
-    from mate.learn.policy import PolicyCameraAgent, PolicyTeam, load_policy, make_team
+    from mate.policies.policy import PolicyCameraAgent, PolicyTeam, load_policy, make_team
     from mate.teams import play_batch
-    from mate.learn.hrl import target_records
+    from mate.policies.hrl import target_records
 
     train(IQLConfig(**HRL_JOINT, run_dir=str(tmp_path)))
     policy = load_policy(tmp_path / 'final.pt', 'camera')

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from mate.cli import main
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
+from mate.cli.main import main
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.matd3 import (
     MATD3Config, TwinCritics, actor_inputs, critic_inputs, critic_targets, policy_spec, smoothed_actions, train,
 )
-from mate.learn.networks import AgentwiseMLP
-from mate.learn.spec import PolicySpec, SpecError, action_high
+from mate.policies.networks import AgentwiseMLP
+from mate.policies.spec import PolicySpec, SpecError, action_high
 
 from .toy import ContinuousCue
 
@@ -143,7 +143,7 @@ def test_maddpg_checkpoints_resume_and_refuse_another_experiment(tmp_path):
 
 def test_maddpg_policy_plays_in_mate_evaluate(tmp_path):
     import mate
-    from mate.learn.policy import PolicyTargetAgent, PolicyTeam, load_policy, make_team
+    from mate.policies.policy import PolicyTargetAgent, PolicyTeam, load_policy, make_team
     from mate.teams import play_batch
 
     train(MATD3Config(**SMALL, run_dir=str(tmp_path)))

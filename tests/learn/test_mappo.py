@@ -4,10 +4,10 @@ KL penalty, the time budget, the files of a run, warm starts, devices and exact 
 import pytest
 import torch
 
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.mappo import MAPPOConfig, policy_spec, train
 from mate.learn.ppo_loop import critic_input_dim, critic_inputs, critic_outputs, per_agent
-from mate.learn.policy import load_policy
+from mate.policies.policy import load_policy
 
 from .resume import assert_same_run, stopped_and_resumed
 from .toy import CueMatching, CueRecall
@@ -148,7 +148,7 @@ def test_devices_are_checked():
     with pytest.raises(ValueError, match='device must be auto, cpu, cuda or cuda:N'):
         MAPPOConfig(device='gpu')
     if not torch.cuda.is_available():
-        from mate.learn.device import resolve_device
+        from mate.policies.device import resolve_device
 
         with pytest.raises(ValueError, match='--device cuda: PyTorch sees no CUDA GPU here'):
             resolve_device('cuda')

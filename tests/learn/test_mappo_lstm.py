@@ -5,9 +5,9 @@ resumes: test_resume_recurrent.py."""
 import pytest
 import torch
 
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.mappo_lstm import RecurrentConfig, policy_spec, train
-from mate.learn.networks import Actor, RecurrentActor
+from mate.policies.networks import Actor, RecurrentActor
 
 from .toy import CueMatching, CueRecall
 
@@ -114,7 +114,7 @@ def test_recurrent_mappo_as_critic_reads_state_and_own_observation(tmp_path):
 
 
 def test_mate_train_mappo_lstm(tmp_path, capsys):
-    from mate.cli import main
+    from mate.cli.main import main
 
     run_dir = tmp_path / 'run'
     assert main(['train', 'mappo-lstm', '--team', 'target', '--config', 'MATE-2v4-0', '--lstm', '8', '--steps', '8',

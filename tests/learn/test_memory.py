@@ -10,9 +10,9 @@ from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
 from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.learn.mappo import MAPPOConfig, train
-from mate.learn.memory import MEMORY_FEATURES, SightingMemory
-from mate.learn.networks import PerTargetActor
-from mate.learn.spec import PolicySpec, SpecError
+from mate.policies.memory import MEMORY_FEATURES, SightingMemory
+from mate.policies.networks import PerTargetActor
+from mate.policies.spec import PolicySpec, SpecError
 from mate.spaces import observation_indices_of
 
 COUNTS = (2, 3, 0)
@@ -182,7 +182,7 @@ def test_agents_rebuild_the_training_memory_through_messages(memory_policy):
 
 def test_train_command_validates_memory(capsys):
     from mate.learn.command import trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     parser, _, config_class = trainer_parser('mappo')
 

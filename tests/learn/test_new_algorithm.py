@@ -12,8 +12,8 @@ import torch
 from torch import nn
 
 from mate.learn import ppo_loop
-from mate.learn.actors import NETWORK_KINDS, register_network
-from mate.learn.policy import load_policy, make_actor
+from mate.policies.actors import NETWORK_KINDS, register_network
+from mate.policies.policy import load_policy, make_actor
 from mate.learn.ppo import PPOConfig
 
 from .resume import assert_same_run, stopped_and_resumed
@@ -91,7 +91,7 @@ def test_the_new_actors_run_on_a_game_resumes_exactly(tmp_path, registered):
 
 
 def test_a_registered_name_is_the_specs_and_a_taken_one_is_refused(registered):
-    from mate.learn.spec import SpecError
+    from mate.policies.spec import SpecError
     from .toy import toy_spec
 
     spec = toy_spec(CueMatching(num_envs=2, num_agents=2, num_actions=4)).replace(network='toy-linear')

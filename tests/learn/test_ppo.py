@@ -7,7 +7,7 @@ import re
 import pytest
 import torch
 
-from mate.learn.networks import Actor
+from mate.policies.networks import Actor
 from mate.learn.ppo import (
     ValueNormalizer,
     adapt_kl_coeff,

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import mate
-from mate.evaluate import play_episode, resolve_agent
-from mate.learn.policy import PRETRAINED_DIR, load_agent, load_policy
-from mate.learn.spec import PolicySpec
+from mate.evaluation.evaluate import play_episode, resolve_agent
+from mate.policies.policy import PRETRAINED_DIR, load_agent, load_policy
+from mate.policies.spec import PolicySpec
 from mate.messages import Team
 
 SHIPPED = sorted(p.stem for p in PRETRAINED_DIR.glob('*.pt'))

@@ -15,17 +15,17 @@ import torch
 import pytest
 
 import mate
-from mate.cli import main
-from mate.learn.checkpoint import load_checkpoint
+from mate.cli.main import main
+from mate.policies.checkpoint import load_checkpoint
 from mate.learn.envs import TeamEnvConfig, mixed_camera_reward
 from mate.learn.mappo import MAPPOConfig, train
-from mate.learn.policy import PolicyTeam, pretrained_path
+from mate.policies.policy import PolicyTeam, pretrained_path
 from mate.learn.population.jobs import best_response, payoff_entries, policy_from_bytes, rescaled_schedules
 from mate.learn.population.psro import (LocalRunner, PSROError, PSROSettings, RayRunner, TrainingWatch, load_state,
                                       run_psro)
-from mate.progress import logged_steps
+from mate.cli.progress import logged_steps
 from mate.learn.population.solvers import exploitability
-from mate.learn.spec import discrete_to_continuous
+from mate.policies.spec import discrete_to_continuous
 from mate.teams import MixtureTeam, RandomTeam, play_batch
 
 from conftest import needs_extra
@@ -232,7 +232,7 @@ def test_psro_end_to_end_then_plots(tmp_path, capsys):
 STALLING_DRIVER = """
 import sys, time
 from pathlib import Path
-from mate.cli import main
+from mate.cli.main import main
 from mate.learn.population import jobs
 started, train_best_response = Path(sys.argv[1]), jobs.best_response
 
@@ -270,7 +270,7 @@ def test_psro_resumes_after_a_kill(tmp_path):
     assert before['pools']['camera'] == ['random', 'players/camera-1.pt']
     camera_policy = (out / 'players/camera-1.pt').read_bytes()
 
-    resumed = subprocess.run([sys.executable, '-m', 'mate.cli', *arguments], capture_output=True, text=True, env=env)
+    resumed = subprocess.run([sys.executable, '-m', 'mate', *arguments], capture_output=True, text=True, env=env)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     assert 'resuming' in resumed.stdout and 'training the target best response' in resumed.stdout
     assert 'training the camera and target' not in resumed.stdout.split('iteration 2')[0]   # camera 1 not retrained

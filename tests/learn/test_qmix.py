@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from mate.cli import main
+from mate.cli.main import main
 from mate.learn import iql
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
-from mate.learn.networks import RecurrentQNetwork
-from mate.learn.policy import make_actor
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.networks import RecurrentQNetwork
+from mate.policies.policy import make_actor
 from mate.learn.qmix import QMIXConfig, QMixer, qmix_loss, train
 from mate.learn.replay import SequenceReplay
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 
 from .toy import TwoStepGame
 
@@ -167,7 +167,7 @@ def test_qmix_checkpoints_resume_and_refuse_another_experiment(tmp_path):
 
 
 def test_qmix_policy_plays_in_mate_evaluate(tmp_path):
-    from mate.learn.policy import PolicyTeam, load_policy, make_team
+    from mate.policies.policy import PolicyTeam, load_policy, make_team
     from mate.teams import play_batch
 
     train(QMIXConfig(**SMALL, run_dir=str(tmp_path)))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mate.learn import iql, matd3, qmix
-from mate.learn.checkpoint import load_checkpoint
+from mate.policies.checkpoint import load_checkpoint
 
 from .resume import assert_same_run, stopped_and_resumed
 

@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from mate.learn import i2c, mappo_lstm, tarmac
-from mate.learn.checkpoint import load_checkpoint, save_checkpoint
+from mate.policies.checkpoint import load_checkpoint, save_checkpoint
 
 from .resume import assert_same_run, stopped_and_resumed
 

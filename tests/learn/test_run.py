@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from conftest import needs_extra
-from mate.learn.checkpoint import CheckpointError, load_checkpoint
+from mate.policies.checkpoint import CheckpointError, load_checkpoint
 from mate.learn.run import TENSORBOARD_MISSING, Run
 
 from .toy import CueMatching
@@ -115,7 +115,7 @@ class _RecordingEnvs:
 def test_first_observations_continue_the_saved_episodes_or_reset_with_a_session_seed(tmp_path):
     from types import SimpleNamespace
 
-    from mate.protocol import SEED_BLOCK, training_reset_seed
+    from mate.evaluation.protocol import SEED_BLOCK, training_reset_seed
 
     run = Run(tmp_path, 'toy', SimpleNamespace(seed=7), SPEC, total_steps=100)
     envs = _RecordingEnvs()

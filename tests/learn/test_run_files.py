@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from mate.cli import main
+from mate.cli.main import main
 from mate.learn.run import config_hash
 
 pytest.importorskip('torch', reason='needs the train extra')

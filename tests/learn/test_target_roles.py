@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import mate
-from mate.learn.policy import PolicyTargetAgent, load_policy
-from mate.render import Renderer
+from mate.policies.policy import PolicyTargetAgent, load_policy
+from mate.envs.render import Renderer
 from modules import load_script
 
 roles_script = load_script('target_roles')
@@ -185,7 +185,7 @@ def _exit_status(argv) -> int:
 
 
 def test_mate_evaluate_render_communication(tmp_path):
-    from mate.cli import main
+    from mate.cli.main import main
     gif = tmp_path / 'talk.gif'
     assert main(['evaluate', '--config', 'MATE-2v4-0', '--episodes', '1', '--max-episode-steps', '6',
                  '--render-communication', '1', '--message-kinds', '--save-gif', str(gif), '--frame-size', '100',

@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from mate.cli import main
-from mate.learn.checkpoint import load_checkpoint
+from mate.cli.main import main
+from mate.policies.checkpoint import load_checkpoint
 from mate.learn.command import TRAINERS, trainer_parser
 from mate.learn.mappo import MAPPOConfig, train
 

@@ -10,9 +10,9 @@ from mate.constants import PRESERVED_DIM
 from mate.learn import PolicyCameraAgent, load_checkpoint, load_policy
 from mate.learn.envs import TeamEnvConfig
 from mate.learn.mappo import MAPPOConfig, train
-from mate.learn.networks import PerTargetActor
-from mate.learn.spec import PolicySpec, SpecError, preprocess_observation
-from mate.learn.velocity import VELOCITY_FEATURES, target_displacements
+from mate.policies.networks import PerTargetActor
+from mate.policies.spec import PolicySpec, SpecError, preprocess_observation
+from mate.policies.velocity import VELOCITY_FEATURES, target_displacements
 from mate.spaces import observation_indices_of
 
 COUNTS = (2, 3, 0)
@@ -163,7 +163,7 @@ def test_agents_feed_their_policy_the_training_columns(velocity_policy):
 
 def test_train_command_validates_velocity(capsys):
     from mate.learn.command import trainer_parser
-    from mate.options import config_from
+    from mate.cli.options import config_from
 
     parser, _, config_class = trainer_parser('mappo')
 

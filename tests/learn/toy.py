@@ -4,7 +4,7 @@ matrix game, continuous targets. Each has a `spec` (`toy_spec`): what its policy
 
 import numpy as np
 
-from mate.learn.spec import PolicySpec
+from mate.policies.spec import PolicySpec
 
 
 class ToyTask:

@@ -39,8 +39,8 @@ SIMULATED = """
 import json, sys
 import numpy as np
 import mate
-from mate.vector import FINAL_WORLD_KEYS, INFO_KEYS
-from mate.learn.hrl import executor_actions
+from mate.envs.vector import FINAL_WORLD_KEYS, INFO_KEYS
+from mate.policies.hrl import executor_actions
 from mate.spaces import observation_indices_of
 from mate.messages import Team
 from mate.teams.device import DeviceRuleTeam, device_team, host_act, host_reset, hrl_actions

@@ -3,7 +3,7 @@
 Both run the same compiled rules (`mate.teams.rules`); the batched teams replay the Python agents' random
 streams draw for draw (`mate.teams.streams`). So, row by row, a batched game is the game the Python
 agents play with the same seed: the same actions on the same observations (side by side, below), and
-`play_batch` returns the episodes `mate.evaluate.play_episode` plays.
+`play_batch` returns the episodes `mate.evaluation.evaluate.play_episode` plays.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 from mate.teams import (
     GreedyCameraTeam,
     GreedyTargetTeam,

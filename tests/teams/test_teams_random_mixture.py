@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mate
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 from mate.teams import BatchedTeam, GreedyTeam, MixtureTeam, RandomTeam, play_batch
 
 PRESET = 'MATE-4v8-9'

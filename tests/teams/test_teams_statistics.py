@@ -1,7 +1,7 @@
 """Greedy vs greedy, batched, over seeds 0..299 of MATE-4v8-9 scores like the Python agents.
 
 The reference (tests/data/greedy-4v8-9-python-300.json) holds the Python agents' coverage per seed
-(`tests/tools/greedy_reference.py`: `mate.evaluate.play_episode`, agents `Cls(seed=s).spawn(N)`). The batched
+(`tests/tools/greedy_reference.py`: `mate.evaluation.evaluate.play_episode`, agents `Cls(seed=s).spawn(N)`). The batched
 teams replay those agents draw for draw, so the means should agree to rounding; the test asks for the
 looser 3 standard errors of the reference, which also holds for any change that keeps the statistics.
 (The original MATE: 0.612 +- 0.048 over seeds 0..19, reference/groundtruth.md.)

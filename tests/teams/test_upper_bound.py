@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import mate
-from mate.cli import main
-from mate.evaluate import play_episode
+from mate.cli.main import main
+from mate.evaluation.evaluate import play_episode
 from mate.teams import GreedyTeam, UpperBoundTeam, make_team, play_batch
 from mate.teams.upper_bound import lookahead_times
 from mate.wrappers.enhanced_observation import empty_warehouses, enhance_observations

@@ -3,7 +3,7 @@ greedy teams are tested against (tests/teams/test_greedy_statistics.py).
 
     python tests/tools/greedy_reference.py [--seeds 300] [--json tests/data/greedy-4v8-9-python-300.json]
 
-Protocol (`mate evaluate`, reference/groundtruth.md): for seed s = 0, ..., S-1, `mate.evaluate.play_episode`
+Protocol (`mate evaluate`, reference/groundtruth.md): for seed s = 0, ..., S-1, `mate.evaluation.evaluate.play_episode`
 with a fresh MATE-4v8-9 env reset with seed s, `GreedyCameraAgent(seed=s).spawn(4)` and
 `GreedyTargetAgent(seed=s).spawn(8)`, at most 2000 steps. Writes every episode's coverage rate, their
 mean, sample standard deviation and standard error, with the date and the command line.
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 import mate
-from mate.evaluate import play_episode
+from mate.evaluation.evaluate import play_episode
 
 PRESET = 'MATE-4v8-9'
 MAX_STEPS = 2000
@@ -43,7 +43,8 @@ def main(argv=None) -> int:
     values = np.array(coverage)
     std = float(values.std(ddof=1))
     report = {
-        'what': 'greedy cameras vs greedy targets, Python agents (mate.evaluate.play_episode), one episode per seed',
+        'what': 'greedy cameras vs greedy targets, Python agents (mate.evaluation.evaluate.play_episode), '
+                'one episode per seed',
         'preset': PRESET, 'max_steps': MAX_STEPS, 'seeds': list(range(args.seeds)),
         'coverage_rate': coverage, 'mean': float(values.mean()), 'std': std,
         'standard_error': std / float(np.sqrt(len(values))),

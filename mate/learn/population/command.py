@@ -10,7 +10,7 @@ import os
 import signal
 from pathlib import Path
 
-from ...arguments import CommandError, non_negative_int, positive_int, resolving_arguments
+from ...cli.arguments import CommandError, non_negative_int, positive_int, resolving_arguments
 from .jobs import TARGET_CREDITS
 from .solvers import SOLVERS
 
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace, console) -> int:
     except ImportError as exc:
         raise CommandError(f"needs PyTorch ({exc}); install the training extra: pip install 'mate[train]'") from None
     from ...config import ConfigError
-    from ...runners import JobFailed, RunnerError
+    from ...tools.runners import JobFailed, RunnerError
 
     settings = PSROSettings(solver=args.solver, config=args.config, iterations=args.iterations, br_steps=args.br_steps,
                             eval_episodes=args.eval_episodes, eval_steps=args.eval_steps, seed=args.seed,
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace, console) -> int:
     if args.address and args.workers is not None:
         raise CommandError('--workers is for local processes; with --address Ray places the jobs')
     workers = args.workers or min(2, os.cpu_count() or 1)
-    from ..device import resolve_device
+    from ...policies.device import resolve_device
 
     on_gpus = bool(args.address) and str(args.device).startswith('cuda')
     if not on_gpus:     # (on a cluster the GPUs are the workers': the runner checks that the cluster has some)

@@ -7,7 +7,7 @@
 
 Pool members travel as *payloads*: a batched agent name of `mate evaluate` ('random', 'greedy',
 'pretrained:NAME') or the bytes of a policy file, so that a worker on another machine of a Ray cluster
-needs no shared file system. A worker turns a payload into a batched team (`mate.learn.policy.make_team`);
+needs no shared file system. A worker turns a payload into a batched team (`mate.policies.policy.make_team`);
 population members always sample their actions (they are stochastic policies).
 """
 
@@ -32,7 +32,7 @@ part of it."""
 def policy_from_bytes(data: bytes, team):
     """A `LoadedPolicy` from a policy file's bytes (read through a private temporary file, checked by
     `load_checkpoint` like any file)."""
-    from ..policy import load_policy
+    from ...policies.policy import load_policy
 
     with tempfile.TemporaryDirectory(prefix='mate-member-') as folder:
         path = Path(folder) / 'policy.pt'
@@ -43,7 +43,7 @@ def policy_from_bytes(data: bytes, team):
 def member_team(payload, team, num_envs: int, counts, seed: int | None, device='cpu'):
     """The batched team of one pool member: a policy file's bytes, or an agent name of `make_team` (a policy's
     forward passes on `device`)."""
-    from ..policy import PolicyTeam, make_team
+    from ...policies.policy import PolicyTeam, make_team
 
     if isinstance(payload, (bytes, bytearray)):
         return PolicyTeam(policy_from_bytes(bytes(payload), team), team, num_envs, counts, seed=seed,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...plotting import pyplot, save_figure
+from ...tools.plotting import pyplot, save_figure
 
 __all__ = ['SOLVER_NAMES', 'draw_meta_strategies', 'exploitability_table', 'meta_strategy_grid', 'plot_exploitability',
            'plot_meta_strategies']

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ...progress import logged_steps
-from ...runners import STOP, LocalRunner, RayRunner
-from ...protocol import EVALUATION_SEEDS, FRESH_SEEDS, PAYOFF_SEEDS, SEED_BLOCK, SEED_RANGES
+from ...cli.progress import logged_steps
+from ...tools.runners import STOP, LocalRunner, RayRunner
+from ...evaluation.protocol import EVALUATION_SEEDS, FRESH_SEEDS, PAYOFF_SEEDS, SEED_BLOCK, SEED_RANGES
 from .jobs import TARGET_CREDITS
 from .solvers import SOLVERS, exploitability, meta_strategies
 
@@ -114,7 +114,7 @@ class PSROSettings:
 
 def env_of(config: str) -> dict:
     """{'env_id', 'config'} of a preset name (registered ID) or a config file."""
-    from ...registration import registered_ids
+    from ...envs.registration import registered_ids
 
     name = str(config).removesuffix('-v0')
     if f'{name}-v0' in registered_ids():
@@ -205,10 +205,10 @@ def run_psro(settings: PSROSettings, out, runner=None, say: Callable[[str], None
              device: str = 'auto') -> dict:
     """Run (or resume) the population run of `settings` in the directory `out`; returns the final state.
 
-    `runner`: `LocalRunner` (default: in this process), `ThreadRunner` or `RayRunner` (`mate.runners`). `say(line)`
-    receives one line per stage. `device`: where the best responses train (`--device`). PSROError if `out` holds a
-    run with other settings. KeyboardInterrupt when a signal stopped it (every finished stage is saved: run it
-    again). `mate.runners.JobFailed` naming the jobs that raised (the other jobs of the stage finish and are saved
+    `runner`: `LocalRunner` (default: in this process), `ThreadRunner` or `RayRunner` (`mate.tools.runners`).
+    `say(line)` receives one line per stage. `device`: where the best responses train (`--device`). PSROError if `out`
+    holds a run with other settings. KeyboardInterrupt when a signal stopped it (every finished stage is saved: run it
+    again). `mate.tools.runners.JobFailed` naming the jobs that raised (the other jobs of the stage finish and are saved
     first; the same call resumes once the cause is fixed).
 
     The result depends on the settings only, not on the runner: each job is one best response or one payoff

@@ -20,7 +20,7 @@ cannot drift apart.
 Action kinds (`action`):
 
 * `'grid'`: one of `levels`^2 moves (one head);
-* `'hrl'`: cameras; one keep/ignore head (2 choices) per target slot, the rule executor of `mate.learn.hrl`
+* `'hrl'`: cameras; one keep/ignore head (2 choices) per target slot, the rule executor of `mate.policies.hrl`
   aims at the kept visible targets at every env step (closed loop);
 * `'hrl-joint'`: cameras; one head of 2^Nt choices, a subset of target slots (the spec's Discrete(256));
 * `'continuous'`: each agent's share of its step limits, in [-1, 1]^2 (MA-TD3);
@@ -47,7 +47,7 @@ from ..agents.utils import observation_scaling, relative_in_place, scale_in_plac
 from ..arrays import array_namespace, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import observation_indices_of
-from ..teams.protocol import action_high, as_team
+from ..teams.interface import action_high, as_team
 from ..wrappers.discrete_camera import square_grid
 from ..wrappers.discrete_target import disk_grid
 from .actors import network_kind
@@ -110,7 +110,7 @@ class PolicySpec:
         velocity: the target displacement columns (cameras).
         full_observability: the policy saw every entity (the `EnhancedObservation` wrapper; deploy it with
             `mate evaluate --enhanced-observation TEAM`).
-        network: a registered network (`mate.learn.actors.NETWORK_KINDS`).
+        network: a registered network (`mate.policies.actors.NETWORK_KINDS`).
         hidden: widths of the network's hidden layers.
         activation: 'tanh' or 'relu'.
         lstm: LSTM cells of a recurrent actor (0: feed-forward; TarMAC and I2C always have one).
@@ -177,7 +177,7 @@ class PolicySpec:
                  network: str = 'mlp', hidden=(256, 256), activation: str = 'tanh', lstm: int = 0, algo: str = '',
                  deterministic: bool = False) -> PolicySpec:
         """A spec for the game `env_id` (+ `config`), its counts and sizes read from the game's spaces."""
-        from ..vector import make_vec
+        from ..envs.vector import make_vec
 
         vec = make_vec(env_id, num_envs=1, config=config)
         counts = (vec.num_cameras, vec.num_targets, vec.num_obstacles)

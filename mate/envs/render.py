@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from .constants import NUM_WAREHOUSES, TARGET_STATE_DIM_PRIVATE, TERRAIN_SIZE, WAREHOUSE_RADIUS, WAREHOUSES
+from ..constants import NUM_WAREHOUSES, TARGET_STATE_DIM_PRIVATE, TERRAIN_SIZE, WAREHOUSE_RADIUS, WAREHOUSES
 
 __all__ = [
     'MIN_CAMERA_PIXELS', 'MIN_TARGET_PIXELS', 'TARGET_RENDER_SIZE', 'WAREHOUSE_COLORS', 'WINDOW_SIZE',
@@ -675,7 +675,7 @@ def _native_stderr(lines: list[str]):
             lines.extend(sink.read().decode(errors='replace').splitlines())
 
 
-_HEADLESS_HINT = ("use render_mode='rgb_array' (frames as arrays, e.g. for mate.video.save_gif) "
+_HEADLESS_HINT = ("use render_mode='rgb_array' (frames as arrays, e.g. for mate.tools.video.save_gif) "
                   'or set SDL_VIDEODRIVER=dummy to draw into an invisible window')
 
 

@@ -34,16 +34,16 @@ def _debugging(args: argparse.Namespace) -> bool:
 
 def _is_user_error(exc: BaseException) -> bool:
     """Whether `exc` reports a mistake in the command's input rather than a bug."""
-    from .config import ConfigError
+    from ..config import ConfigError
 
     if isinstance(exc, (CommandError, ConfigError, *USER_OS_ERRORS)):
         return True
-    checkpoint = sys.modules.get('mate.learn.checkpoint')   # imported if it raised (importing it needs torch)
+    checkpoint = sys.modules.get('mate.policies.checkpoint')   # imported if it raised (importing it needs torch)
     return checkpoint is not None and isinstance(exc, checkpoint.CheckpointError)
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from . import bench
+    from ..tools import bench
 
     batch_sizes = (1, 64, 1024) if args.quick else tuple(args.batch_sizes)
     seconds = 0.5 if args.quick else args.seconds
@@ -71,8 +71,8 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def _generate_config(args: argparse.Namespace) -> int:
-    from .generator import GENERATION_SECONDS, ITERATIONS, RESTARTS, check_config_path, generate_config, plot_config, \
-        write_config
+    from ..tools.generator import (GENERATION_SECONDS, ITERATIONS, RESTARTS, check_config_path, generate_config,
+                                   plot_config, write_config)
     from .progress import ProgressLine
 
     with resolving_arguments():
@@ -102,7 +102,7 @@ def _generate_config(args: argparse.Namespace) -> int:
 
 
 def _presets(args: argparse.Namespace) -> int:
-    from .config import list_presets, read_config
+    from ..config import list_presets, read_config
 
     table = Table(title='shipped presets')
     for column in ('preset', 'cameras', 'targets', 'obstacles', 'reward'):
@@ -118,20 +118,20 @@ def _presets(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    from . import evaluate_command
+    from ..evaluation.command import run
 
-    return evaluate_command.run(args)
+    return run(args)
 
 
 def _rllib_train(args: argparse.Namespace) -> int:
-    from .integrations import rllib_train
+    from ..integrations import rllib_train
 
     return rllib_train.run(args, console)
 
 
 def _train(args: argparse.Namespace) -> int:
     from .extras import require
-    from .learn import command
+    from ..learn import command
 
     require('train', 'mate train')
 
@@ -140,7 +140,7 @@ def _train(args: argparse.Namespace) -> int:
 
 def _psro(args: argparse.Namespace) -> int:
     from .extras import require
-    from .learn.population import command
+    from ..learn.population import command
 
     require('train', 'mate psro')
 
@@ -148,7 +148,7 @@ def _psro(args: argparse.Namespace) -> int:
 
 
 def _benchmark(args: argparse.Namespace) -> int:
-    from .benchmark import command
+    from ..benchmark import command
     from .extras import require
 
     require('train', 'mate benchmark')   # its jobs train, its reports need scipy's statistics and matplotlib
@@ -163,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog='mate', description='MATE: the Multi-Agent Tracking Environment', parents=[debug],
         epilog='A mistake in the arguments prints one line and exits with status 2; add --debug (mate --debug '
                'COMMAND ...) or set MATE_DEBUG=1 to see the traceback too.')
-    from .version import __version__
+    from ..version import __version__
     parser.add_argument('--version', action='version', version=f'mate {__version__}')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
@@ -181,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument('--json', default=None, help='also write the results to this JSON file')
     bench.set_defaults(run=_bench)
 
-    from .evaluate_command import DESCRIPTION as EVALUATE_DESCRIPTION, add_arguments as add_evaluate_arguments
+    from ..evaluation.command import DESCRIPTION as EVALUATE_DESCRIPTION, add_arguments as add_evaluate_arguments
     evaluate = command('evaluate', help='play camera agents against target agents and summarise the episodes',
                        description=EVALUATE_DESCRIPTION)
     add_evaluate_arguments(evaluate)
@@ -202,19 +202,19 @@ def build_parser() -> argparse.ArgumentParser:
     presets = command('presets', help='list the shipped configuration presets')
     presets.set_defaults(run=_presets)
 
-    from .integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
+    from ..integrations.rllib_train import add_arguments as add_rllib_train_arguments  # imports no Ray
     rllib_train = command('rllib-train',
                           help="train a team with RLlib's PPO as a mate train run (the witness; Ray RLlib)")
     add_rllib_train_arguments(rllib_train)
     rllib_train.set_defaults(run=_rllib_train)
 
-    from .learn.command import add_arguments as add_train_arguments  # imports no torch
+    from ..learn.command import add_arguments as add_train_arguments  # imports no torch
     train = command('train',
                     help='train MAPPO/IPPO/IQL/QMIX/MADDPG cameras or targets against greedy opponents (PyTorch)')
     add_train_arguments(train)
     train.set_defaults(run=_train)
 
-    from .learn.population.command import add_arguments as add_psro_arguments  # imports no torch
+    from ..learn.population.command import add_arguments as add_psro_arguments  # imports no torch
     psro = command('psro',
                    help='population training: PSRO-Nash, fictitious self-play or self-play, with exploitability',
                    description='Grow a camera pool and a target pool by best responses to the other pool\'s '
@@ -225,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_psro_arguments(psro)
     psro.set_defaults(run=_psro)
 
-    from .benchmark.command import add_arguments as add_benchmark_arguments  # imports no torch
+    from ..benchmark.command import add_arguments as add_benchmark_arguments  # imports no torch
     benchmark = command('benchmark', help="the paper's experiments: list, run (resumable jobs), report (IQM, CIs, "
                                           'marl_eval.json)',
                         description="The paper's experiments as data: \"mate benchmark list\" names them, \"mate "
@@ -270,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-if __name__ == '__main__':   # `python -m mate.cli`: run the package's module, whose classes the commands import
-    from mate.cli import main as package_main
+if __name__ == '__main__':   # `python -m mate.cli.main`: run the package's module, whose classes the commands import
+    from mate.cli.main import main as package_main
 
     sys.exit(package_main())

@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .agents import (
+from ..agents import (
     CameraAgentBase,
     GreedyCameraAgent,
     GreedyTargetAgent,
@@ -36,8 +36,8 @@ from .agents import (
     group_reset,
     group_step,
 )
-from .messages import Team
-from .teams.play import EpisodeSummary
+from ..messages import Team
+from ..teams.play import EpisodeSummary
 
 BUILT_IN_AGENTS = {
     Team.CAMERA: {'random': RandomCameraAgent, 'naive': NaiveCameraAgent, 'greedy': GreedyCameraAgent,
@@ -60,7 +60,7 @@ def resolve_agent(spec: str, team: Team) -> Callable[..., Any]:
     prefix = spec.split(':', 1)[0]
     if prefix in ('checkpoint', 'pretrained'):
         try:
-            from .learn.policy import load_agent
+            from ..policies.policy import load_agent
         except ImportError as exc:
             raise ValueError(f'{spec!r}: loading learned policies needs the training extra '
                              f"(pip install 'mate[train]'): {exc}") from None
@@ -110,7 +110,7 @@ class FrameRecorder:
 
     def __init__(self, size: int = 600, every: int = 4, max_frames: int = 300, hud: bool = True,
                  max_episode_steps: int | None = None) -> None:
-        from .render import Renderer
+        from ..envs.render import Renderer
         self.renderer = Renderer('rgb_array', window_size=size, hud=hud)
         self.every, self.max_frames, self.frames = every, max_frames, []
         self.max_episode_steps = max_episode_steps
@@ -213,19 +213,19 @@ def has_batched_team(agent: str) -> bool:
 def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: dict | None = None,
                  device: str = 'cpu'):
     """The batched team of `mate evaluate`'s agent name `agent` for `team` (random, greedy, upper-bound: `mate.teams`;
-    checkpoint:PATH, pretrained:NAME: `mate.learn.policy.PolicyTeam`; `kwargs`: the agents' options, e.g.
+    checkpoint:PATH, pretrained:NAME: `mate.policies.policy.PolicyTeam`; `kwargs`: the agents' options, e.g.
     `frame_skip`, `memory_period`, and `deterministic` for policies) for `episodes` games of `env`'s sizes, seeded
     with `seed`: row i plays as the agents of `play_episode`'s episode i (for the rule agents, the same episode);
     a policy's forward passes run on `device`. ValueError for an unknown agent or one without a batched version;
     TypeError/ValueError for bad options."""
-    from . import teams
+    from .. import teams
 
     resolve_agent(agent, team)                       # unknown names: the usual message
     counts = (env.num_cameras, env.num_targets, env.num_obstacles)
     if agent in teams.RULE_TEAMS:
         return teams.make_team(agent, team, episodes, counts, seed=seed, **(kwargs or {}))
     try:
-        from .learn.policy import make_team
+        from ..policies.policy import make_team
     except ImportError as exc:
         raise ValueError(f"{agent}: batched policies need the training extra (pip install 'mate[train]'): "
                          f'{exc}') from None
@@ -245,7 +245,7 @@ def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: 
     """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
     (`batched_teams`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
     game's frames (a team that reads the true state, `UpperBoundTeam`, watches the vector env: `play_batch`)."""
-    from .teams import play_batch
+    from ..teams import play_batch
     if max_steps < 1:
         raise ValueError(f'max_steps must be at least 1, got {max_steps}')
     batch, timing = play_batch(config, cameras, targets, episodes, seed, max_steps, progress,

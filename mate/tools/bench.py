@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import read_config
-from .constants import camera_observation_dim, target_observation_dim
-from .core import engine
-from .core.params import params_from_config
-from .core.world import empty_world
-from .env import MultiAgentTracking
+from ..config import read_config
+from ..constants import camera_observation_dim, target_observation_dim
+from ..core import engine
+from ..core.params import params_from_config
+from ..core.world import empty_world
+from ..envs.multi_agent_tracking import MultiAgentTracking
 
 ORIGINAL_STEPS_PER_SECOND = {'MATE-4v8-9': 731, 'MATE-8v8-9': 503}
 """The original MATE's single-env speed with random actions on our machines (reference/groundtruth.md)."""
@@ -99,7 +99,7 @@ def measure_vector_env(preset: str, batch_size: int, seconds: float = 2.0, dtype
                        seed: int = 0) -> dict:
     """Env-steps/s of `mate.make_vec` with fresh random actions drawn every step (`sample_actions`,
     timed), rewards, flags, infos and autoresets included."""
-    from .vector import make_vec
+    from ..envs.vector import make_vec
 
     envs = make_vec(f'{preset}-v0', num_envs=batch_size, observation_dtype=dtype)
     envs.reset(seed=seed)

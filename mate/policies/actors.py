@@ -2,7 +2,7 @@
 
     register_network('my-actor', 'my_package.my_module:build')      # build(spec) -> torch.nn.Module
 
-Trainers build the network of their spec (`mate.learn.policy.make_actor`), checkpoints and policy files name it, and
+Trainers build the network of their spec (`mate.policies.policy.make_actor`), checkpoints and policy files name it, and
 the loaders build it again from the name: a network kind is one entry here. An entry says how to build it (a
 callable taking the `PolicySpec`, or 'module:function' imported on first use, so that this module and `PolicySpec`
 need no torch) and what the spec needs to know of it: the communication scheme its deployment agents speak, whether
@@ -59,13 +59,13 @@ class NetworkKind:
 
 
 NETWORK_KINDS: dict[str, NetworkKind] = {
-    'mlp': NetworkKind('mate.learn.networks:build_mlp_actor'),
-    'per-target': NetworkKind('mate.learn.networks:build_per_target_actor', team='camera'),
-    'tarmac': NetworkKind('mate.learn.comm:build_tarmac_actor', comm='tarmac', recurrent=True, needs_lstm=True),
-    'i2c': NetworkKind('mate.learn.comm:build_i2c_actor', comm='i2c', recurrent=True, needs_lstm=True),
-    'dueling': NetworkKind('mate.learn.networks:build_dueling_network', value_based=True),
-    'recurrent-q': NetworkKind('mate.learn.networks:build_recurrent_q_network', recurrent=True, value_based=True),
-    'independent': NetworkKind('mate.learn.networks:build_independent_actors', action='continuous', team_input=True),
+    'mlp': NetworkKind('mate.policies.networks:build_mlp_actor'),
+    'per-target': NetworkKind('mate.policies.networks:build_per_target_actor', team='camera'),
+    'tarmac': NetworkKind('mate.policies.comm:build_tarmac_actor', comm='tarmac', recurrent=True, needs_lstm=True),
+    'i2c': NetworkKind('mate.policies.comm:build_i2c_actor', comm='i2c', recurrent=True, needs_lstm=True),
+    'dueling': NetworkKind('mate.policies.networks:build_dueling_network', value_based=True),
+    'recurrent-q': NetworkKind('mate.policies.networks:build_recurrent_q_network', recurrent=True, value_based=True),
+    'independent': NetworkKind('mate.policies.networks:build_independent_actors', action='continuous', team_input=True),
 }
 """Every network a spec may name: a shared MLP, the camera per-target scorer (either with an LSTM when `lstm` > 0),
 the TarMAC and I2C communicating actors, IQL's dueling Q-network, QMIX's GRU agent network, MA-TD3's independent

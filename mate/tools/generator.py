@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .config import read_config
-from .constants import TERRAIN_SIZE
+from ..config import read_config
+from ..constants import TERRAIN_SIZE
 
 MESH_POINTS = 101
 RESTARTS = 3

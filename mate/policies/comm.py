@@ -25,8 +25,8 @@ with orthogonal rows of norm 1, as the spec says for TarMAC.
 The PPO critic of a TarMAC run (`mate.learn.ppo`) reads the N messages the agents read at each decision,
 appended to the global state (MAPPO) or to each agent's observation (IPPO), as the spec's critic does.
 
-At deployment the batched `mate.learn.policy.PolicyTeam` steps the whole team at once, exactly as here;
-single agents (`mate.learn.policy`) step one receiver on the N messages they got through the env's channel
+At deployment the batched `mate.policies.policy.PolicyTeam` steps the whole team at once, exactly as here;
+single agents (`mate.policies.policy`) step one receiver on the N messages they got through the env's channel
 (`mate.Message`s, so the communication wrappers act on them; a message that did not arrive reads as zeros).
 
 I2C ("individually inferred communication"): independent networks per agent, no delay, peer to peer.
@@ -83,7 +83,7 @@ class TarMACActor(nn.Module):
     `step(obs (B, N, D), state)` -> (logits (B, N, A), new state); the N agents of a row talk to each other.
     The receivers may be fewer than the senders: with obs (..., M, D), (h, c) (..., M, lstm) and messages
     (..., N, key + value), M receivers read the N messages and the new state's messages are the M receivers'
-    own (a single deployment agent: M = 1, `mate.learn.policy`).
+    own (a single deployment agent: M = 1, `mate.policies.policy`).
     `forward(obs (T, B, N, D), state, starts (T, B) bool)` -> logits (T, B, N, A): zeroes the state of the envs
     where `starts[t]` before decision t, then steps; differentiable through the messages.
     Both take `delivered` ((..., M, N) bool, (T, B, N, N) for `forward`; None: every message arrives): the
@@ -503,12 +503,12 @@ def channel_difference(saved: dict, wanted: dict) -> str | None:
 
 
 def build_tarmac_actor(spec) -> TarMACActor:
-    """The TarMAC actor of `spec` (network 'tarmac', `mate.learn.actors`)."""
+    """The TarMAC actor of `spec` (network 'tarmac', `mate.policies.actors`)."""
     return TarMACActor(spec.obs_dim, spec.num_actions, spec.hidden, spec.activation, spec.lstm)
 
 
 def build_i2c_actor(spec) -> I2CActor:
-    """The I2C actors of `spec`, one network per agent (network 'i2c', `mate.learn.actors`)."""
+    """The I2C actors of `spec`, one network per agent (network 'i2c', `mate.policies.actors`)."""
     return I2CActor(spec.num_agents, spec.obs_dim, spec.num_actions, spec.hidden, spec.activation, spec.lstm)
 
 

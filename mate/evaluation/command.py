@@ -1,7 +1,7 @@
 """`mate evaluate`: its options (`add_arguments`) and the command (`run`): play camera agents against target
 agents, batched in one vector env whenever both teams have a batched form, else one episode after the other in the
-single env, and summarise the episodes (`mate.evaluate` plays and summarises; this module reads the arguments,
-says what it does and writes the files)."""
+single env, and summarise the episodes (`mate.evaluation.evaluate` plays and summarises; this module reads the
+arguments, says what it does and writes the files)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
-from .arguments import CommandError, non_negative_int, number, positive_int, resolving_arguments
+from ..cli.arguments import CommandError, non_negative_int, number, positive_int, resolving_arguments
 
 __all__ = ['DEFAULT_GIF', 'DESCRIPTION', 'TEAM_CHOICES', 'add_arguments', 'require_torch_agents', 'run']
 
@@ -77,9 +77,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Evaluate as `args` (parsed by `add_arguments`) say; 0 when done."""
     from . import evaluate as ev
-    from .messages import Team
-    from .progress import ProgressLine
-    from .registration import make
+    from ..messages import Team
+    from ..cli.progress import ProgressLine
+    from ..envs.registration import make
 
     require_torch_agents((args.camera_agent, args.target_agent))
     batched, reason = _evaluation_path(args)
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
 
     recorder = _recorder(args)
     results = []
-    from .core.jit import compile_seconds
+    from ..core.jit import compile_seconds
 
     compiled = compile_seconds()
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
@@ -168,7 +168,7 @@ def _say_true_state(args: argparse.Namespace) -> None:
 
 def _policy_device(args: argparse.Namespace):
     """The torch device of `mate evaluate --device` for batched policies ('cpu' when no policy plays: no torch)."""
-    from .learn.device import parse_device, resolve_device   # imports no torch
+    from ..policies.device import parse_device, resolve_device   # imports no torch
 
     parse_device(args.device)
     agents = (args.camera_agent, args.target_agent)
@@ -180,7 +180,7 @@ def _policy_device(args: argparse.Namespace):
 
 def require_torch_agents(agents) -> None:
     """A one-line error when trained policies (`checkpoint:PATH`, `pretrained:NAME`) are asked for without torch."""
-    from .extras import require
+    from ..cli.extras import require
 
     for agent in agents:
         if agent.partition(':')[0] in ('checkpoint', 'pretrained'):
@@ -191,7 +191,7 @@ def _recorder(args: argparse.Namespace):
     """The frame recorder of the first episode, or None when nothing is recorded. Without the render extra the
     default GIF is left out with a note, while an explicit --save-gif or --save-video is a one-line error."""
     from . import evaluate as ev
-    from .extras import missing, require
+    from ..cli.extras import missing, require
 
     if args.save_gif is None:
         args.save_gif = DEFAULT_GIF
@@ -231,10 +231,10 @@ def _write_results(args: argparse.Namespace, results: list, summary: list[dict])
 
 def _evaluate_batched(args: argparse.Namespace) -> int:
     from . import evaluate as ev
-    from .progress import ProgressLine
-    from .registration import make
+    from ..cli.progress import ProgressLine
+    from ..envs.registration import make
 
-    from .messages import Team
+    from ..messages import Team
 
     with resolving_arguments():
         device = _policy_device(args)
@@ -256,7 +256,7 @@ def _evaluate_batched(args: argparse.Namespace) -> int:
                   f'targets: {args.target_agent} {target_kwargs or ""}')
     _say_true_state(args)
     recorder = _recorder(args)
-    from .core.jit import compile_seconds
+    from ..core.jit import compile_seconds
 
     compiled = compile_seconds()
     with ProgressLine('evaluating', total=args.episodes, console=console, transient=True) as progress:
@@ -284,9 +284,9 @@ def _json_kwargs(text: str, flag: str) -> dict:
 
 def _evaluation_wrappers(args: argparse.Namespace) -> list:
     """The single env's wrappers: those asked for, and `EnhancedObservation` on the cameras for camera agents that
-    see the true state (`mate.evaluate.SEES_TRUE_STATE`: upper-bound)."""
+    see the true state (`mate.evaluation.evaluate.SEES_TRUE_STATE`: upper-bound)."""
     from . import evaluate as ev
-    from . import wrappers
+    from .. import wrappers
     stack = []
     for flag, wrapper in (('enhanced_observation', wrappers.EnhancedObservation),
                           ('shared_field_of_view', wrappers.SharedFieldOfView),
@@ -323,7 +323,7 @@ def _print_summary(env, args: argparse.Namespace, summary: list[dict]) -> None:
 
 
 def _save_frames(frames: list, args: argparse.Namespace) -> None:
-    from .video import save_gif, save_video
+    from ..tools.video import save_gif, save_video
     fps = max(1, round(30 / args.frame_every))
     if args.save_gif:
         console.print(f'first episode ({len(frames)} frames) saved to {save_gif(frames, args.save_gif, fps=fps)}',

@@ -14,11 +14,11 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorRewardWrapper
 
 from . import registration
-from .core import engine
-from .core.snapshot import get_snapshot
-from .core.world import empty_world, episode_statistics, obstacle_states
-from .env import GameDescription, MultiAgentTracking
-from .messages import Team, as_team
+from ..core import engine
+from ..core.snapshot import get_snapshot
+from ..core.world import empty_world, episode_statistics, obstacle_states
+from .multi_agent_tracking import GameDescription, MultiAgentTracking
+from ..messages import Team, as_team
 from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
                               checked_team_actions, env_listing, row_seeds_of, uniform_actions, vector_spaces)
 
@@ -258,7 +258,8 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
 
     def get_world(self, index: int = 0) -> dict:
         """A snapshot of env `index`'s world as a dict of fresh arrays, as the single env's `get_world()` gives
-        (for rendering a row: `mate.render.Renderer.frame(vec.get_world(i), ...)`, or `set_world` of a single env)."""
+        (for rendering a row: `mate.envs.render.Renderer.frame(vec.get_world(i), ...)`, or `set_world` of a single
+        env)."""
         if not 0 <= int(index) < self.num_envs:
             raise IndexError(f'env index {index} out of range 0..{self.num_envs - 1}')
         return get_snapshot(self.params, self._world, int(index))
@@ -377,7 +378,7 @@ def make_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: A
     preset and keyword overrides are deep-merged, exactly as in `mate.make`.
 
     `device='cuda'` (or 'cuda:N' where numba-cuda sees it as the current device) gives the games on the GPU:
-    `mate.device_vector.DeviceVecEnv` (the gpu extra), the same Gymnasium `VectorEnv` API (spaces, `reset`,
+    `mate.envs.device_vector.DeviceVecEnv` (the gpu extra), the same Gymnasium `VectorEnv` API (spaces, `reset`,
     `step`, infos, autoreset NEXT_STEP or SAME_STEP, seeding) with torch tensors on the device for arrays (the rule
     teams there: `mate.teams.device.DeviceRuleTeam`). None or 'cpu': this module's env. Autoreset NEXT_STEP unless
     `autoreset_mode` says otherwise, on either."""

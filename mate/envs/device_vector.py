@@ -4,7 +4,7 @@
 (`mate.core.device.DeviceCore`): the world, the observations, the rewards and the flags stay on the GPU; `reset`
 and `step` launch kernels (one thread a game) and return torch tensors that view the device buffers
 (`__cuda_array_interface__`: no host round trip, no copy). Its API is the CPU env's
-(`mate.vector.MultiAgentTrackingVectorEnv`), so that a loop written on the CPU runs on the GPU by changing
+(`mate.envs.vector.MultiAgentTrackingVectorEnv`), so that a loop written on the CPU runs on the GPU by changing
 `device`:
 
     envs = mate.make_vec('MultiAgentTracking-v0', num_envs=65536, config='MATE-4v8-9', device='cuda')
@@ -55,10 +55,10 @@ import numpy as np
 from gymnasium.vector import VectorEnv
 
 from . import registration
-from .core.device import BLOCK, DeviceCore, from_torch, to_torch
-from .core.world import World, episode_statistics, obstacle_states
-from .env import GameDescription, MultiAgentTracking
-from .messages import Team
+from ..core.device import BLOCK, DeviceCore, from_torch, to_torch
+from ..core.world import World, episode_statistics, obstacle_states
+from .multi_agent_tracking import GameDescription, MultiAgentTracking
+from ..messages import Team
 from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
                               checked_team_actions, row_seeds_of, uniform_actions, vector_spaces)
 

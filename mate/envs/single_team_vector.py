@@ -68,10 +68,10 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from .arrays import array_namespace, as_kind_of, copied, host_copy, is_host, maybe_any
-from .messages import Team
-from .protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
-from .teams.protocol import as_team
+from ..arrays import array_namespace, as_kind_of, copied, host_copy, is_host, maybe_any
+from ..messages import Team
+from ..evaluation.protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
+from ..teams.interface import as_team
 from .vector import AutoresetMode, make_vec
 
 __all__ = ['DEVICE_OPPONENTS', 'EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'make_team_vec',
@@ -91,9 +91,9 @@ FINAL_KEYS = ('final_obs', '_final_obs', 'final_info', '_final_info')
 def opponent_factory(opponent, team: Team, options: dict | None = None, device: str | None = None,
                      block: int | None = None):
     """A factory f(num_envs, counts, seed) of the team that plays against `team` (module docstring;
-    `mate.protocol.agent_team_factory`, but the upper-bound cameras, which read the true state of a whole batch, are
-    no opponent). `options`: the built-in agent's options. `device` 'cuda': 'greedy' and 'random' as device teams
-    (`DeviceRuleTeam`, `block` threads a block); a factory there must make a team that plays tensors."""
+    `mate.evaluation.protocol.agent_team_factory`, but the upper-bound cameras, which read the true state of a whole
+    batch, are no opponent). `options`: the built-in agent's options. `device` 'cuda': 'greedy' and 'random' as device
+    teams (`DeviceRuleTeam`, `block` threads a block); a factory there must make a team that plays tensors."""
     other = Team.TARGET if team is Team.CAMERA else Team.CAMERA
     options = dict(options or {})
     if opponent == 'upper-bound':
@@ -107,14 +107,14 @@ def opponent_factory(opponent, team: Team, options: dict | None = None, device: 
         if opponent not in DEVICE_OPPONENTS:
             raise ValueError(f'on a device the opponent is one of {", ".join(DEVICE_OPPONENTS)} (or a factory of a '
                              f'team that plays tensors), got {opponent!r}')
-        from .core.device import BLOCK
-        from .teams.device import DeviceRuleTeam, device_team
+        from ..core.device import BLOCK
+        from ..teams.device import DeviceRuleTeam, device_team
 
         device_team(opponent, other, 1, (1, 1, 0), **options)     # bad options fail now, with the usual line
         return lambda num_envs, counts, seed: DeviceRuleTeam(opponent, other, num_envs, counts, seed=seed,
                                                              block=block or BLOCK, **options)
     if options:
-        from .teams import RULE_TEAMS, make_team
+        from ..teams import RULE_TEAMS, make_team
 
         if opponent not in RULE_TEAMS:
             raise ValueError(f'opponent_options are the options of a built-in opponent ({", ".join(RULE_TEAMS)}), '

@@ -98,14 +98,14 @@ class PerTargetActor(nn.Module):
     Input: camera observations processed as in training (relative coordinates, rescaled to [-1, 1]) of a
     game with `counts` = (Nc, Nt, No) entities.
 
-    With `memory` (the team's sighting memory of `mate.learn.memory` appended to the observation, 4
+    With `memory` (the team's sighting memory of `mate.policies.memory` appended to the observation, 4
     columns per slot), a slot is *present* when this camera sees the target or the team remembers it
     within this camera's maximum sight range (a target out of reach cannot be aimed at): the geometric
     features are computed at the remembered location, two more features give the memory's freshness and
     whether a teammate sees the target now (15 in all, zero for absent slots), and pooling and attention
     run over the present slots.
 
-    With `velocity` (each seen target's displacement over one held decision, `mate.learn.velocity`, 2
+    With `velocity` (each seen target's displacement over one held decision, `mate.policies.velocity`, 2
     columns per slot after the memory's), 4 more features: the displacement along and across the line
     of sight divided by the distance (the change of range and of bearing in radians over the hold,
     clipped to [-2, 2]), and the cosine and sine of the bearing of the predicted position (offset plus
@@ -488,7 +488,7 @@ class Critic(nn.Module):
         return values.squeeze(-1) if self.outputs == 1 else values
 
 
-# ============================================================================ builders (`mate.learn.actors`)
+# ============================================================================ builders (`mate.policies.actors`)
 
 def build_mlp_actor(spec) -> nn.Module:
     """The shared MLP actor of `spec` (network 'mlp'), inside a `RecurrentActor` when `spec.lstm` > 0."""

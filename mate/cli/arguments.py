@@ -2,7 +2,7 @@
 raises for a mistake in its arguments, and argparse types for numbers in a range.
 
 A mistake in the arguments (a number out of range, an unknown preset or agent, a bad checkpoint, a missing
-file) is reported by `mate.cli.main` in one line, `mate COMMAND: error: MESSAGE`, with exit status 2.
+file) is reported by `mate.cli.main.main` in one line, `mate COMMAND: error: MESSAGE`, with exit status 2.
 """
 
 from __future__ import annotations

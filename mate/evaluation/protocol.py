@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .teams.protocol import as_team
+from ..teams.interface import as_team
 
 __all__ = ['ABSOLUTE_FACTOR', 'ABSOLUTE_SEEDS', 'CallableTeam', 'EPISODE_INFO', 'EVALUATION_SEEDS', 'FRESH_SEEDS',
            'PAPER_SETTINGS', 'PAYOFF_SEEDS', 'PolicyScore', 'REFERENCES', 'REFERENCE_CACHE_FORMAT', 'RESET_SEED_STRIDE',
@@ -242,7 +242,7 @@ class PolicyScore:
 def play_policy_episodes(policy, team_factory, team: str, config: str, episodes: int, first_seed: int,
                          max_episode_steps: int, opponent: str, device: str) -> list[dict]:
     """`episodes` games on seeds first_seed, ... of the policy (or of `team_factory`) against `opponent`."""
-    from .teams import play_batch
+    from ..teams import play_batch
 
     own = _team_factory(policy, team_factory, team, first_seed, device)
     other = _team_factory(opponent, None, 'target' if team == 'camera' else 'camera', first_seed, device)
@@ -273,7 +273,7 @@ def agent_team_factory(agent, team, role: str = 'agent', device: str = 'cpu'):
         return agent
     if not isinstance(agent, str):
         raise TypeError(f'{role} must be an agent name or a factory f(num_envs, counts, seed); got {agent!r}')
-    from .teams import RULE_TEAMS, make_team
+    from ..teams import RULE_TEAMS, make_team
 
     if agent in RULE_TEAMS:
         make_team(agent, team, 1, (1, 1, 0))   # an unknown name or a wrong team fails now, with the usual line
@@ -281,10 +281,13 @@ def agent_team_factory(agent, team, role: str = 'agent', device: str = 'cpu'):
     if agent.partition(':')[0] not in ('pretrained', 'checkpoint'):
         raise ValueError(f'unknown {role} {agent!r}: use one of {", ".join(RULE_TEAMS)}, pretrained:NAME, '
                          'checkpoint:PATH or a factory f(num_envs, counts, seed)')
-    from .extras import missing
-    if missing('train'):
-        raise ValueError(f"the {role} {agent} needs the train extra: pip install 'mate[train]'")
-    from .learn.policy import make_team as make_policy_team
+    try:
+        from ..policies.policy import make_team as make_policy_team
+    except ModuleNotFoundError as exc:   # torch, which the train extra installs
+        if (exc.name or '').startswith('mate'):
+            raise
+        raise ValueError(f"the {role} {agent} needs the train extra (no module {exc.name!r}): "
+                         "pip install 'mate[train]'") from None
 
     return lambda num_envs, counts, seed: make_policy_team(agent, team, num_envs, counts, seed=seed, device=device)
 
@@ -307,7 +310,8 @@ def evaluate(policy=None, team='camera', config: str | None = None, *, team_fact
     the line `mate train` writes, so that `mate benchmark report` draws the curve. `config` None: the paper's preset
     of the team (`paper_config`)."""
     team, config, episodes, steps = _settings(team, config, episodes, max_episode_steps)
-    played = play_policy_episodes(policy, team_factory, team, config, episodes, EVALUATION_SEEDS, steps, opponent, device)
+    played = play_policy_episodes(policy, team_factory, team, config, episodes, EVALUATION_SEEDS, steps, opponent,
+                                  device)
     if run_dir is not None:
         metric = TEAM_METRIC[team]
         record = dict(iteration=int(env_steps if iteration is None else iteration), env_steps=int(env_steps),
@@ -368,10 +372,10 @@ def reference_cache_key(reference: str, team: str, config: str, episodes: int, f
 
 def _reference_episodes(name: str, team: str, config: str, episodes: int, first_seed: int, steps: int, opponent,
                         device: str, cache: Path | None) -> list[dict]:
-    """The reference `name`'s episodes (`play_policy_episodes`), read from the file of `cache` whose key matches when there is one
-    (a rule team against a rule team only; a file that does not parse or whose key differs is played again and
-    replaced), else played and, with `cache`, written there (JSON, replaced whole)."""
-    from .teams import RULE_TEAMS
+    """The reference `name`'s episodes (`play_policy_episodes`), read from the file of `cache` whose key matches when
+    there is one (a rule team against a rule team only; a file that does not parse or whose key differs is played again
+    and replaced), else played and, with `cache`, written there (JSON, replaced whole)."""
+    from ..teams import RULE_TEAMS
 
     if cache is None or name not in RULE_TEAMS or not isinstance(opponent, str) or opponent not in RULE_TEAMS:
         return play_policy_episodes(name, None, team, config, episodes, first_seed, steps, opponent, device)

@@ -16,8 +16,8 @@ from typing import Any
 
 import gymnasium as gym
 
-from .config import list_presets, preset_name
-from .env import MultiAgentTracking
+from ..config import list_presets, preset_name
+from .multi_agent_tracking import MultiAgentTracking
 
 __all__ = ['make', 'make_environment', 'WrapperSpec', 'registered_ids', 'resolve_config']
 
@@ -96,8 +96,8 @@ def resolve_config(env_id: str, config: Any = None) -> Any:
 def _register_with_gymnasium() -> None:
     for env_id, preset in _IDS.items():
         if env_id not in gym.registry:
-            gym.register(env_id, entry_point='mate.registration:make_environment',
-                         vector_entry_point='mate.vector:make_vector_from_gymnasium',
+            gym.register(env_id, entry_point='mate.envs.registration:make_environment',
+                         vector_entry_point='mate.envs.vector:make_vector_from_gymnasium',
                          kwargs={} if preset is None else {'config': preset},
                          disable_env_checker=True, order_enforce=False)
 

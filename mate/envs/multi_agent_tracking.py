@@ -12,20 +12,20 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from . import spaces as mate_spaces
-from .config import read_config
-from .constants import (
+from .. import spaces as mate_spaces
+from ..config import read_config
+from ..constants import (
     WAREHOUSE_RADIUS,
     WAREHOUSES,
     camera_observation_dim,
     state_dim,
     target_observation_dim,
 )
-from .core import engine
-from .core.params import params_from_config
-from .core.snapshot import get_snapshot, goal_bits, set_snapshot
-from .core.world import empty_world, episode_statistics, obstacle_states, target_headings
-from .messages import Message, MessageChannel, Team
+from ..core import engine
+from ..core.params import params_from_config
+from ..core.snapshot import get_snapshot, goal_bits, set_snapshot
+from ..core.world import empty_world, episode_statistics, obstacle_states, target_headings
+from ..messages import Message, MessageChannel, Team
 
 __all__ = ['MultiAgentTracking', 'GameDescription']
 
@@ -164,7 +164,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
             None: the default preset, or an empty configuration when overrides are given (a quirk
             of the original MATE).
         render_mode: None, `'rgb_array'` (`render()` returns an `(800, 800, 3)` uint8 frame) or
-            `'human'` (a pygame window); see `mate.render`.
+            `'human'` (a pygame window); see `mate.envs.render`.
         **overrides: keys deep-merged into the configuration (e.g. `max_episode_steps=1000`).
     """
 
@@ -176,7 +176,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
                              f"{' or '.join(map(repr, self.metadata['render_modes']))}")
         self.render_mode = render_mode
         self.render_fps = self.metadata['render_fps']  # 'human' windows refresh at most this often
-        self.render_hud = True  # frames show the heads-up line (step, coverage, cargo); see mate.render
+        self.render_hud = True  # frames show the heads-up line (step, coverage, cargo); see mate.envs.render
         self.render_callbacks: dict = {}
         self.viewer = None
         self.config = read_config(config, **overrides)
@@ -334,7 +334,7 @@ class MultiAgentTracking(GameDescription, gym.Env):
         self._channel.end_step()
         self._needs_reset = False
 
-    # ------------------------------------------------------------------ rendering (drawing lives in mate/render.py)
+    # ----------------------------------------------------------- rendering (drawing lives in mate/envs/render.py)
     def render(self, onetime_callbacks=()):
         """Draw the current world: an (800, 800, 3) uint8 array in 'rgb_array' mode, None in
         'human' mode. Registered callbacks, then `onetime_callbacks`, are called as

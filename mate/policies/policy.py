@@ -46,7 +46,7 @@ from torch import nn
 
 from ..agents.base import CameraAgentBase, TargetAgentBase
 from ..messages import Team
-from ..teams.protocol import as_team
+from ..teams.interface import as_team
 from .checkpoint import CheckpointError, load_checkpoint, read_spec, save_checkpoint
 from .actors import network_kind
 from .memory import SightingMemory, camera_sightings
@@ -64,7 +64,7 @@ _NEVER = np.iinfo(np.int64).max // 2
 
 
 def make_actor(spec: PolicySpec) -> nn.Module:
-    """The policy network of `spec`: the builder registered for `spec.network` (`mate.learn.actors`); its outputs
+    """The policy network of `spec`: the builder registered for `spec.network` (`mate.policies.actors`); its outputs
     are `spec.num_actions` logits per agent (Q-values for 'dueling' and 'recurrent-q', actions in [-1, 1] for
     'independent')."""
     return network_kind(spec.network).builder()(spec)

@@ -1,6 +1,6 @@
 """What the vector envs of both devices share: the autoreset modes, the info keys, the spaces, the action draws, the
-seeds of a reset and the checks of the actions with their refusals (`mate.vector`'s CPU env and
-`mate.device_vector`'s device env have one API)."""
+seeds of a reset and the checks of the actions with their refusals (`mate.envs.vector`'s CPU env and
+`mate.envs.device_vector`'s device env have one API)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from .arrays import array_namespace
-from .core.world import EPISODE_STATISTICS
-from .env import MultiAgentTracking, team_shape_error
+from ..arrays import array_namespace
+from ..core.world import EPISODE_STATISTICS
+from .multi_agent_tracking import MultiAgentTracking, team_shape_error
 
 __all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing',
            'checked_team_actions', 'row_seeds_of',
