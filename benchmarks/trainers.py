@@ -64,7 +64,7 @@ def measure(name: str, steps: int, tree: Path | None = None, extra: list[str] = 
     if tree is not None:
         env['PYTHONPATH'] = os.pathsep.join([str(tree), env.get('PYTHONPATH', '')])
     with tempfile.TemporaryDirectory() as run_dir:
-        command = [sys.executable, '-m', 'mate.cli.main', 'train', *arguments, '--steps', str(steps), '--no-progress',
+        command = [sys.executable, '-m', 'mate', 'train', *arguments, '--steps', str(steps), '--no-progress',
                    '--run-dir', run_dir, *extra]
         start = time.perf_counter()
         result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=run_dir)   # (not this checkout)

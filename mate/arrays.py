@@ -33,8 +33,8 @@ def array_namespace(*arrays):
 
 
 def is_host(x) -> bool:
-    """Whether `x` is a numpy array (the host path) rather than a tensor."""
-    return is_numpy_array(x)
+    """Whether `x` is a numpy array (the host path) rather than a tensor (a fast test for a plain ndarray first)."""
+    return type(x) is np.ndarray or is_numpy_array(x)
 
 
 class _Constants:
@@ -47,7 +47,7 @@ class _Constants:
         self._held: dict[tuple[int, str], tuple[np.ndarray, object]] = {}
 
     def get(self, constant: np.ndarray, like):
-        if type(like) is np.ndarray or is_numpy_array(like):
+        if is_host(like):
             return constant
         key = (id(constant), str(like.device))
         held = self._held.get(key)
@@ -73,7 +73,7 @@ def on_device_of(constant: np.ndarray, like):
 def as_kind_of(array: np.ndarray, like):
     """A host array as an array of `like`'s kind: itself for a numpy `like`, a tensor on `like`'s device otherwise
     (a state the caller keeps, unlike `on_device_of`'s shared constants)."""
-    if is_numpy_array(like):
+    if is_host(like):
         return array
     import torch
 
@@ -84,12 +84,12 @@ def host_copy(x):
     """A numpy copy of the array or tensor `x` (None stays None): plain data for a state_dict."""
     if x is None:
         return None
-    return x.copy() if is_numpy_array(x) else x.detach().cpu().numpy().copy()
+    return x.copy() if is_host(x) else x.detach().cpu().numpy().copy()
 
 
 def copied(x):
     """A copy of the array or tensor `x`."""
-    return x.copy() if is_numpy_array(x) else x.clone()
+    return x.copy() if is_host(x) else x.clone()
 
 
 def float64_copy(x):
@@ -103,4 +103,4 @@ def float64_copy(x):
 def maybe_any(mask) -> bool:
     """Whether the bool mask may hold a true entry: `mask.any()` for a numpy array; True for a tensor (module
     docstring)."""
-    return bool(mask.any()) if is_numpy_array(mask) else True
+    return bool(mask.any()) if is_host(mask) else True

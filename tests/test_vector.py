@@ -210,6 +210,8 @@ def test_reset_seeding():
         envs.reset(seed=[1, 2, 3])
     with pytest.raises(ValueError, match='reset_mask'):
         envs.reset(options={'reset_mask': np.array([1, 0])})
+    with pytest.raises(ValueError, match=r"reset takes only the option 'reset_mask', got \['mask'\]"):
+        envs.reset(options={'mask': np.array([True, False])})   # a misspelt option is refused, not ignored
 
 
 def test_invalid_actions_are_refused_clearly():

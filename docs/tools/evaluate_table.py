@@ -44,7 +44,7 @@ def evaluate(spec: str, team: str, config: str, episodes: int, seed: int, max_st
     agent = f'checkpoint:{spec}' if Path(spec).is_file() else spec
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / 'result.json'
-        command = [sys.executable, '-m', 'mate.cli.main', 'evaluate', '--config', config, f'--{team}-agent', agent,
+        command = [sys.executable, '-m', 'mate', 'evaluate', '--config', config, f'--{team}-agent', agent,
                    '--episodes', str(episodes), '--seed', str(seed), '--max-episode-steps', str(max_steps),
                    '--no-render', '--json', str(out), *(['--single-env'] if single_env else [])]
         start = time.perf_counter()

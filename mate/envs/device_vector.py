@@ -52,20 +52,17 @@ from typing import Any
 
 import numpy as np
 
-from gymnasium.vector import VectorEnv
-
 from . import registration
 from ..core.device import BLOCK, DeviceCore, from_torch, to_torch
 from ..core.world import World, episode_statistics, obstacle_states
-from .multi_agent_tracking import GameDescription, MultiAgentTracking
 from ..messages import Team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
-                              checked_team_actions, row_seeds_of, uniform_actions, vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, VectorGames,
+                              checked_team_actions)
 
 __all__ = ['DeviceVecEnv']
 
 
-class DeviceVecEnv(GameDescription, VectorEnv):
+class DeviceVecEnv(VectorGames):
     """B games of one configuration on a CUDA device (see the module docstring).
 
     Args:
@@ -84,26 +81,12 @@ class DeviceVecEnv(GameDescription, VectorEnv):
             raise TypeError(f'{inside[0]}: the device env plays no team inside; play a '
                             'mate.teams.device.DeviceRuleTeam in your loop, or use mate.make_team_vec(..., '
                             "device='cuda') for one team against the rules")
-        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
-        dtype = np.dtype(observation_dtype)
-        if dtype not in (np.float64, np.float32):
-            raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
-        mode = autoreset_mode_of(autoreset_mode)
-        if mode is AutoresetMode.DISABLED:
+        self._describe_games(config, num_envs, observation_dtype, autoreset_mode, overrides)
+        if self.autoreset_mode is AutoresetMode.DISABLED:
             raise ValueError("on a device autoreset_mode is 'next_step' or 'same_step', got "
                              f'{autoreset_mode!r} (a game that ended restarts)')
-        self.autoreset_mode, self.next_step = mode, mode is AutoresetMode.NEXT_STEP
-        self.metadata = {'render_modes': [], 'autoreset_mode': mode}
-        self.render_mode = None
-        template = MultiAgentTracking(config, **overrides)
-        self.config, self.params = template.config, template.params
-        self.num_envs = B = int(num_envs)
-        self.observation_dtype = dtype
-        p = self.params
-        self.counts = (p.num_cameras, p.num_targets, p.num_obstacles)
-        for name, space in vector_spaces(template, B, dtype).items():
-            setattr(self, name, space)
+        self.next_step = self.autoreset_mode is AutoresetMode.NEXT_STEP
+        B, dtype, p = self.num_envs, self.observation_dtype, self.params
         dims = (self.camera_observation_space.shape[0], self.target_observation_space.shape[0])
         self.core = DeviceCore(p, B, dims, dtype, block=block)
         rows = self.core.rows
@@ -120,32 +103,15 @@ class DeviceVecEnv(GameDescription, VectorEnv):
         ((camera_obs, target_obs), infos). `seed` s: game b is seeded with s + b; a list of B ints or None: game b
         with `seed[b]`; None: every stream goes on (the first reset draws fresh entropy), as the CPU vector env's.
         With a mask only its games are seeded and reset."""
-        options = dict(options or {})
-        mask = options.pop('reset_mask', None)
-        if options:
-            raise ValueError(f"DeviceVecEnv.reset takes only the option 'reset_mask', got {sorted(options)}")
-        B = self.num_envs
-        mask = np.ones(B, bool) if mask is None else self._check_mask(mask)
-        seeds = row_seeds_of(seed, B)
-        if isinstance(seed, (int, np.integer)):
-            super().reset(seed=int(seed))                 # also seeds self.np_random (sample_actions' default)
-        # the games given a seed start their streams anew; the others go on, but never-seeded ones draw entropy
-        streams = self.core.world.rng.copy_to_host()
-        never_seeded = (streams[:, 0] == 0) & (streams[:, 1] == 0)
-        to_seed = mask & (np.array([s is not None for s in seeds]) | never_seeded)
+        mask = self._reset_mask(options)
+        mask = np.ones(self.num_envs, bool) if mask is None else mask
+        to_seed, seeds = self._rows_to_seed(seed, mask, self.core.world.rng.copy_to_host())
         if to_seed.any():
-            self.core.seed(to_seed, [seeds[b] for b in np.flatnonzero(to_seed)])
+            self.core.seed(to_seed, seeds)
         self.core.reset(mask)
-        self.core.rows.mask.copy_to_device(np.zeros(B, bool))       # no game waits for a restart
+        self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))     # no game waits for a restart
         self._started = True
         return self._observations, self.infos()
-
-    def _check_mask(self, mask) -> np.ndarray:
-        host = np.asarray(mask.cpu() if hasattr(mask, 'cpu') else mask)
-        if host.dtype != np.bool_ or host.shape != (self.num_envs,):
-            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), "
-                             f'got {host.dtype} {host.shape}')
-        return np.array(host, dtype=bool)
 
     def _actions(self, actions, team: Team):
         """`step_games`' check: the shape (B, N, 2); the actions as a device array (or a host array under the
@@ -241,18 +207,10 @@ class DeviceVecEnv(GameDescription, VectorEnv):
 
     def sample_actions(self, rng: np.random.Generator | int | None = None):
         """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64 tensors on the env's
-        device: the CPU env's `sample_actions` numbers for the same `rng` (a numpy Generator, an int seed, or None
-        for `self.np_random`, seeded by `reset(seed=int)`)."""
+        device: the CPU env's `sample_actions` numbers for the same `rng` (`VectorGames.sample_actions`)."""
         import torch
 
-        if rng is None:
-            rng = self.np_random
-        elif not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
-        B, (nc, nt, _) = self.num_envs, self.counts
-        device = self._info_mask.device
-        return (torch.as_tensor(uniform_actions(rng, self.camera_action_space, (B, nc, 2)), device=device),
-                torch.as_tensor(uniform_actions(rng, self.target_action_space, (B, nt, 2)), device=device))
+        return tuple(torch.as_tensor(actions, device=self._info_mask.device) for actions in super().sample_actions(rng))
 
     def state(self):
         """(B, S) tensor: every game's global state (`mate.make_vec(...).state()`'s values, in the observations'

@@ -73,6 +73,7 @@ from ..messages import Team
 from ..evaluation.protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
 from ..teams.interface import as_team
 from .vector import AutoresetMode, make_vec
+from .vector_contract import is_seed
 
 __all__ = ['DEVICE_OPPONENTS', 'EPISODE_INFO', 'REWARDS', 'AgentsAsEnvs', 'SingleTeamVecEnv', 'make_team_vec',
            'opponent_factory', 'step_rewards']
@@ -140,6 +141,8 @@ def step_rewards(reward: str, world, team_reward, coverage_rate):
 
 def _float64(values):
     """A float64 copy of a (B,) array, tensor or list."""
+    if type(values) is np.ndarray:
+        return values.astype(np.float64)
     if hasattr(values, 'shape'):
         xp = array_namespace(values)
         return xp.astype(values, xp.float64, copy=True)
@@ -231,8 +234,7 @@ class SingleTeamVecEnv(VectorEnv):
         if opponent_seed is not None and seed is None:
             raise ValueError('opponent_seed needs an int seed (an unseeded reset goes on with every stream)')
         for label, value in (('seed', seed), ('opponent_seed', opponent_seed)):
-            if value is not None and (not isinstance(value, (int, np.integer)) or isinstance(value, bool)
-                                      or value < 0):
+            if value is not None and not is_seed(value):
                 raise ValueError(f'{label} must be a non-negative integer or None, got {value!r}')
         if seed is not None:
             self.opponent = self._make_opponent(self.num_envs, self.counts,

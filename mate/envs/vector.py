@@ -17,15 +17,18 @@ from . import registration
 from ..core import engine
 from ..core.snapshot import get_snapshot
 from ..core.world import empty_world, episode_statistics, obstacle_states
-from .multi_agent_tracking import GameDescription, MultiAgentTracking
 from ..messages import Team, as_team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, autoreset_mode_of,
-                              checked_team_actions, env_listing, row_seeds_of, uniform_actions, vector_spaces)
+from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, VectorGames,
+                              checked_team_actions, env_listing)
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
 
-class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
+def _float64_array(value) -> np.ndarray:
+    return np.asarray(value, dtype=np.float64)
+
+
+class MultiAgentTrackingVectorEnv(VectorGames):
     """`num_envs` worlds stepped together by the batched core, as a Gymnasium `VectorEnv`.
 
     One world of B rows is advanced by a single call into `mate.core.engine` per step: there is no
@@ -94,27 +97,10 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
     def __init__(self, config: Any = None, num_envs: int = 1, *, observation_dtype=np.float64,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = False,
                  **overrides: Any) -> None:
-        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
-        dtype = np.dtype(observation_dtype)
-        if dtype not in (np.float64, np.float32):
-            raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
-        # The single env defines the configuration, parameters and per-agent spaces.
-        template = MultiAgentTracking(config, **overrides)
-        self.config, self.params = template.config, template.params
-        self.num_envs = B = int(num_envs)
-        self.observation_dtype = dtype
-        self.autoreset_mode = autoreset_mode_of(autoreset_mode)
+        self._describe_games(config, num_envs, observation_dtype, autoreset_mode, overrides)
         self.copy = bool(copy)
-        self.metadata = {'render_modes': [], 'autoreset_mode': self.autoreset_mode}
-        self.render_mode = None
-        p = self.params
+        B, dtype, p = self.num_envs, self.observation_dtype, self.params
         nc, nt = p.num_cameras, p.num_targets
-
-        # ---- spaces
-        spaces_of = vector_spaces(template, B, dtype)
-        for name, space in spaces_of.items():
-            setattr(self, name, space)
 
         # ---- world and buffers
         self._world = empty_world(p, B)
@@ -145,17 +131,12 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         s + i) or a list of B ints/None. With a mask, only the masked envs are seeded and reset;
         the others keep their episode and observation.
         """
-        B = self.num_envs
-        mask = self._everyone if not options or 'reset_mask' not in options else self._check_mask(options['reset_mask'])
-        seeds = row_seeds_of(seed, B)
-        if isinstance(seed, (int, np.integer)):
-            super().reset(seed=int(seed))  # also seeds self.np_random (sample_actions' default)
+        mask = self._reset_mask(options)
+        mask = self._everyone if mask is None else mask
         world = self._world
-        never_seeded = (world.rng[:, 0] == 0) & (world.rng[:, 1] == 0)
-        given = np.array([s is not None for s in seeds], dtype=bool)
-        to_seed = mask & (given | never_seeded)
+        to_seed, seeds = self._rows_to_seed(seed, mask, world.rng)
         if to_seed.any():
-            engine.seed_rows(world, to_seed, [seeds[i] for i in np.flatnonzero(to_seed)])
+            engine.seed_rows(world, to_seed, seeds)
         engine.reset(self.params, world, mask, self._camera_obs, self._target_obs)
         self._autoreset[mask] = False
         self._terminated[mask] = False
@@ -164,13 +145,6 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         self._target_reward[mask] = 0.0
         self._needs_reset = False
         return self._observations(), self._infos()
-
-    def _check_mask(self, mask) -> np.ndarray:
-        mask = np.asarray(mask)
-        if mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
-            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), "
-                             f'got {mask.dtype} {mask.shape}')
-        return np.array(mask, dtype=bool, order='C')  # a private, writable, contiguous copy
 
     def step(self, actions):
         """Advance every env by one step (see the class docstring for the accepted action forms and the
@@ -239,8 +213,7 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
         return self.step(actions)
 
     def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
-        array = checked_team_actions(value, count, team, box, self.num_envs, lambda v: np.asarray(v, dtype=np.float64))
-        return np.ascontiguousarray(array)
+        return np.ascontiguousarray(checked_team_actions(value, count, team, box, self.num_envs, _float64_array))
 
     def _observations(self) -> tuple[np.ndarray, np.ndarray]:
         if self.copy:
@@ -310,20 +283,6 @@ class MultiAgentTrackingVectorEnv(GameDescription, VectorEnv):
             self.np_random.bit_generator.state = state['np_random']
 
     # ------------------------------------------------------------------ helpers
-    def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64.
-
-        Much cheaper than `action_space.sample()`. `rng`: a numpy Generator, an int seed, or None
-        for `self.np_random` (seeded by reset(seed=int)).
-        """
-        if rng is None:
-            rng = self.np_random
-        elif not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(rng)
-        B, p = self.num_envs, self.params
-        return (uniform_actions(rng, self.camera_action_space, (B, p.num_cameras, 2)),
-                uniform_actions(rng, self.target_action_space, (B, p.num_targets, 2)))
-
     @property
     def obstacle_states(self) -> np.ndarray:
         """(B, No, 3) obstacle [x, y, r] per env and slot (a fresh array)."""

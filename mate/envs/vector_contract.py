@@ -5,18 +5,19 @@ seeds of a reset and the checks of the actions with their refusals (`mate.envs.v
 from __future__ import annotations
 
 from enum import Enum
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..arrays import array_namespace
 from ..core.world import EPISODE_STATISTICS
-from .multi_agent_tracking import MultiAgentTracking, team_shape_error
+from .multi_agent_tracking import GameDescription, MultiAgentTracking, team_shape_error
 
-__all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'autoreset_mode_of', 'env_listing',
-           'checked_team_actions', 'row_seeds_of',
-           'uniform_actions', 'vector_spaces']
+__all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'VectorGames', 'autoreset_mode_of',
+           'checked_team_actions', 'env_listing', 'is_seed', 'row_seeds_of', 'uniform_actions', 'vector_spaces']
 
 try:
     from gymnasium.vector import AutoresetMode
@@ -100,7 +101,8 @@ def uniform_actions(rng: np.random.Generator, box: spaces.Box, shape: tuple[int,
     return out
 
 
-def _a_seed(value) -> bool:
+def is_seed(value) -> bool:
+    """Whether `value` is one game's seed: a non-negative integer (not a bool)."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
 
 
@@ -120,7 +122,7 @@ def row_seeds_of(seed, num_envs: int) -> list[int | None]:
     if len(seeds) != num_envs:
         raise ValueError(f'reset(seed=...) got {len(seeds)} seeds for num_envs={num_envs}: pass an int, None or a '
                          f'list of {num_envs} seeds')
-    if not all(s is None or _a_seed(s) for s in seeds):
+    if not all(s is None or is_seed(s) for s in seeds):
         raise ValueError(f'reset(seed=...): each seed must be a non-negative integer or None, got {seed!r}')
     return [None if s is None else int(s) for s in seeds]
 
@@ -138,8 +140,8 @@ def checked_team_actions(value, count: int, team: str, box: spaces.Box, num_envs
             raise ValueError(team_shape_error(team, expected, 'a ragged sequence', batched='num_envs x ',
                                               alternative=(num_envs, 2 * count))) from None
         raise ValueError(f'{team} actions are not numeric: {exc}') from None
-    if tuple(array.shape) != expected:
-        if tuple(array.shape) != (num_envs, 2 * count):   # (B, 2N), documented, is the only other form accepted
+    if array.shape != expected:                            # (a torch.Size is a tuple)
+        if array.shape != (num_envs, 2 * count):   # (B, 2N), documented, is the only other form accepted
             raise ValueError(team_shape_error(team, expected, tuple(array.shape), batched='num_envs x ',
                                               alternative=(num_envs, 2 * count)))
         array = array.reshape(expected)
@@ -157,3 +159,67 @@ def env_listing(indices: np.ndarray, limit: int = 10) -> str:
     """'[0, 3, 5]' (the first `limit` of `indices`, then '...'): the envs a refusal names."""
     shown = ', '.join(str(int(i)) for i in indices[:limit])
     return f'[{shown}{", ..." if len(indices) > limit else ""}]'
+
+
+class VectorGames(GameDescription, VectorEnv):
+    """The part of a vector env that does not depend on where its B games run: their description and spaces, the
+    reset's mask and seeds, and random joint actions (the CPU env and the device env are both one)."""
+
+    def _describe_games(self, config: Any, num_envs: int, observation_dtype, autoreset_mode,
+                        overrides: dict) -> MultiAgentTracking:
+        """Check B and the observation dtype, read the game and set what both envs hold (config, params, num_envs,
+        counts (Nc, Nt, No), observation_dtype, autoreset_mode, metadata, the spaces); returns the single env the
+        game and its per-agent spaces were read from."""
+        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f'num_envs must be a positive integer, got {num_envs!r}')
+        dtype = np.dtype(observation_dtype)
+        if dtype not in (np.float64, np.float32):
+            raise ValueError(f'observation_dtype must be float64 or float32, got {dtype}')
+        template = MultiAgentTracking(config, **overrides)
+        self.config, self.params = template.config, template.params
+        self.num_envs, self.observation_dtype = int(num_envs), dtype
+        self.counts = (self.params.num_cameras, self.params.num_targets, self.params.num_obstacles)
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode)
+        self.metadata = {'render_modes': [], 'autoreset_mode': self.autoreset_mode}
+        self.render_mode = None
+        for name, space in vector_spaces(template, self.num_envs, dtype).items():
+            setattr(self, name, space)
+        return template
+
+    def _reset_mask(self, options: dict | None) -> np.ndarray | None:
+        """`options['reset_mask']` of a reset as a private, writable, contiguous (B,) bool host array (None: every
+        game); ValueError for another option or a mask of another dtype or shape."""
+        options = dict(options or {})
+        mask = options.pop('reset_mask', None)
+        if options:
+            raise ValueError(f"reset takes only the option 'reset_mask', got {sorted(options)}")
+        if mask is None:
+            return None
+        host = np.asarray(mask.cpu() if hasattr(mask, 'cpu') else mask)
+        if host.dtype != np.bool_ or host.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), "
+                             f'got {host.dtype} {host.shape}')
+        return np.array(host, dtype=bool, order='C')
+
+    def _rows_to_seed(self, seed, mask: np.ndarray, streams: np.ndarray) -> tuple[np.ndarray, list[int | None]]:
+        """(the (B,) rows a reset of `mask` seeds, their seeds): the rows given a seed (`row_seeds_of`) and those
+        never seeded (their random stream `streams` (B, 2) all zero: they draw fresh entropy). An int `seed` also
+        seeds `np_random` (`sample_actions`' default)."""
+        seeds = row_seeds_of(seed, self.num_envs)
+        if isinstance(seed, (int, np.integer)):
+            VectorEnv.reset(self, seed=int(seed))
+        never_seeded = (streams[:, 0] == 0) & (streams[:, 1] == 0)
+        to_seed = mask & (np.array([s is not None for s in seeds], dtype=bool) | never_seeded)
+        return to_seed, [seeds[i] for i in np.flatnonzero(to_seed)]
+
+    def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64, much cheaper than
+        `action_space.sample()`. `rng`: a numpy Generator, an int seed, or None for `self.np_random` (seeded by
+        `reset(seed=int)`)."""
+        if rng is None:
+            rng = self.np_random
+        elif not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(rng)
+        B, (nc, nt, _) = self.num_envs, self.counts
+        return (uniform_actions(rng, self.camera_action_space, (B, nc, 2)),
+                uniform_actions(rng, self.target_action_space, (B, nt, 2)))

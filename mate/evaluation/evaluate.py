@@ -206,7 +206,7 @@ BATCHED = ('random', 'greedy', 'upper-bound')
 
 
 def has_batched_team(agent: str) -> bool:
-    """Whether the `mate evaluate` agent name `agent` can play as a batched team (`batched_teams`)."""
+    """Whether the `mate evaluate` agent name `agent` can play as a batched team (`batched_team`)."""
     return agent in BATCHED or agent.partition(':')[0] in ('checkpoint', 'pretrained')
 
 
@@ -232,18 +232,11 @@ def batched_team(env, agent: str, team: Team, episodes: int, seed: int, kwargs: 
     return make_team(agent, team, episodes, counts, seed=seed, device=device, **(kwargs or {}))
 
 
-def batched_teams(env, camera_agent: str, target_agent: str, episodes: int, seed: int,
-                  camera_kwargs: dict | None = None, target_kwargs: dict | None = None) -> tuple:
-    """(camera team, target team) of `batched_team`, both seeded with `seed`."""
-    return (batched_team(env, camera_agent, Team.CAMERA, episodes, seed, camera_kwargs),
-            batched_team(env, target_agent, Team.TARGET, episodes, seed, target_kwargs))
-
-
 def play_batched(config, cameras, targets, episodes: int, seed: int, max_steps: int,
                  progress: Callable[[int, int], None] | None = None,
                  recorder: FrameRecorder | None = None) -> list[EpisodeResult]:
     """Every episode at once in one vector env (row i seeded with seed + i) with batched teams
-    (`batched_teams`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
+    (`batched_team`); each result's `steps_per_second` is the whole batch's. `recorder` records the first
     game's frames (a team that reads the true state, `UpperBoundTeam`, watches the vector env: `play_batch`)."""
     from ..teams import play_batch
     if max_steps < 1:
