@@ -355,16 +355,18 @@ class TrainingEnv:
         self._max_reward = float(self.vec.params.max_target_team_episode_reward)
         like = self.vec.world.target_reward                # an array of the games' kind, on their device
         self.device = getattr(like, 'device', None) if self.tensors else None
-        self._like = like
         self.memory = SightingMemory(self.num_envs, self.counts, spec.memory, like=like) if spec.memory else None
         self._return = self._zeros(self.num_envs)      # the learner's reward summed (the game's statistics: the core's)
         self._raw = self._before = None                # the team's raw observations now and one env step before
 
     # ------------------------------------------------------------------ helpers
     def _zeros(self, *shape, dtype=np.float64):
-        """Zeros of the games' kind: a numpy array, or a tensor on their device."""
-        zeros = np.zeros(shape, dtype=dtype)
-        return as_kind_of(zeros, self._like) if self.tensors else zeros
+        """Zeros of the games' kind: a numpy array, or a tensor made on their device (no copy from the host)."""
+        if not self.tensors:
+            return np.zeros(shape, dtype=dtype)
+        import torch
+
+        return torch.zeros(shape, dtype=torch.from_numpy(np.zeros(0, dtype)).dtype, device=self.device)
 
     def _enhanced(self, raw):
         """The team's raw observations (B, N, D) as it sees them: unchanged, or (full observability) a copy with
