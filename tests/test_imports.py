@@ -212,3 +212,15 @@ def test_the_layer_check_sees_a_climbing_import(tmp_path, monkeypatch):
     module.write_text('def f():\n    from ..policies import policy\n')
     monkeypatch.setitem(MODULES, 'mate.core.world_probe', module)
     assert climbing_imports()[('mate.core.world_probe', 'mate.policies.policy')] == ('core', 'policies')
+
+
+TOP_LEVEL = {'__init__', '__main__', 'version', 'arrays', 'constants', 'spaces', 'messages'}
+"""The modules at the package's top level: the game's vocabulary and package support; everything else lives in the
+folder of its layer (docs/contributors/architecture.md)."""
+
+
+def test_the_top_level_holds_only_the_vocabulary_and_support():
+    found = {path.stem for path in ROOT.glob('*.py')}
+    assert found == TOP_LEVEL, (f'new top-level modules {sorted(found - TOP_LEVEL)}: put each in the folder of '
+                                f'its layer (envs, evaluation, cli, tools, policies, ...); '
+                                f'gone: {sorted(TOP_LEVEL - found)}')
