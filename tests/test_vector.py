@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import mate
-from mate.envs.vector import INFO_KEYS, AutoresetMode
+from mate.envs.vector import AutoresetMode
+from mate.envs.vector_contract import INFO_KEYS
 
 ID = 'MATE-4v8-9-v0'
 SHORT = 9  # max_episode_steps of the autoreset tests: a few episodes in a few dozen steps

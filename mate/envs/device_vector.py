@@ -54,10 +54,9 @@ import numpy as np
 
 from . import registration
 from ..core.device import BLOCK, DeviceCore, from_torch, to_torch
-from ..core.world import World, episode_statistics, obstacle_states
+from ..core.world import World, obstacle_states
 from ..messages import Team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, VectorGames,
-                              checked_team_actions)
+from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames, checked_team_actions
 
 __all__ = ['DeviceVecEnv']
 
@@ -111,7 +110,7 @@ class DeviceVecEnv(VectorGames):
         self.core.reset(mask)
         self.core.rows.mask.copy_to_device(np.zeros(self.num_envs, bool))     # no game waits for a restart
         self._started = True
-        return self._observations, self.infos()
+        return self._observations, self._infos()
 
     def _actions(self, actions, team: Team):
         """`step_games`' check: the shape (B, N, 2); the actions as a device array (or a host array under the
@@ -159,11 +158,7 @@ class DeviceVecEnv(VectorGames):
         return self._step(actions, checked=False)
 
     def _step(self, actions, checked: bool):
-        try:
-            camera_actions, target_actions = actions
-        except (TypeError, ValueError):
-            raise ValueError('actions must be a pair (camera_actions (B, Nc, 2), target_actions (B, Nt, 2)), '
-                             f'got {type(actions).__name__}') from None
+        camera_actions, target_actions = self._joint_actions(actions)
         if not self._started:
             raise RuntimeError('DeviceVecEnv: call reset() before step()')
         if checked:                       # the CPU env's checks and conversions (a read back: NaN and inf)
@@ -174,36 +169,16 @@ class DeviceVecEnv(VectorGames):
         self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
         self.core.finish(restart=False)      # (same_step: the ended games restart below, after their last step)
         observations, rewards, (terminated, truncated) = self._observations, self._rewards, self._flags
-        infos = self.infos()
+        infos = self._infos()
         if not self.next_step:
             done = terminated | truncated
             if bool(done.any()):
-                final_obs, final_info = (observations[0].clone(), observations[1].clone()), self.final_info(done)
+                final_obs = (observations[0].clone(), observations[1].clone())
+                final_info = self._final_info(infos, done)
                 self.core.reset_masked()
-                infos = self.infos()
+                infos = self._infos()
                 infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
         return observations, rewards, terminated, truncated, infos
-
-    def infos(self) -> dict:
-        """The CPU env's infos of every game now (`INFO_KEYS`): fresh (B,) tensors, each with its `_key` mask."""
-        world = self._world
-        statistics = episode_statistics(self.params, world)
-        infos = {}
-        for key in INFO_KEYS:
-            infos[key] = statistics[key] if key in statistics else getattr(world, key).clone()
-            infos[f'_{key}'] = self._info_mask
-        return infos
-
-    def final_info(self, done) -> dict:
-        """Same-step autoreset's `final_info` of the step just played, before the games of `done` (B,) restart:
-        `infos()` with masks `done`, and the world arrays of `FINAL_WORLD_KEYS` (copies: the restart overwrites
-        them)."""
-        final_info = self.infos()
-        for key in INFO_KEYS:
-            final_info[f'_{key}'] = done
-        for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
-            final_info[key] = self.world_tensor(key).clone()
-        return final_info
 
     def sample_actions(self, rng: np.random.Generator | int | None = None):
         """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64 tensors on the env's

@@ -16,10 +16,9 @@ from gymnasium.vector import VectorEnv, VectorRewardWrapper
 from . import registration
 from ..core import engine
 from ..core.snapshot import get_snapshot
-from ..core.world import empty_world, episode_statistics, obstacle_states
+from ..core.world import empty_world, obstacle_states
 from ..messages import Team, as_team
-from .vector_contract import (ADDED_FIELDS, FINAL_WORLD_KEYS, INFO_KEYS, AutoresetMode, VectorGames,
-                              checked_team_actions, env_listing)
+from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames, checked_team_actions, env_listing
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
@@ -183,11 +182,7 @@ class MultiAgentTrackingVectorEnv(VectorGames):
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(done):
                 final_obs[i] = (self._camera_obs[i].copy(), self._target_obs[i].copy())
-            final_info = dict(infos)
-            for key in INFO_KEYS:
-                final_info[f'_{key}'] = done
-            for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the reset
-                final_info[key] = getattr(world, key).copy()
+            final_info = self._final_info(infos, done)
             engine.reset(p, world, done, self._camera_obs, self._target_obs)
             self._autoreset[:] = False
             infos = self._infos()
@@ -199,11 +194,7 @@ class MultiAgentTrackingVectorEnv(VectorGames):
         return self._observations(), rewards, self._terminated, self._truncated, infos
 
     def _parse_actions(self, actions) -> tuple[np.ndarray, np.ndarray]:
-        try:
-            camera_actions, target_actions = actions
-        except (TypeError, ValueError):
-            raise ValueError('actions must be a pair (camera_actions (B, Nc, 2), target_actions (B, Nt, 2)), '
-                             f'got {type(actions).__name__}') from None
+        camera_actions, target_actions = self._joint_actions(actions)
         return (self._team_actions(camera_actions, self.params.num_cameras, 'camera', self.camera_action_space),
                 self._team_actions(target_actions, self.params.num_targets, 'target', self.target_action_space))
 
@@ -219,15 +210,6 @@ class MultiAgentTrackingVectorEnv(VectorGames):
         if self.copy:
             return self._camera_obs.copy(), self._target_obs.copy()
         return self._camera_obs, self._target_obs
-
-    def _infos(self) -> dict[str, np.ndarray]:
-        world = self._world
-        infos: dict[str, np.ndarray] = {}
-        statistics = episode_statistics(self.params, world)
-        for key in INFO_KEYS:
-            infos[key] = statistics[key] if key in statistics else getattr(world, key).copy()
-            infos[f'_{key}'] = self._info_mask
-        return infos
 
     def get_world(self, index: int = 0) -> dict:
         """A snapshot of env `index`'s world as a dict of fresh arrays, as the single env's `get_world()` gives

@@ -12,8 +12,8 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..arrays import array_namespace
-from ..core.world import EPISODE_STATISTICS
+from ..arrays import array_namespace, copied
+from ..core.world import EPISODE_STATISTICS, episode_statistics
 from .multi_agent_tracking import GameDescription, MultiAgentTracking, team_shape_error
 
 __all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'VectorGames', 'autoreset_mode_of',
@@ -211,6 +211,37 @@ class VectorGames(GameDescription, VectorEnv):
         never_seeded = (streams[:, 0] == 0) & (streams[:, 1] == 0)
         to_seed = mask & (np.array([s is not None for s in seeds], dtype=bool) | never_seeded)
         return to_seed, [seeds[i] for i in np.flatnonzero(to_seed)]
+
+    def _joint_actions(self, actions) -> tuple:
+        """(camera actions, target actions) of a step's `actions` pair; ValueError (one line) for anything else."""
+        try:
+            camera_actions, target_actions = actions
+        except (TypeError, ValueError):
+            raise ValueError('actions must be a pair (camera_actions (B, Nc, 2), target_actions (B, Nt, 2)), '
+                             f'got {type(actions).__name__}') from None
+        return camera_actions, target_actions
+
+    def _infos(self) -> dict:
+        """The infos of every game now (`INFO_KEYS`): fresh (B,) arrays (tensors on a device), each with its `_key`
+        mask (`self._info_mask`: every game, shared)."""
+        world = self._world
+        statistics = episode_statistics(self.params, world)
+        infos = {}
+        for key in INFO_KEYS:
+            infos[key] = statistics[key] if key in statistics else copied(getattr(world, key))
+            infos[f'_{key}'] = self._info_mask
+        return infos
+
+    def _final_info(self, infos: dict, done) -> dict:
+        """Same-step autoreset's `final_info` of the step just played (`infos`), before the games of `done` (B,)
+        restart: `infos` with masks `done`, and copies of the world arrays of `FINAL_WORLD_KEYS` (the restart
+        overwrites them)."""
+        final_info = dict(infos)
+        for key in INFO_KEYS:
+            final_info[f'_{key}'] = done
+        for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
+            final_info[key] = copied(getattr(self._world, key))
+        return final_info
 
     def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64, much cheaper than

@@ -39,7 +39,7 @@ SIMULATED = """
 import json, sys
 import numpy as np
 import mate
-from mate.envs.vector import FINAL_WORLD_KEYS, INFO_KEYS
+from mate.envs.vector_contract import FINAL_WORLD_KEYS, INFO_KEYS
 from mate.policies.hrl import executor_actions
 from mate.spaces import observation_indices_of
 from mate.messages import Team
