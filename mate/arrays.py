@@ -20,8 +20,8 @@ import numpy as np
 from array_api_compat import device as device_of
 from array_api_compat import is_numpy_array
 
-__all__ = ['array_namespace', 'as_kind_of', 'copied', 'device_of', 'float64_copy', 'host_copy', 'is_host', 'maybe_any',
-           'on_device_of']
+__all__ = ['array_namespace', 'as_kind_of', 'copied', 'device_of', 'float64_copy', 'host_array', 'host_copy', 'is_host',
+           'maybe_any', 'on_device_of']
 
 
 def array_namespace(*arrays):
@@ -80,11 +80,15 @@ def as_kind_of(array: np.ndarray, like):
     return torch.as_tensor(array, device=like.device)
 
 
+def host_array(x):
+    """The array or tensor `x` as a numpy array: itself on the host, a tensor brought there (no copy where none is
+    needed: read it, do not keep it)."""
+    return x if is_host(x) else x.detach().cpu().numpy()
+
+
 def host_copy(x):
     """A numpy copy of the array or tensor `x` (None stays None): plain data for a state_dict."""
-    if x is None:
-        return None
-    return x.copy() if is_host(x) else x.detach().cpu().numpy().copy()
+    return None if x is None else host_array(x).copy()
 
 
 def copied(x):

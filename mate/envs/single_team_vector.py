@@ -68,7 +68,7 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from ..arrays import array_namespace, as_kind_of, copied, host_copy, is_host, maybe_any
+from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_copy, is_host, maybe_any
 from ..messages import Team
 from ..evaluation.protocol import EPISODE_INFO, REWARDS, agent_team_factory, checked_reward, paper_config
 from ..teams.interface import as_team
@@ -133,20 +133,10 @@ def step_rewards(reward: str, world, team_reward, coverage_rate):
     (`World.camera_reward_parts`: the share of the targets it alone tracks). Fresh arrays (tensors for a world of
     tensors), float64."""
     if reward == 'team':
-        return _float64(team_reward)
+        return float64_copy(team_reward)
     if reward == 'coverage':
-        return _float64(coverage_rate)
+        return float64_copy(coverage_rate)
     return copied(world.camera_reward_parts if reward == 'difference' else world.target_reward_parts)
-
-
-def _float64(values):
-    """A float64 copy of a (B,) array, tensor or list."""
-    if type(values) is np.ndarray:
-        return values.astype(np.float64)
-    if hasattr(values, 'shape'):
-        xp = array_namespace(values)
-        return xp.astype(values, xp.float64, copy=True)
-    return np.array(values, dtype=np.float64)
 
 
 class SingleTeamVecEnv(VectorEnv):

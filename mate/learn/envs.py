@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from ..agents.utils import box_scaling, scale_in_place
-from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_copy, maybe_any
+from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_array, host_copy, maybe_any
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..cli.options import option
@@ -437,7 +437,7 @@ class TrainingEnv:
     def positions(self) -> np.ndarray:
         """(B, N, 2) float64 host array: world positions of the trained team's agents at the current decision, cut
         from the global state as `RestrictedCommunicationRange` reads them (the training channel's range test)."""
-        return team_positions(host_copy(self.vec.state()), self.team, self.counts)
+        return team_positions(host_array(self.vec.state()), self.team, self.counts)
 
     def allowed_actions(self, features):
         """The spec's allowed choices (..., N, heads, choices) of features (..., N, D); None when all are."""
@@ -549,12 +549,12 @@ class TrainingEnv:
     @staticmethod
     def _episodes(done, ended_at, record) -> list[dict]:
         """The finished episodes' records (host dicts), in the order they ended (env step, then row)."""
-        done = host_copy(done)              # (on a device: one read back, and the records' when a row ended)
+        done = host_array(done)             # (on a device: one read back, and the records' when a row ended)
         rows = np.flatnonzero(done)
         if rows.size == 0:
             return []
-        order = rows[np.argsort(host_copy(ended_at)[rows] * done.shape[0] + rows, kind='stable')]
-        values = {name: host_copy(value)[order].tolist() for name, value in record.items()}
+        order = rows[np.argsort(host_array(ended_at)[rows] * done.shape[0] + rows, kind='stable')]
+        values = {name: host_array(value)[order].tolist() for name, value in record.items()}
         return [dict(coverage=values['coverage'][i], length=int(values['length'][i]),
                      **{'return': values['return'][i]}, raw_return=values['raw_return'][i])
                 for i in range(len(values['coverage']))]

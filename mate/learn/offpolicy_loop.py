@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..arrays import is_host
+from ..arrays import host_array
 from ..policies.device import resolve_device, update_threads
 from .run import Run
 
@@ -96,9 +96,7 @@ def on_host(values):
         return {key: on_host(value) for key, value in values.items()}
     if isinstance(values, tuple):
         return tuple(on_host(value) for value in values)
-    if hasattr(values, 'detach') and not is_host(values):
-        return values.detach().cpu().numpy()
-    return values
+    return host_array(values) if hasattr(values, 'detach') else values
 
 
 def train_off_policy(config, name: str, spec, make_learner, envs=None, callback=None, console=None) -> Run:
