@@ -22,7 +22,7 @@ from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.policies.memory import camera_sightings
 from mate.policies.policy import LoadedPolicy, load_policy
 from mate.teams import GreedyTeam
-from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
+from mate.wrappers.discrete_action_spaces import nearest_grid_indices, square_grid
 
 
 def record(env: TrainingEnv) -> dict:

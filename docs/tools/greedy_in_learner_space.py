@@ -28,7 +28,7 @@ from mate.learn.envs import TeamEnvConfig, TrainingEnv
 from mate.messages import Team
 from mate.spaces import observation_indices_of
 from mate.teams import GreedyTeam
-from mate.wrappers.discrete_camera import nearest_grid_indices, square_grid
+from mate.wrappers.discrete_action_spaces import nearest_grid_indices, square_grid
 
 
 def camera_env(num_envs: int, horizon: int, frame_skip: int = 5, hrl: bool = False) -> TrainingEnv:

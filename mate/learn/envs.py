@@ -141,14 +141,16 @@ class TeamEnvConfig:
     def resolved_horizon(self) -> int:
         return int(self.horizon or 500 * self.resolved_frame_skip)
 
-    def policy_spec(self, *, action: str = 'grid', network: str = 'mlp', hidden=(256, 256), activation: str = 'tanh',
-                    lstm: int = 0, algo: str = '', deterministic: bool = False, levels: int = 5) -> PolicySpec:
-        """The spec of the policy trained in this game (the action kind, network and algorithm from the trainer)."""
+    def policy_spec(self, *, action: str = 'grid', envs=None, levels: int = 5, **network) -> PolicySpec:
+        """The spec of the policy trained in this game: the action kind and the `network` keys of the trainer
+        (`network`, `hidden`, `activation`, `lstm`, `algo`, `deterministic`: `PolicySpec`'s fields); with `envs`
+        given, their `spec` with these network keys (PSRO's envs, the tests' toy tasks say what the policy sees)."""
+        if envs is not None:
+            return envs.spec.replace(**network)
         env_id, config = game_of(self.config, self.team)
         return PolicySpec.for_game(self.team, env_id, config, frame_skip=self.resolved_frame_skip, action=action,
                                    levels=levels, memory=self.memory, velocity=self.velocity,
-                                   full_observability=self.full_observability, network=network, hidden=hidden,
-                                   activation=activation, lstm=lstm, algo=algo, deterministic=deterministic)
+                                   full_observability=self.full_observability, **network)
 
     def make_env(self, spec: PolicySpec, opponent=None, camera_reward: str = 'coverage',
                  device: str | None = None) -> TrainingEnv:

@@ -89,11 +89,8 @@ class I2CConfig(PPOConfig):
 def policy_spec(config: I2CConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains; with `envs` given, what they say the policy sees and does (their
     `spec`) with this config's network."""
-    network = dict(network='i2c', hidden=config.hidden, activation=config.activation, lstm=config.lstm,
-                   algo=config.algo)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action='grid', **network)
+    return config.policy_spec(action='grid', envs=envs, network='i2c', hidden=config.hidden,
+                              activation=config.activation, lstm=config.lstm, algo=config.algo)
 
 
 # ============================================================================ I2C's own terms

@@ -74,11 +74,8 @@ class IQLConfig(QLearningConfig):
 def policy_spec(config: IQLConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains (its Q-values are read as logits, argmax); with `envs` given, what
     they say the policy sees and does (their `spec`: PSRO's envs, the tests' toy tasks) with this network."""
-    network = dict(network='dueling', hidden=config.hidden, activation=config.activation, lstm=0, algo='iql',
-                   deterministic=True)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action=action_kind(config), **network)
+    return config.policy_spec(action=action_kind(config), envs=envs, network='dueling', hidden=config.hidden,
+                              activation=config.activation, lstm=0, algo='iql', deterministic=True)
 
 
 def iql_loss(q_net, target_net, batch: dict, gamma: float, heads: int,

@@ -73,10 +73,8 @@ def policy_spec(config: MAPPOConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains; with `envs` given, what they say the policy sees and does (their
     `spec`: PSRO's envs, the tests' toy tasks) with this config's network."""
     actor = config.actor or ('per-target' if config.team == 'camera' else 'mlp')
-    network = dict(network=actor, hidden=config.hidden, activation=config.activation, lstm=0, algo=config.algo)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action='hrl' if config.hrl else 'grid', **network)
+    return config.policy_spec(action='hrl' if config.hrl else 'grid', envs=envs, network=actor, hidden=config.hidden,
+                              activation=config.activation, lstm=0, algo=config.algo)
 
 
 # ============================================================================ training

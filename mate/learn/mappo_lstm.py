@@ -70,11 +70,8 @@ def policy_spec(config: RecurrentConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains; with `envs` given, what they say the policy sees and does (their
     `spec`) with this config's network."""
     actor = config.actor or ('per-target' if config.team == 'camera' else 'mlp')
-    network = dict(network=actor, hidden=config.hidden, activation=config.activation, lstm=config.lstm,
-                   algo=config.algo)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action='hrl' if config.hrl else 'grid', **network)
+    return config.policy_spec(action='hrl' if config.hrl else 'grid', envs=envs, network=actor, hidden=config.hidden,
+                              activation=config.activation, lstm=config.lstm, algo=config.algo)
 
 
 # ============================================================================ training

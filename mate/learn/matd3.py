@@ -44,12 +44,12 @@ import torch
 from torch import nn
 
 from ..cli.options import option
-from .envs import GameDeviceConfig, TeamEnvConfig, TrainingEnv
+from .envs import TrainingEnv
 from ..policies.networks import AgentwiseMLP
-from .offpolicy_loop import OffPolicyLearner, train_off_policy
+from .offpolicy_loop import OffPolicyConfig, OffPolicyLearner, train_off_policy
 from ..policies.policy import make_actor
 from .replay import TransitionRing
-from .run import Run, RunConfig, mean_or_nan
+from .run import Run, mean_or_nan
 from .schedules import check_network_options
 from ..policies.spec import PolicySpec
 
@@ -58,41 +58,26 @@ __all__ = ['MATD3Config', 'MATD3Learner', 'TwinCritics', 'actor_inputs', 'critic
 
 
 @dataclasses.dataclass
-class MATD3Config(GameDeviceConfig, RunConfig, TeamEnvConfig):
+class MATD3Config(OffPolicyConfig):
     """Settings of an MA-TD3 run (`train(config)`, `mate train matd3`)."""
 
-    num_envs: int = option(16, 'games played at once', minimum=1)
-    threads: int = option(1, 'torch threads of the updates; 0: every core (acting always uses 1; the updates are small '
-                             'and come between decisions, so more threads rarely pay for switching)', minimum=0)
     hrl: bool = option(False, 'MA-TD3 acts with continuous actions: no HRL target selections', cli=False)
     buffer_size: int = option(500_000, 'replay size in decision steps (all agents of the team)', minimum=1)
     batch_size: int = option(1024, 'decision steps per update', minimum=1)
-    learning_starts: int = option(5_000, 'decision steps stored before the first update (a run resumed without its '
-                                         'replay stores as many again)', minimum=0)
-    update_every: int = option(128, 'decision steps between updates', minimum=1)
     random_steps: int = option(10_000, 'decision steps of uniform random actions first', minimum=0)
     exploration_noise: float = option(0.1, 'std of the Gaussian action noise (a share of the action bounds)', minimum=0)
     target_noise: float = option(0.2, 'std of the target-policy smoothing noise', minimum=0)
     target_noise_clip: float = option(0.5, 'the smoothing noise is clipped at +- this', minimum=0)
     policy_delay: int = option(2, 'critic updates per actor update', minimum=1)
     tau: float = option(0.01, 'soft target update rate, after every update, in (0, 1]', above=0, maximum=1)
-    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     actor_lr: float = option(1e-4, "the actors' learning rate (Adam)", above=0)
     critic_lr: float = option(1e-4, "the critics' learning rate (Adam)", above=0)
     huber: float = option(10.0, 'Huber threshold of the critic loss', above=0)
     hidden: tuple[int, ...] = option((512, 256), 'hidden layer widths of the actors and the critics', minimum=1)
     activation: Literal['tanh', 'relu'] = option('tanh', 'hidden activation')
-    report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
-    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
-
-    def cuts_its_last_iteration(self) -> bool:
-        """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
-        return self.steps % self.report_every != 0
 
     def __post_init__(self) -> None:
-        TeamEnvConfig.__post_init__(self)
-        RunConfig.__post_init__(self)
-        GameDeviceConfig.__post_init__(self)
+        super().__post_init__()
         if self.hrl:
             raise ValueError('--hrl is not an option of MA-TD3: it acts with continuous actions (HRL selections are '
                              'discrete: mappo, iql, qmix)')
@@ -103,11 +88,8 @@ class MATD3Config(GameDeviceConfig, RunConfig, TeamEnvConfig):
 def policy_spec(config: MATD3Config, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains (the agents' actors, continuous actions); with `envs` given, what they
     say the policy sees and does (their `spec`: the tests' toy tasks) with this network."""
-    network = dict(network='independent', hidden=config.hidden, activation=config.activation, lstm=0, algo='matd3',
-                   deterministic=True)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action='continuous', **network)
+    return config.policy_spec(action='continuous', envs=envs, network='independent', hidden=config.hidden,
+                              activation=config.activation, lstm=0, algo='matd3', deterministic=True)
 
 
 # ============================================================================ critics and the formulas

@@ -20,15 +20,46 @@ for acting, `update_threads` for the updates), the log row's shared columns and 
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Literal
+
 import numpy as np
 import torch
 from torch import nn
 
 from ..arrays import host_array
+from ..cli.options import option
 from ..policies.device import resolve_device, update_threads
-from .run import Run
+from .envs import GameDeviceConfig, TeamEnvConfig
+from .run import Run, RunConfig
 
-__all__ = ['OffPolicyLearner', 'on_host', 'train_off_policy']
+__all__ = ['OffPolicyConfig', 'OffPolicyLearner', 'on_host', 'train_off_policy']
+
+
+@dataclasses.dataclass
+class OffPolicyConfig(GameDeviceConfig, RunConfig, TeamEnvConfig):
+    """The options of every trainer on this loop (the team env's, the run's, then the loop's own); each algorithm's
+    config adds its replay, networks and optimisers."""
+
+    num_envs: int = option(16, 'games played at once', minimum=1)
+    threads: int = option(1, 'torch threads of the updates; 0: every core (acting always uses 1; the updates are small '
+                             'and come between decisions, so more threads rarely pay for switching)', minimum=0)
+    learning_starts: int = option(5_000, 'decision steps stored before the first update (a run resumed without its '
+                                         'replay stores as many again)', minimum=0)
+    update_every: int = option(128, "decision steps between updates (the Q-learners' spec: a sampling round of "
+                                    '16 x 8)', minimum=1)
+    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
+    report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
+    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
+
+    def cuts_its_last_iteration(self) -> bool:
+        """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
+        return self.steps % self.report_every != 0
+
+    def __post_init__(self) -> None:
+        TeamEnvConfig.__post_init__(self)
+        RunConfig.__post_init__(self)
+        GameDeviceConfig.__post_init__(self)
 
 
 class OffPolicyLearner:

@@ -24,9 +24,8 @@ import numpy as np
 import torch
 
 from ..cli.options import option
-from .envs import GameDeviceConfig, TeamEnvConfig
-from .offpolicy_loop import OffPolicyLearner
-from .run import RunConfig, mean_or_nan
+from .offpolicy_loop import OffPolicyConfig, OffPolicyLearner
+from .run import mean_or_nan
 from .schedules import check_network_options, piecewise, resolve_schedule
 from ..policies.spec import PolicySpec
 
@@ -38,37 +37,22 @@ SELECTIONS = ('joint', 'per-target')
 
 
 @dataclasses.dataclass
-class QLearningConfig(GameDeviceConfig, RunConfig, TeamEnvConfig):
-    """Settings of a Q-learning run (IQL, QMIX): the team env's and the run's options, then what both learners share."""
+class QLearningConfig(OffPolicyConfig):
+    """Settings of a Q-learning run (IQL, QMIX): the off-policy loop's options, then what both learners share."""
 
-    num_envs: int = option(16, 'games played at once', minimum=1)
-    threads: int = option(1, 'torch threads of the updates; 0: every core (acting always uses 1; the updates are small '
-                             'and come between decisions, so more threads rarely pay for switching)', minimum=0)
     selection: Literal['joint', 'per-target'] = option(
         'joint', "with --hrl: 'joint' (the spec's Discrete(256)): one choice among the 2^Nt target subsets, those "
                  "keeping an invisible target never taken; 'per-target': a keep/ignore head per target slot")
-    learning_starts: int = option(5_000, 'decision steps stored before the first update (a run resumed without its '
-                                         'replay stores as many again)', minimum=0)
-    update_every: int = option(128, "decision steps between updates (the spec's sampling round of 16 x 8)", minimum=1)
     target_update: int = option(500, 'decision steps between hard copies to the target networks', minimum=1)
-    gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     epsilon_schedule: tuple[tuple[float, float], ...] = option(
         ((0, 1.0), (50_000, 0.02)), 'exploration rate, piecewise linear in decision steps [[step, epsilon], ...] '
         '(a step "P%%": P %% of --steps)')
-    report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
-    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
 
     SCHEDULES: ClassVar[tuple[str, ...]] = ('epsilon_schedule',)
     """The schedule options of the config (a learner adds its learning rate's): checked once, in __post_init__."""
 
-    def cuts_its_last_iteration(self) -> bool:
-        """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""
-        return self.steps % self.report_every != 0
-
     def __post_init__(self) -> None:
-        TeamEnvConfig.__post_init__(self)
-        RunConfig.__post_init__(self)
-        GameDeviceConfig.__post_init__(self)
+        super().__post_init__()
         if self.selection not in SELECTIONS:
             raise ValueError(f'selection must be one of {", ".join(SELECTIONS)} (HRL cameras), got {self.selection!r}')
         if self.selection != 'joint' and not self.hrl:

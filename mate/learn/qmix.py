@@ -84,11 +84,8 @@ class QMIXConfig(QLearningConfig):
 def policy_spec(config: QMIXConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains (the GRU agent network; its Q-values are read as logits, argmax);
     with `envs` given, what they say the policy sees and does (their `spec`) with this network."""
-    network = dict(network='recurrent-q', hidden=config.hidden, activation='relu', lstm=0, algo='qmix',
-                   deterministic=True)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action=action_kind(config), **network)
+    return config.policy_spec(action=action_kind(config), envs=envs, network='recurrent-q', hidden=config.hidden,
+                              activation='relu', lstm=0, algo='qmix', deterministic=True)
 
 
 class QMixer(nn.Module):

@@ -85,11 +85,8 @@ class TarMACConfig(PPOConfig):
 def policy_spec(config: TarMACConfig, envs=None) -> PolicySpec:
     """The spec of the policy `config` trains; with `envs` given, what they say the policy sees and does (their
     `spec`) with this config's network."""
-    network = dict(network='tarmac', hidden=config.hidden, activation=config.activation, lstm=config.lstm,
-                   algo=config.algo)
-    if envs is not None:
-        return envs.spec.replace(**network)
-    return config.policy_spec(action='hrl' if config.hrl else 'grid', **network)
+    return config.policy_spec(action='hrl' if config.hrl else 'grid', envs=envs, network='tarmac', hidden=config.hidden,
+                              activation=config.activation, lstm=config.lstm, algo=config.algo)
 
 
 # ============================================================================ training

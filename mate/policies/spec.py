@@ -48,8 +48,7 @@ from ..arrays import array_namespace, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import observation_indices_of
 from ..teams.interface import action_high, as_team
-from ..wrappers.discrete_camera import square_grid
-from ..wrappers.discrete_target import disk_grid
+from ..wrappers.discrete_action_spaces import disk_grid, square_grid
 from .actors import network_kind
 from .hrl import executor_actions, joint_allowed, selection_bits
 from .memory import MEMORY_FEATURES

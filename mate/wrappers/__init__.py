@@ -1,6 +1,8 @@
 """MATE wrappers: observation, action, reward, single-team and communication layers around `MultiAgentTracking`.
 
-Each wrapper lives in its own module and is re-exported here and at package level (`mate.MultiCamera`, ...).
+A module a wrapper, except where the original MATE keeps several in one (the single-team wrappers in `single_team`,
+the discrete action spaces in `discrete_action_spaces`); all are re-exported here and at package level
+(`mate.MultiCamera`, ...).
 Apply them with `mate.make(env_id, wrappers=[...])` (first item innermost) or by hand; see docs/wrappers.md
 for what each one does and for the ordering rules (a wrong order raises `WrapperOrderError`).
 """
@@ -17,14 +19,11 @@ from .base import (
     has_wrapper,
     iter_env_chain,
 )
-from .discrete_camera import DiscreteCamera
-from .discrete_target import DiscreteTarget
+from .discrete_action_spaces import DiscreteCamera, DiscreteTarget
 from .enhanced_observation import EnhancedObservation
 from .extra_communication_delays import ExtraCommunicationDelays
 from .message_filter import MessageFilter
 from .more_training_information import MoreTrainingInformation
-from .multi_camera import MultiCamera
-from .multi_target import MultiTarget
 from .no_communication import NoCommunication
 from .random_message_dropout import RandomMessageDropout
 from .relative_coordinates import RelativeCoordinates
@@ -33,9 +32,16 @@ from .repeated_reward_individual_done import RepeatedRewardIndividualDone
 from .rescaled_observation import RescaledObservation
 from .restricted_communication_range import RestrictedCommunicationRange
 from .shared_field_of_view import SharedFieldOfView
-from .single_camera import SingleCamera
-from .single_target import SingleTarget
-from .single_team import SingleTeamHelper, SingleTeamMultiAgent, SingleTeamSingleAgent, TeamInfos
+from .single_team import (
+    MultiCamera,
+    MultiTarget,
+    SingleCamera,
+    SingleTarget,
+    SingleTeamHelper,
+    SingleTeamMultiAgent,
+    SingleTeamSingleAgent,
+    TeamInfos,
+)
 
 __all__ = [
     'AuxiliaryCameraRewards',

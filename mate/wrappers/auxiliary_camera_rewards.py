@@ -39,7 +39,7 @@ class AuxiliaryCameraRewards(AuxiliaryRewards):
 
     @classmethod
     def _forbidden_inside(cls) -> type:
-        from .multi_target import MultiTarget
+        from .single_team import MultiTarget
         return MultiTarget
 
     def components(self, raw_rewards: np.ndarray) -> dict:

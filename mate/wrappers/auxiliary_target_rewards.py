@@ -62,7 +62,7 @@ class AuxiliaryTargetRewards(AuxiliaryRewards):
 
     @classmethod
     def _forbidden_inside(cls) -> type:
-        from .multi_camera import MultiCamera
+        from .single_team import MultiCamera
         return MultiCamera
 
     def components(self, raw_rewards: np.ndarray) -> dict:

@@ -28,7 +28,8 @@ from mate.messages import Message, Team
 
 from .base import MateWrapper, assert_base_environment, has_wrapper
 
-__all__ = ['SingleTeamHelper', 'SingleTeamMultiAgent', 'SingleTeamSingleAgent', 'TeamInfos']
+__all__ = ['MultiCamera', 'MultiTarget', 'SingleCamera', 'SingleTarget', 'SingleTeamHelper', 'SingleTeamMultiAgent',
+           'SingleTeamSingleAgent', 'TeamInfos']
 
 _AGENT_BASES = {Team.CAMERA: CameraAgentBase, Team.TARGET: TargetAgentBase}
 
@@ -298,3 +299,97 @@ class SingleTeamSingleAgent(SingleTeamHelper):
         if agent_id is None and agent is None:
             return self.env.receive_messages(agent_id=(self.team, self.index))
         return self.env.receive_messages(agent_id=agent_id, agent=agent)
+
+
+class MultiCamera(SingleTeamMultiAgent):
+    """All cameras are yours; the targets are copies of `target_agent` (a `TargetAgentBase`).
+
+        env = mate.make('MultiAgentTracking-v0', wrappers=[
+            mate.WrapperSpec(mate.MultiCamera, target_agent=mate.GreedyTargetAgent(seed=0))])
+        camera_obs, camera_infos = env.reset(seed=0)                 # (Nc, D_c), Nc dicts
+        camera_obs, reward, terminated, truncated, camera_infos = env.step(env.action_space.sample())
+
+    Spaces: `action_space` / `observation_space` are the camera joint spaces of the inner env.
+    Order: before it: observation-mask wrappers, DiscreteCamera/DiscreteTarget, MoreTrainingInformation;
+    RepeatedRewardIndividualDone may sit inside or outside.
+    """
+
+    def __init__(self, env, target_agent) -> None:
+        super().__init__(env, Team.CAMERA, opponent_agent=target_agent)
+
+    @property
+    def target_agent(self):
+        """The prototype of the opponents (seeded, never acts itself)."""
+        return self.opponent_agent
+
+
+class MultiTarget(SingleTeamMultiAgent):
+    """All targets are yours; the cameras are copies of `camera_agent` (a `CameraAgentBase`).
+
+        env = mate.make('MultiAgentTracking-v0', wrappers=[
+            mate.WrapperSpec(mate.MultiTarget, camera_agent=mate.GreedyCameraAgent(seed=0))])
+        target_obs, target_infos = env.reset(seed=0)                 # (Nt, D_t), Nt dicts
+        target_obs, reward, terminated, truncated, target_infos = env.step(env.action_space.sample())
+
+    Spaces: `action_space` / `observation_space` are the target joint spaces of the inner env.
+    Order: as for MultiCamera.
+    """
+
+    def __init__(self, env, camera_agent) -> None:
+        super().__init__(env, Team.TARGET, opponent_agent=camera_agent)
+
+    @property
+    def camera_agent(self):
+        """The prototype of the opponents (seeded, never acts itself)."""
+        return self.opponent_agent
+
+
+class SingleCamera(SingleTeamSingleAgent):
+    """You control one camera (slot `env.index`); the other cameras are copies of `other_camera_agent`, the
+    targets copies of `target_agent`.
+
+        env = mate.make('MultiAgentTracking-v0', wrappers=[mate.WrapperSpec(
+            mate.SingleCamera, other_camera_agent=mate.GreedyCameraAgent(seed=0),
+            target_agent=mate.GreedyTargetAgent(seed=0))])
+        observation, info = env.reset(seed=0)                        # (D_c,), one dict
+        observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+    Spaces: one camera's action and observation spaces. Order: as for MultiCamera, and nothing that needs
+    every agent's reward (RepeatedRewardIndividualDone, Auxiliary*Rewards) may follow it.
+    """
+
+    def __init__(self, env, other_camera_agent, target_agent) -> None:
+        super().__init__(env, Team.CAMERA, teammate_agent=other_camera_agent, opponent_agent=target_agent)
+
+    @property
+    def other_camera_agent(self):
+        return self.teammate_agent
+
+    @property
+    def target_agent(self):
+        return self.opponent_agent
+
+
+class SingleTarget(SingleTeamSingleAgent):
+    """You control one target (slot `env.index`); the other targets are copies of `other_target_agent`, the
+    cameras copies of `camera_agent`.
+
+        env = mate.make('MultiAgentTracking-v0', wrappers=[mate.WrapperSpec(
+            mate.SingleTarget, other_target_agent=mate.GreedyTargetAgent(seed=0),
+            camera_agent=mate.GreedyCameraAgent(seed=0))])
+        observation, info = env.reset(seed=0)                        # (D_t,), one dict
+        observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+    Spaces: one target's action and observation spaces. Order: as for SingleCamera.
+    """
+
+    def __init__(self, env, other_target_agent, camera_agent) -> None:
+        super().__init__(env, Team.TARGET, teammate_agent=other_target_agent, opponent_agent=camera_agent)
+
+    @property
+    def other_target_agent(self):
+        return self.teammate_agent
+
+    @property
+    def camera_agent(self):
+        return self.opponent_agent

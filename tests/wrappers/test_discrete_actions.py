@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from wrapper_scene import NC, NT, SCENE, ZERO_ACTION, make_env, set_scene
 
 import mate
-from mate.wrappers.discrete_target import disk_grid
+from mate.wrappers.discrete_action_spaces import disk_grid
 
 
 def test_discrete_camera_spaces_and_grid():
@@ -53,7 +53,7 @@ def test_disk_grid_values():
                                [[-np.sqrt(0.5)] * 2, [-1 / np.sqrt(5), -2 / np.sqrt(5)], [-np.sqrt(0.125)] * 2,
                                 [0.0, -0.5], [0.0, 0.0], [np.sqrt(0.5)] * 2])
     # the boundary of the square lands on the unit circle
-    boundary = np.abs(mate.wrappers.discrete_camera.square_grid(5)).max(axis=1) == 1.0
+    boundary = np.abs(mate.wrappers.discrete_action_spaces.square_grid(5)).max(axis=1) == 1.0
     np.testing.assert_allclose(np.linalg.norm(grid[boundary], axis=1), 1.0)
 
 
