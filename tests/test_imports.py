@@ -167,7 +167,7 @@ def test_the_private_name_check_sees_relative_and_lazy_imports(tmp_path, monkeyp
 
 
 LAYERS = (
-    ('support', ('mate.version', 'mate.arrays', 'mate.constants', 'mate.config', 'mate.messages', 'mate.spaces',
+    ('support', ('mate.version', 'mate.constants', 'mate.config', 'mate.messages', 'mate.spaces',
                  'mate.cli', 'mate.tools')),
     ('core', ('mate.core',)),
     ('game', ('mate.envs',)),
@@ -214,7 +214,7 @@ def test_the_layer_check_sees_a_climbing_import(tmp_path, monkeypatch):
     assert climbing_imports()[('mate.core.world_probe', 'mate.policies.policy')] == ('core', 'policies')
 
 
-TOP_LEVEL = {'__init__', '__main__', 'version', 'arrays', 'constants', 'spaces', 'messages'}
+TOP_LEVEL = {'__init__', '__main__', 'version', 'constants', 'spaces', 'messages'}
 """The modules at the package's top level: the game's vocabulary and package support; everything else lives in the
 folder of its layer (docs/contributors/architecture.md)."""
 

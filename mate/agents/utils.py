@@ -31,7 +31,7 @@ from ..constants import (
     TARGET_STATE_DIM_PRIVATE,
     TARGET_STATE_DIM_PUBLIC,
 )
-from ..arrays import array_namespace, copied, float64_copy, on_device_of
+from ..core.arrays import array_namespace, copied, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import coordinate_mask_of, observation_indices_of, observation_space_of
 from .geometry import RAD2DEG, Vector2D
@@ -41,8 +41,6 @@ __all__ = [
     'relative_layout', 'rescale_observation', 'scale_in_place', 'split_observation', 'StateBase', 'CameraStatePublic',
     'CameraStatePrivate', 'TargetStatePublic', 'TargetStatePrivate', 'ObstacleState',
 ]
-
-_OWN_LOCATION = slice(PRESERVED_DIM, PRESERVED_DIM + 2)
 
 
 # ---------------------------------------------------------------------------- observation helpers

@@ -14,11 +14,10 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from array_api_compat import device as device_of
 
 from ..constants import (CAMERA_STATE_DIM_PRIVATE, CAMERA_STATE_DIM_PUBLIC, NUM_WAREHOUSES, OBSTACLE_STATE_DIM,
                          PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE, TARGET_STATE_DIM_PUBLIC)
-from .world import namespace_of
+from .arrays import array_namespace, copied, device_of
 
 __all__ = ['TARGET_EMPTY_BITS', 'all_flagged_records', 'empty_warehouses', 'enhance_observations', 'flagged_records',
            'public_records', 'record_slices']
@@ -53,7 +52,7 @@ def flagged_records(records):
     """(..., n, d) records -> (..., 1, n * (d + 1)) float64: each record followed by a flag 1, flattened into one
     row block that broadcasts over the agent axis."""
     records = _array(records)
-    xp = namespace_of(records)
+    xp = array_namespace(records)
     records = xp.astype(records, xp.float64, copy=False)
     ones = xp.ones((*records.shape[:-1], 1), dtype=xp.float64, device=device_of(records))
     flagged = xp.concat([records, ones], axis=-1)
@@ -62,14 +61,13 @@ def flagged_records(records):
 
 def public_records(camera_obs, target_obs):
     """Public states read from each agent's own private state: cameras (..., Nc, 6), targets (..., Nt, 4) (copies)."""
-    camera, target = camera_obs[..., CAMERA_PUBLIC], target_obs[..., TARGET_PUBLIC]
-    return (camera.copy(), target.copy()) if isinstance(camera, np.ndarray) else (camera.clone(), target.clone())
+    return copied(camera_obs[..., CAMERA_PUBLIC]), copied(target_obs[..., TARGET_PUBLIC])
 
 
 def empty_warehouses(remaining_cargoes):
     """(..., 4) float 0/1: warehouse w has no cargo left to send (row w of `remaining_cargoes` (..., 4, 4) is zero)."""
     remaining_cargoes = _array(remaining_cargoes)
-    xp = namespace_of(remaining_cargoes)
+    xp = array_namespace(remaining_cargoes)
     return xp.astype(~xp.any(remaining_cargoes != 0, axis=-1), xp.float64)
 
 

@@ -8,11 +8,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import array_api_compat
-import array_api_compat.numpy as numpy_namespace
 import numpy as np
 
 from ..constants import NUM_WAREHOUSES
+from .arrays import array_namespace
 from .params import Params
 
 
@@ -100,12 +99,6 @@ def empty_world(params: Params, batch_size: int) -> World:
     return world
 
 
-def namespace_of(array):
-    """The array namespace of a numpy array or a torch tensor (`array_api_compat`'s), at once for a plain ndarray
-    (the host calls this at every step)."""
-    return numpy_namespace if type(array) is np.ndarray else array_api_compat.array_namespace(array)
-
-
 EPISODE_STATISTICS = ('episode_coverage_rate', 'episode_real_coverage_rate', 'episode_target_return')
 """What `episode_statistics` gives of every row's episode so far."""
 
@@ -124,7 +117,7 @@ def episode_statistics(params: Params, world: World, row: int | None = None) -> 
         return dict(episode_coverage_rate=float(world.coverage_rate_sum[row]) / steps,
                     episode_real_coverage_rate=float(world.real_coverage_rate_sum[row]) / steps,
                     episode_target_return=float(target_return[row]))
-    steps = namespace_of(world.episode_step).maximum(world.episode_step, 1)   # numpy, or tensors of a device's world
+    steps = array_namespace(world.episode_step).maximum(world.episode_step, 1)   # numpy, or tensors of a device's world
     return dict(episode_coverage_rate=world.coverage_rate_sum / steps,
                 episode_real_coverage_rate=world.real_coverage_rate_sum / steps,
                 episode_target_return=target_return.clone() if hasattr(target_return, 'clone') else
@@ -134,7 +127,7 @@ def episode_statistics(params: Params, world: World, row: int | None = None) -> 
 def obstacle_states(world: World, b: int | slice = slice(None)) -> np.ndarray:
     """Obstacle [x, y, r] per slot of row b, (No, 3), or of every row, (B, No, 3) (a fresh array; a tensor for a
     world of tensors)."""
-    xp = namespace_of(world.obstacle_pos)
+    xp = array_namespace(world.obstacle_pos)
     return xp.concat([world.obstacle_pos[b], world.obstacle_radius[b][..., None]], axis=-1)
 
 

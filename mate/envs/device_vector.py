@@ -54,9 +54,9 @@ import numpy as np
 
 from . import registration
 from ..core.device import BLOCK, DeviceCore, from_torch, to_torch
-from ..core.world import World, obstacle_states
+from ..core.world import World
 from ..messages import Team
-from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames, checked_team_actions
+from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames
 
 __all__ = ['DeviceVecEnv']
 
@@ -129,22 +129,12 @@ class DeviceVecEnv(VectorGames):
             array = np.ascontiguousarray(array, dtype=np.float64)
         return array
 
-    def _team_actions(self, value, team: Team):
-        """`step`'s check of one team's actions, as the CPU env's (`checked_team_actions`): (B, N, 2) or (B, 2N) of
-        any real dtype, finite; returned as a float64 tensor (B, N, 2) on the env's device."""
+    def _tensor(self, value):
+        """`value` (actions: a tensor or anything numpy reads) as a float64 tensor on the env's device."""
         import torch
 
-        camera = team is Team.CAMERA
-        device = self._info_mask.device
-
-        def convert(v):
-            return torch.as_tensor(v if isinstance(v, torch.Tensor) else np.asarray(v, np.float64), dtype=torch.float64,
-                                   device=device)
-
-        tensor = checked_team_actions(value, self.counts[0 if camera else 1], team.name.lower(),
-                                      self.camera_action_space if camera else self.target_action_space, self.num_envs,
-                                      convert)
-        return tensor.contiguous()
+        return torch.as_tensor(value if isinstance(value, torch.Tensor) else np.asarray(value, np.float64),
+                               dtype=torch.float64, device=self._info_mask.device)
 
     def step(self, actions):
         """Advance every game by one step with `actions` = (camera_actions, target_actions); returns ((camera_obs,
@@ -162,8 +152,7 @@ class DeviceVecEnv(VectorGames):
         if not self._started:
             raise RuntimeError('DeviceVecEnv: call reset() before step()')
         if checked:                       # the CPU env's checks and conversions (a read back: NaN and inf)
-            camera_actions = self._team_actions(camera_actions, Team.CAMERA)
-            target_actions = self._team_actions(target_actions, Team.TARGET)
+            camera_actions, target_actions = self._checked_actions(actions, self._tensor)
         camera_actions = self._actions(camera_actions, Team.CAMERA)
         target_actions = self._actions(target_actions, Team.TARGET)
         self.core.step(camera_actions, target_actions, restart_masked=self.next_step)
@@ -218,37 +207,6 @@ class DeviceVecEnv(VectorGames):
         """(camera_obs (B, Nc, D_c), target_obs (B, Nt, D_t)) tensors: both teams' current observations (the env's
         buffers, overwritten by the next step)."""
         return self._observations
-
-    @property
-    def world(self) -> World:
-        """The batched world itself, as torch tensors viewing the device's arrays (`mate.core.world.World`'s fields
-        with a leading batch axis, as the CPU env's `world`); read it, never write it (the next step overwrites it
-        in place)."""
-        return self._world
-
-    @property
-    def obstacle_states(self):
-        """(B, No, 3) tensor: obstacle [x, y, r] per game and slot (a fresh tensor), as the CPU env's."""
-        return obstacle_states(self._world)
-
-    @property
-    def remaining_cargoes(self):
-        """(B, 4, 4) tensor: units waiting at warehouse `src` (rows) for destination `dst` (a copy), as the CPU
-        env's."""
-        return self._world.remaining_cargoes.clone()
-
-    def world_tensor(self, name: str):
-        """A torch tensor viewing the world array `name` on the device (`mate.core.world.World`'s fields, e.g.
-        'target_reward_parts' (B, Nt), 'camera_target_view_mask' (B, Nc, Nt)): the same view at every call (the
-        world's arrays stay in place: steps and `load_state_dict` write into them)."""
-        return getattr(self._world, name)
-
-    def close(self, **kwargs) -> None:
-        """Nothing to release (the device arrays go with the object)."""
-
-    def __repr__(self) -> str:
-        return (f'DeviceVecEnv({self.name}, num_envs={self.num_envs}, observation_dtype={self.observation_dtype.name}, '
-                f'autoreset_mode={self.autoreset_mode.name})')
 
 
 def make_device_vec(env_id: str = 'MultiAgentTracking-v0', num_envs: int = 1, config: Any = None,

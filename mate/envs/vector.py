@@ -10,15 +10,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from gymnasium.vector import VectorEnv, VectorRewardWrapper
 
 from . import registration
 from ..core import engine
 from ..core.snapshot import get_snapshot
-from ..core.world import empty_world, obstacle_states
+from ..core.world import empty_world
 from ..messages import Team, as_team
-from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames, checked_team_actions, env_listing
+from .vector_contract import ADDED_FIELDS, AutoresetMode, VectorGames, env_listing
 
 __all__ = ['MultiAgentTrackingVectorEnv', 'TeamReward', 'make_vec', 'AutoresetMode']
 
@@ -150,7 +149,7 @@ class MultiAgentTrackingVectorEnv(VectorGames):
         autoreset semantics)."""
         if self._needs_reset:
             raise RuntimeError('MultiAgentTrackingVectorEnv: call reset() before step()')
-        camera_actions, target_actions = self._parse_actions(actions)
+        camera_actions, target_actions = self._checked_actions(actions, _float64_array)
         p, world, mode = self.params, self._world, self.autoreset_mode
         if mode is AutoresetMode.DISABLED and self._autoreset.any():
             finished = np.flatnonzero(self._autoreset)
@@ -193,18 +192,10 @@ class MultiAgentTrackingVectorEnv(VectorGames):
             return self._observations(), rewards, self._terminated.copy(), self._truncated.copy(), infos
         return self._observations(), rewards, self._terminated, self._truncated, infos
 
-    def _parse_actions(self, actions) -> tuple[np.ndarray, np.ndarray]:
-        camera_actions, target_actions = self._joint_actions(actions)
-        return (self._team_actions(camera_actions, self.params.num_cameras, 'camera', self.camera_action_space),
-                self._team_actions(target_actions, self.params.num_targets, 'target', self.target_action_space))
-
     def step_games(self, actions):
         """`step(actions)`: the device env's `step_games` leaves out a check that reads the device back; on the host
         there is nothing to leave out (one loop steps either env)."""
         return self.step(actions)
-
-    def _team_actions(self, value, count: int, team: str, box: spaces.Box) -> np.ndarray:
-        return np.ascontiguousarray(checked_team_actions(value, count, team, box, self.num_envs, _float64_array))
 
     def _observations(self) -> tuple[np.ndarray, np.ndarray]:
         if self.copy:
@@ -218,12 +209,6 @@ class MultiAgentTrackingVectorEnv(VectorGames):
         if not 0 <= int(index) < self.num_envs:
             raise IndexError(f'env index {index} out of range 0..{self.num_envs - 1}')
         return get_snapshot(self.params, self._world, int(index))
-
-    @property
-    def world(self):
-        """The batched world state itself (`mate.core.world.World`: arrays with a leading batch axis, e.g.
-        `target_bounty` (B, Nt)); read it, never write it (the next step overwrites it in place)."""
-        return self._world
 
     @property
     def observations(self) -> tuple[np.ndarray, np.ndarray]:
@@ -265,25 +250,11 @@ class MultiAgentTrackingVectorEnv(VectorGames):
             self.np_random.bit_generator.state = state['np_random']
 
     # ------------------------------------------------------------------ helpers
-    @property
-    def obstacle_states(self) -> np.ndarray:
-        """(B, No, 3) obstacle [x, y, r] per env and slot (a fresh array)."""
-        return obstacle_states(self._world)
-
-    @property
-    def remaining_cargoes(self) -> np.ndarray:
-        """(B, 4, 4) int units waiting at warehouse `src` (rows) for destination `dst` (a copy)."""
-        return self._world.remaining_cargoes.copy()
-
     def state(self) -> np.ndarray:
         """Every env's global state vector: a fresh (B, S) array in `observation_dtype`."""
         out = np.empty(self.state_space.shape, dtype=self.observation_dtype)
         engine.global_states(self.params, self._world, out)
         return out
-
-    def __repr__(self) -> str:
-        return (f'MultiAgentTrackingVectorEnv({self.name}, num_envs={self.num_envs}, '
-                f'observation_dtype={self.observation_dtype.name}, autoreset_mode={self.autoreset_mode.name})')
 
 
 class TeamReward(VectorRewardWrapper):

@@ -12,8 +12,8 @@ from gymnasium import spaces
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..arrays import array_namespace, copied
-from ..core.world import EPISODE_STATISTICS, episode_statistics
+from ..core.arrays import array_namespace, copied
+from ..core.world import EPISODE_STATISTICS, episode_statistics, obstacle_states
 from .multi_agent_tracking import GameDescription, MultiAgentTracking, team_shape_error
 
 __all__ = ['ADDED_FIELDS', 'AutoresetMode', 'FINAL_WORLD_KEYS', 'INFO_KEYS', 'VectorGames', 'autoreset_mode_of',
@@ -163,7 +163,8 @@ def env_listing(indices: np.ndarray, limit: int = 10) -> str:
 
 class VectorGames(GameDescription, VectorEnv):
     """The part of a vector env that does not depend on where its B games run: their description and spaces, the
-    reset's mask and seeds, and random joint actions (the CPU env and the device env are both one)."""
+    reset's mask and seeds, the infos, random joint actions and the views of the world (the CPU env and the device
+    env are both one)."""
 
     def _describe_games(self, config: Any, num_envs: int, observation_dtype, autoreset_mode,
                         overrides: dict) -> MultiAgentTracking:
@@ -221,6 +222,15 @@ class VectorGames(GameDescription, VectorEnv):
                              f'got {type(actions).__name__}') from None
         return camera_actions, target_actions
 
+    def _checked_actions(self, actions, convert) -> tuple:
+        """`step`'s joint `actions` as (camera (B, Nc, 2), target (B, Nt, 2)) float64 arrays of the env's kind, each
+        team's checked by `checked_team_actions` (`convert` making the env's array of it); ValueError (one line)."""
+        camera_actions, target_actions = self._joint_actions(actions)
+        return (checked_team_actions(camera_actions, self.counts[0], 'camera', self.camera_action_space,
+                                     self.num_envs, convert),
+                checked_team_actions(target_actions, self.counts[1], 'target', self.target_action_space,
+                                     self.num_envs, convert))
+
     def _infos(self) -> dict:
         """The infos of every game now (`INFO_KEYS`): fresh (B,) arrays (tensors on a device), each with its `_key`
         mask (`self._info_mask`: every game, shared)."""
@@ -242,6 +252,27 @@ class VectorGames(GameDescription, VectorEnv):
         for key in FINAL_WORLD_KEYS:         # per-agent results of the step, gone with the restart
             final_info[key] = copied(getattr(self._world, key))
         return final_info
+
+    @property
+    def world(self):
+        """The batched world itself (`mate.core.world.World`'s fields with a leading batch axis, e.g. `target_bounty`
+        (B, Nt): numpy arrays, or tensors viewing a device's arrays); read it, never write it (the next step
+        overwrites it in place)."""
+        return self._world
+
+    @property
+    def obstacle_states(self):
+        """(B, No, 3) obstacle [x, y, r] per game and slot (a fresh array or tensor)."""
+        return obstacle_states(self._world)
+
+    @property
+    def remaining_cargoes(self):
+        """(B, 4, 4) units waiting at warehouse `src` (rows) for destination `dst` (a copy)."""
+        return copied(self._world.remaining_cargoes)
+
+    def __repr__(self) -> str:
+        return (f'{type(self).__name__}({self.name}, num_envs={self.num_envs}, '
+                f'observation_dtype={self.observation_dtype.name}, autoreset_mode={self.autoreset_mode.name})')
 
     def sample_actions(self, rng: np.random.Generator | int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Uniform random joint actions (camera (B, Nc, 2), target (B, Nt, 2)), float64, much cheaper than

@@ -39,7 +39,7 @@ state and random streams, the sighting memory, the episode sums), for exact resu
 On a GPU (`device='cuda'`, `mate train ... --game-device cuda`) the same class plays the games there: the
 single-team env of that device (`mate.make_team_vec(..., device='cuda')`: the games and the greedy opponent as CUDA
 kernels) and the same code over torch tensors (the spec's pipeline, the memory, `compress` and
-`enhance_observations` serve both kinds, `mate.arrays`; the HRL executor runs as a kernel there). Only the
+`enhance_observations` serve both kinds, `mate.core.arrays`; the HRL executor runs as a kernel there). Only the
 decision's episode records come to the host. What it does not play there is named by `device_unsupported`: the
 population players' 'mixed' camera reward and opponents other than the greedy rules. The device teams draw from
 counter-based streams of their own, so a run there and a CPU run (whose greedy team draws as the Python agents)
@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 
 from ..agents.utils import box_scaling, scale_in_place
-from ..arrays import array_namespace, as_kind_of, copied, float64_copy, host_array, host_copy, maybe_any
+from ..core.arrays import array_namespace, as_kind_of, copied, float64_copy, host_array, host_copy, maybe_any
 from ..constants import CAMERA_STATE_DIM_PRIVATE, PRESERVED_DIM, TARGET_STATE_DIM_PRIVATE
 from ..messages import Team
 from ..cli.options import option
@@ -174,12 +174,6 @@ class GameDeviceConfig:
                 'auto: on the GPU when --device is one and the settings allow it (not PSRO\'s mixed rewards and '
                 'population opponents), else the CPU')
 
-    OFF_POLICY = ('cpu', 'where the games and the greedy opponent run: cpu (numba; the default: the off-policy '
-                         "learners' 16 games step faster there), cuda (CUDA kernels, the gpu extra; their arrays come "
-                         'to the host once per decision for the replay), or auto: cuda when --device is a GPU and '
-                         'the settings allow it')
-    """The off-policy trainers' default and help (`option(*GameDeviceConfig.OFF_POLICY)`)."""
-
     def __post_init__(self) -> None:
         if self.game_device not in GAME_DEVICES:
             raise ValueError(f"--game-device must be auto, cpu or cuda, got {self.game_device!r}")
@@ -294,7 +288,7 @@ class TrainingEnv:
     preset's maximum target-team episode reward (the paper's normalised reward), `length`), in the order the
     episodes ended (env step, then game).
 
-    The same code on both devices (`mate.arrays`): the single-team env of the device (`mate.make_team_vec`), the
+    The same code on both devices (`mate.core.arrays`): the single-team env of the device (`mate.make_team_vec`), the
     spec's pipeline (`PolicySpec.features`, `decode`, `allowed`), the sighting memory and `compress` serve numpy
     arrays and torch tensors. With the device team's host twin as the CPU env's opponent (`HostTeam`) the two play
     the same games, number for number (tests/learn/test_device_envs.py, under numba's CUDA simulator).
@@ -531,7 +525,6 @@ class TrainingEnv:
         if bool(xp.any(restarting)):   # ended at the last env step: restart now so that the next decision is clean
             raw = self._play(own_actions, own_raw, restarting)[0]
         self._raw = copied(raw)
-        B, N = self.num_envs, self.num_agents
         info = dict(final_obs=self._final(done, final_raw, lambda: self._features(final_raw, final_memory,
                                                                                    final_before), (B, N, self.obs_dim)),
                     final_state=self._final(done, final_state, lambda: self._state(final_state), (B, self.state_dim)),

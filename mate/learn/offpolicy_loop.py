@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..arrays import host_array
+from ..core.arrays import host_array
 from ..cli.options import option
 from ..policies.device import resolve_device, update_threads
 from .envs import GameDeviceConfig, TeamEnvConfig
@@ -50,7 +50,10 @@ class OffPolicyConfig(GameDeviceConfig, RunConfig, TeamEnvConfig):
                                     '16 x 8)', minimum=1)
     gamma: float = option(0.99, 'discount per decision', minimum=0, maximum=1)
     report_every: int = option(5_120, 'decision steps per log row (an iteration; and one at the end)', minimum=1)
-    game_device: Literal['auto', 'cpu', 'cuda'] = option(*GameDeviceConfig.OFF_POLICY)
+    game_device: Literal['auto', 'cpu', 'cuda'] = option(
+        'cpu', "where the games and the greedy opponent run: cpu (numba; the default: the off-policy learners' 16 "
+               'games step faster there), cuda (CUDA kernels, the gpu extra; their arrays come to the host once per '
+               'decision for the replay), or auto: cuda when --device is a GPU and the settings allow it')
 
     def cuts_its_last_iteration(self) -> bool:
         """A row every `report_every` decision steps and one at the budget: early unless `steps` is a multiple."""

@@ -22,7 +22,7 @@ import functools
 import numpy as np
 from numba import njit
 
-from ..arrays import array_namespace, on_device_of
+from ..core.arrays import array_namespace, on_device_of
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import array_namespace, as_kind_of
+from ..core.arrays import array_namespace, as_kind_of
 from ..constants import PRESERVED_DIM
 from ..messages import Team
 from ..spaces import observation_indices_of, observation_space_of
@@ -51,7 +51,7 @@ def target_record_scale(num_cameras: int, num_targets: int, num_obstacles: int) 
 
 class SightingMemory:
     """Last sighting of every target for B camera teams (or B = 1 for one agent's copy), in numpy arrays or, with
-    `like` a tensor, in tensors on its device (the same code: `mate.arrays`).
+    `like` a tensor, in tensors on its device (the same code: `mate.core.arrays`).
 
     `age` (B, Nt) int64 env steps since a camera of the team saw the slot's target (`period`: unknown), `location`
     (B, Nt, 2) float64 where it was then.

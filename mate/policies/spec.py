@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from ..agents.utils import observation_scaling, relative_in_place, scale_in_place
-from ..arrays import array_namespace, float64_copy, on_device_of
+from ..core.arrays import array_namespace, float64_copy, on_device_of
 from ..messages import Team
 from ..spaces import observation_indices_of
 from ..teams.interface import action_high, as_team
@@ -69,7 +69,7 @@ class SpecError(ValueError):
 
 def preprocess_observation(observation, team, num_cameras, num_targets, num_obstacles):
     """Raw observations (..., D) -> float32 relative coordinates rescaled to [-1, 1] (numpy arrays, or tensors on
-    their device: one body, `mate.arrays`)."""
+    their device: one body, `mate.core.arrays`)."""
     team = as_team(team)
     out = relative_in_place(float64_copy(observation), team, num_cameras, num_targets, num_obstacles)
     out = scale_in_place(out, observation_scaling(team, num_cameras, num_targets, num_obstacles))

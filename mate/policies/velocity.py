@@ -14,7 +14,7 @@ see the target now and one step before (its own observations; no messages needed
 
 from __future__ import annotations
 
-from ..arrays import array_namespace
+from ..core.arrays import array_namespace
 from .memory import camera_sightings, target_record_scale
 
 __all__ = ['VELOCITY_FEATURES', 'target_displacements']

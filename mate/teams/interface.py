@@ -15,7 +15,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ..arrays import array_namespace
+from ..core.arrays import array_namespace
 from ..constants import PRESERVED_DIM
 from ..messages import Team, as_team
 

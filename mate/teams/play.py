@@ -31,6 +31,9 @@ class EpisodeSummary:
 
 BatchEpisode = EpisodeSummary
 """One row's first episode (rates are means over its steps, returns sums)."""
+RECORDED = ('episode_coverage_rate', 'episode_real_coverage_rate', 'episode_target_return', 'mean_transport_rate',
+            'num_delivered_cargoes')
+"""The vector env's infos an episode's summary is read from, at its last step (the core's statistics)."""
 
 
 def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequence[int] = 0,
@@ -81,9 +84,8 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
             aside += time.perf_counter() - begin
 
     observe(0)
-    coverage, real_coverage, target_return = np.zeros(episodes), np.zeros(episodes), np.zeros(episodes)
+    record = {key: np.zeros(episodes) for key in RECORDED}
     length = np.zeros(episodes, dtype=np.int64)
-    transport, delivered = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
     while live.any():
         actions = (cameras.act(camera_obs), targets.act(target_obs))
         (camera_obs, target_obs), rewards, terminated, truncated, infos = vec.step(actions)
@@ -94,11 +96,8 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
         finished = terminated | truncated
         ended = live & finished
         if ended.any():                       # the episode's statistics, as the core counted them
-            coverage[ended] = infos['episode_coverage_rate'][ended]
-            real_coverage[ended] = infos['episode_real_coverage_rate'][ended]
-            target_return[ended] = infos['episode_target_return'][ended]
-            transport[ended] = infos['mean_transport_rate'][ended]
-            delivered[ended] = infos['num_delivered_cargoes'][ended]
+            for key, values in record.items():
+                values[ended] = infos[key][ended]
             live &= ~ended
             if progress is not None:
                 progress(int((~live).sum()), episodes)
@@ -110,6 +109,7 @@ def play_batch(config, camera_team, target_team, episodes: int, seed: int | Sequ
                 idle(targets, ended)
     seconds = time.perf_counter() - start - aside
     normaliser = float(vec.params.max_target_team_episode_reward)
+    coverage, real_coverage, target_return, transport, delivered = (record[key] for key in RECORDED)
     results = [BatchEpisode(seed=seeds[i], coverage_rate=float(coverage[i]), real_coverage_rate=float(real_coverage[i]),
                             transport_rate=float(transport[i]), camera_return=float(-target_return[i]),
                             target_return=float(target_return[i]),

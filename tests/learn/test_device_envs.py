@@ -1,5 +1,5 @@
 """The training env with its games on a device (`TrainingEnv(..., device='cuda')`): the spec's pipeline gives on torch
-tensors the numbers it gives on numpy arrays (one body, `mate.arrays`); under numba's CUDA simulator the env on the
+tensors the numbers it gives on numpy arrays (one body, `mate.core.arrays`); under numba's CUDA simulator the env on the
 device plays the CPU env's games (with the device team's host twin as the CPU env's opponent) number for number, and
 a PPO run over it logs the rows of a run over the CPU env and resumes exactly."""
 

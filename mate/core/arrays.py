@@ -1,6 +1,7 @@
 """One function body for numpy arrays and torch tensors: the few helpers the array-generic code of mate shares.
 
-Code above the core that must run on the host (numpy) and on a CUDA device (torch tensors) is written once over the
+Code that must run on the host (numpy) and on a CUDA device (torch tensors), in the core (the episode statistics,
+full observability) and above it (the envs, the training env, the policy spec's pipeline), is written once over the
 array namespace of its inputs (`array_api_compat.array_namespace`: numpy's functions for numpy arrays, torch's for
 tensors). What that namespace does not give:
 
