@@ -67,17 +67,45 @@ def measure(name: str, steps: int, tree: Path | None = None, extra: list[str] = 
         command = [sys.executable, '-m', 'mate', 'train', *arguments, '--steps', str(steps), '--no-progress',
                    '--run-dir', run_dir, *extra]
         start = time.perf_counter()
-        result = subprocess.run(command, capture_output=True, text=True, env=env, cwd=run_dir)   # (not this checkout)
-        wall = time.perf_counter() - start
-        if result.returncode != 0:
-            raise RuntimeError(f'{" ".join(command)} exited with {result.returncode}:\n{result.stderr[-3000:]}')
+        with tempfile.TemporaryFile('w+') as stderr:
+            child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, text=True, env=env,
+                                     cwd=run_dir)   # (not this checkout)
+            cpu_at_row = _cpu_at_rows(child, Path(run_dir) / 'progress.csv')
+            wall = time.perf_counter() - start
+            if child.returncode != 0:
+                stderr.seek(0)
+                raise RuntimeError(f'{" ".join(command)} exited with {child.returncode}:\n{stderr.read()[-3000:]}')
         with open(Path(run_dir) / 'progress.csv', newline='') as f:
             rows = [{k: float(v) for k, v in row.items() if v not in ('', None)} for row in csv.DictReader(f)]
-    first = next(r for r in rows if r['env_steps'] >= 5_120)
-    last = rows[-1]
-    rate = (last['env_steps'] - first['env_steps']) / max(last['wall_seconds'] - first['wall_seconds'], 1e-9)
+    first = next(i for i, r in enumerate(rows) if r['env_steps'] >= 5_120)
+    decisions = rows[-1]['env_steps'] - rows[first]['env_steps']
+    rate = decisions / max(rows[-1]['wall_seconds'] - rows[first]['wall_seconds'], 1e-9)
+    cpu = None
+    if first in cpu_at_row and len(rows) - 1 in cpu_at_row:
+        cpu = round(decisions / max(cpu_at_row[len(rows) - 1] - cpu_at_row[first], 1e-9), 1)
     return dict(setting=name, tree=str(tree) if tree else 'installed', decisions_per_second=round(rate, 1),
-                decisions=int(last['env_steps']), seconds=round(wall, 1), command=' '.join(command[3:]))
+                decisions_per_cpu_second=cpu, decisions=int(rows[-1]['env_steps']), seconds=round(wall, 1),
+                command=' '.join(command[3:]))
+
+
+def _cpu_at_rows(child: subprocess.Popen, progress: Path, every: float = 0.05) -> dict[int, float]:
+    """Wait for `child` to end, reading its CPU seconds (user + system, all threads: /proc/PID/stat, Linux) whenever
+    a log row appears in `progress`: {row index: CPU seconds when it was seen}. CPU time leaves out the time the
+    process waited for a core (another job, a VM's steal), which wall-clock rates count: the steadier figure on a
+    shared machine. Empty where /proc is not there."""
+    stat, ticks, seen, cpu = Path(f'/proc/{child.pid}/stat'), os.sysconf('SC_CLK_TCK'), 0, {}
+    while child.poll() is None:
+        try:
+            rows = progress.read_text().count('\n') - 1 if progress.exists() else 0
+            if rows > seen:
+                fields = stat.read_text().rsplit(')', 1)[1].split()
+                now = (int(fields[11]) + int(fields[12])) / ticks
+                cpu.update({row: now for row in range(seen, rows)})
+                seen = rows
+        except (OSError, IndexError, ValueError):
+            pass
+        time.sleep(every)
+    return cpu
 
 
 def main(argv=None) -> int:
@@ -95,14 +123,15 @@ def main(argv=None) -> int:
              else []) + (['--hidden', *map(str, args.hidden)] if args.hidden else []))
     trees = args.tree or [None]
     results = []
-    print('| setting | ' + ' | '.join(str(t) if t else 'installed' for t in trees) + ' |\n|---|'
-          + '---:|' * len(trees), flush=True)
+    print('decisions per second (wall) / per CPU second\n\n| setting | '
+          + ' | '.join(str(t) if t else 'installed' for t in trees) + ' |\n|---|' + '---:|' * len(trees), flush=True)
     for name in args.only:
         cells = []
         for tree in trees:
             row = measure(name, args.steps, tree, extra)
             results.append(row)
-            cells.append(f"{row['decisions_per_second']:,.0f}")
+            cpu = row['decisions_per_cpu_second']
+            cells.append(f"{row['decisions_per_second']:,.0f} / " + ('-' if cpu is None else f'{cpu:,.0f}'))
         print(f"| {name} | {' | '.join(cells)} |", flush=True)
     if args.json:
         from mate.tools.bench import machine_facts
