@@ -188,9 +188,9 @@ def _status(dirs: list[str], say) -> int:
             experiment = experiment_of(manifest)
         except ValueError as exc:
             raise CommandError(str(exc)) from None
-        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'],   # (run --presets, --settings:
-                    presets={job['preset'] for job in manifest['jobs']},       # some games, some settings)
-                    settings={job['label'] for job in manifest['jobs'] if job['kind'] != 'reference'})
+        presets = {job['preset'] for job in manifest['jobs']}               # (run --presets, --settings:
+        settings = {job['label'] for job in manifest['jobs'] if job['kind'] != 'reference'}   # some of them)
+        jobs = plan(experiment, manifest['seeds'], folder, steps=manifest['steps'], presets=presets, settings=settings)
         counts = dict.fromkeys(JOB_STATES, 0)
         say(f'{folder}: {experiment.name}, seeds {",".join(map(str, manifest["seeds"]))}, '
             f'{manifest["steps"]:,} decision steps per run')
@@ -198,9 +198,33 @@ def _status(dirs: list[str], say) -> int:
             state, line = job_status(job, manifest['steps'])
             counts[state] += 1
             say(f'  {state:<8} {line}')
+        unplanned = _unplanned(experiment, manifest, folder, presets, settings)
+        if unplanned:
+            say(f'  not in this directory yet: {unplanned}')
         say(f'{experiment.name}: ' + ', '.join(f'{counts[state]} {state}' for state in JOB_STATES)
             + f' of {len(jobs)} jobs')
     return 0
+
+
+def _unplanned(experiment, manifest: dict, folder: str, presets: set[str], settings: set[str]) -> str:
+    """The experiment's settings and games that no job of the directory `folder` plans (a runner given --settings
+    or --presets plans only those), and the command that adds their jobs to it, in words; '' when there are none."""
+    labels = [setting.label for setting in experiment.settings if setting.label not in settings]
+    games = [preset for preset in experiment.presets if preset not in presets]
+    if not labels and not games:
+        return ''
+    words = '; '.join(f'the {noun}{"s" * (len(names) > 1)} {", ".join(names)}'
+                      for noun, names in (('setting', labels), ('game', games)) if names)
+    command = ['mate benchmark run', 'FILE' if experiment.source == 'user' else experiment.name]
+    if manifest['steps'] != experiment.steps:
+        command.append(f'--steps {manifest["steps"]}')
+    if manifest['seeds'] != list(range(experiment.seeds)):
+        command.append(f'--seeds {",".join(map(str, manifest["seeds"]))}')
+    if not games:
+        command.append(f"--settings '{','.join(labels)}'")
+    elif not labels:
+        command.append(f"--presets {','.join(games)}")
+    return f'{words} (`{" ".join(command)} --out {folder}` adds their jobs)'
 
 
 def _list(say) -> int:

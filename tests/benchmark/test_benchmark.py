@@ -199,7 +199,9 @@ def test_presets_restrict_the_plan_to_some_games(tmp_path, capsys):
     assert main(['benchmark', 'status', str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[-1] == f'fig6-observability: 0 done, 0 running, 0 started, {len(some)} waiting of {len(some)} jobs'
-    assert not [line for line in lines if 'MATE-2v4-0' in line], lines
+    assert lines[-2] == (f'  not in this directory yet: the game MATE-2v4-0 (`mate benchmark run fig6-observability '
+                         f'--seeds 0,1 --presets MATE-2v4-0 --out {tmp_path}` adds their jobs)')
+    assert not [line for line in lines[:-2] if 'MATE-2v4-0' in line], lines
 
 
 def test_settings_restrict_the_plan_to_some_settings(tmp_path, capsys):
@@ -220,7 +222,26 @@ def test_settings_restrict_the_plan_to_some_settings(tmp_path, capsys):
     assert main(['benchmark', 'status', str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[-1] == f'fig5-targets-comm: 0 done, 0 running, 0 started, {len(some)} waiting of {len(some)} jobs'
-    assert not [line for line in lines if 'MAPPO' in line], lines
+    # the settings no job plans are named, with the command that adds them (the directory's budget and seeds)
+    assert lines[-2] == ("  not in this directory yet: the settings MAPPO, MAPPO+TarMAC, MAPPO+I2C (`mate benchmark "
+                         "run fig5-targets-comm --seeds 0,1 --settings 'MAPPO,MAPPO+TarMAC,MAPPO+I2C' "
+                         f"--out {tmp_path}` adds their jobs)")
+    assert parse_settings('MAPPO,MAPPO+TarMAC,MAPPO+I2C', fig5) == ['MAPPO', 'MAPPO+TarMAC', 'MAPPO+I2C']
+    assert not [line for line in lines[:-2] if 'MAPPO' in line], lines
+    # a runner of those settings merges their jobs (as `run` does): then the directory plans every job
+    write_manifest(fig5, plan(fig5, [0, 1], tmp_path, settings=['MAPPO', 'MAPPO+TarMAC', 'MAPPO+I2C']), tmp_path,
+                   fig5.steps, [0, 1])
+    assert main(['benchmark', 'status', str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1].endswith(f'{len(every)} waiting of {len(every)} jobs')
+    assert not [line for line in lines if 'not in this directory' in line], lines
+    # another budget than the experiment's is part of the command (a runner of another --steps is refused there)
+    other = tmp_path / 'two-million'
+    write_manifest(fig5, plan(fig5, range(fig5.seeds), other, steps=2_000_000, settings=['IPPO']), other,
+                   2_000_000, list(range(fig5.seeds)))
+    assert main(['benchmark', 'status', str(other)]) == 0
+    assert ("(`mate benchmark run fig5-targets-comm --steps 2000000 --settings 'MAPPO,MAPPO+TarMAC,IPPO+TarMAC,"
+            f"MAPPO+I2C' --out {other}` adds their jobs)") in capsys.readouterr().out
     assert main(['benchmark', 'run', 'fig5-targets-comm', '--settings', 'I2C', '--out', str(tmp_path)]) == 2
     assert "--settings: the settings of fig5-targets-comm are MAPPO, IPPO" in capsys.readouterr().err
 
